@@ -1,0 +1,666 @@
+"""Provides the RTU and ASCII framers: timestamped chunks in, frames and noise spans out.
+
+A sniffer sees both directions of a half-duplex line and cannot trust its timestamps
+(a USB adapter delivers bytes in bursts), so the RTU framer does not split on gaps. At
+each position it asks the function-code registry which lengths a frame starting there
+could have (as a request, as a response, as the exact answer the last request predicts,
+as an exception), tests those lengths shortest first, and lets the CRC decide. Silence
+is used only where lengths cannot help: to frame unknown function codes, and to tell a
+frame with a bad CRC from noise when the timing is exact.
+
+Every byte fed in leaves in exactly one frame or one noise span, in order.
+"""
+
+from __future__ import annotations
+
+import enum
+from bisect import bisect_left, bisect_right
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from dissectors.checks import crc16, lrc
+from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, IMPOSSIBLE, NEED_MORE, Walker
+from sniffer.model import Chunk, Direction, LineSettings
+
+MAX_RTU = 256
+MAX_ASCII = 513
+MIN_RTU = 4
+
+
+class Kind(enum.IntEnum):
+    NOISE = 0
+    REQUEST = 1
+    RESPONSE = 2
+    EXCEPTION = 3
+    UNKNOWN = 4  # a frame whose check is right but whose direction cannot be told
+    EVENT = 5  # no bus bytes: something the source reported (reconnect, data lost)
+
+
+class Flag(enum.IntFlag):
+    """Problems and facts found while framing; stored per frame as one integer."""
+
+    NONE = 0
+    CHECK_BAD = 1 << 0  # CRC or LRC does not match
+    GAP_INSIDE = 1 << 1  # silence longer than t1.5 inside an RTU frame (exact timing only)
+    SHORT_SILENCE = 1 << 2  # less than t3.5 of silence before the frame (exact timing only)
+    LINE_ERROR = 1 << 3  # a byte of the frame had a framing or parity error
+    NON_HEX = 1 << 4  # ASCII: characters other than hex digits between ':' and CR LF
+    ABORTED = 1 << 5  # ASCII: a new ':' arrived before CR LF
+    UNTERMINATED = 1 << 6  # ASCII: the capture ended (or the line went idle) inside a frame
+    TOO_LONG = 1 << 7  # longer than the mode's maximum frame
+    LONG_GAP = 1 << 8  # ASCII: more than 1 s between two characters of one frame
+    SILENCE_FRAMED = 1 << 9  # framed by silence alone (no length rule knows this code)
+    NO_CR = 1 << 10  # ASCII: LF without CR before it
+    # set by pairing and annotation, on stored frames
+    RETRY = 1 << 11  # a request repeating one that got no answer
+    LATE = 1 << 12  # an answer that came after the response timeout
+    ANSWERED_BROADCAST = 1 << 13  # an answer to a broadcast, which must get none
+    DEVICE_SLOW = 1 << 14  # slower than the device's documented response time
+    QUIET_VIOLATED = 1 << 15  # traffic inside the device's quiet time after a write
+    LINE_EVENT = 1 << 16  # the source reported something here (reconnect, data lost)
+    ASCII = 1 << 24  # the frame was sent in ASCII mode (a fact, not a problem)
+
+
+# Pairing and device-timing flags are set later, on stored frames.
+PROBLEM_MASK = (1 << 24) - 1 - Flag.SILENCE_FRAMED
+
+FrameSink = Callable[[bytes, float, float, int, int, int], None]
+"""sink(raw, t_start, t_end, kind, flags, channel): one frame, noise span or event."""
+
+EventSink = Callable[[float, str, int], None]
+"""events(t, text, channel): something a source reported that carries no bus bytes."""
+
+# A rule as the hot loop wants it: (base, count_pos, count_size, walker, kind)
+_Rule = tuple[int, int, int, Walker | None, int]
+
+
+def _compile_rules(direction: Direction) -> list[tuple[_Rule, ...]]:
+    table: list[tuple[_Rule, ...]] = [() for _ in range(256)]
+    for code, spec in FUNCTIONS.items():
+        rules: list[_Rule] = []
+        if spec.request_length is not None and direction != Direction.SLAVE:
+            r = spec.request_length
+            rules.append((r.base, r.count_pos, r.count_size, r.walker, int(Kind.REQUEST)))
+        if spec.response_length is not None and direction != Direction.MASTER:
+            r = spec.response_length
+            rules.append((r.base, r.count_pos, r.count_size, r.walker, int(Kind.RESPONSE)))
+        table[code] = tuple(rules)
+    if direction != Direction.MASTER:
+        for code in range(1, 128):
+            table[code | 0x80] = ((EXCEPTION_LENGTH, 0, 0, None, int(Kind.EXCEPTION)),)
+    return table
+
+
+@dataclass(slots=True)
+class _Span:
+    """Times of one chunk's bytes within the framer's stream offsets."""
+
+    start: int  # stream offset of the chunk's first byte
+    end: int
+    t_start: float
+    t_end: float
+    gap_before: float
+
+
+class _Timeline:
+    """Per-byte time estimates and silence boundaries for a stream of chunks."""
+
+    def __init__(self, line: LineSettings, exact: bool) -> None:
+        self.char = line.char_time
+        self.t35 = line.t35
+        self.t15 = line.t15
+        self.exact = exact
+        self.spans: deque[_Span] = deque()
+        self.boundaries: list[int] = []  # stream offsets preceded by silence >= t3.5
+        self.line_errors: set[int] = set()
+        self.last_end: float | None = None
+        self.offset = 0
+
+    def add(self, chunk: Chunk) -> None:
+        n = len(chunk.data)
+        start = self.offset
+        if chunk.t_start is not None:
+            t_start = chunk.t_start
+        else:
+            t_start = chunk.t_end - n * self.char
+            if self.last_end is not None and t_start < self.last_end:
+                t_start = self.last_end
+        gap = float("inf") if self.last_end is None else t_start - self.last_end
+        if t_start > chunk.t_end:
+            t_start = chunk.t_end
+        self.spans.append(_Span(start, start + n, t_start, chunk.t_end, gap))
+        if gap >= self.t35:
+            self.boundaries.append(start)
+        if chunk.event and n:
+            self.line_errors.update(range(start, start + n))
+        self.offset += n
+        self.last_end = chunk.t_end
+
+    def _span(self, pos: int) -> _Span:
+        spans = self.spans
+        while len(spans) > 1 and spans[0].end <= pos:
+            spans.popleft()
+        for span in spans:
+            if pos < span.end:
+                return span
+        return spans[-1]
+
+    def start_time(self, pos: int) -> float:
+        s = self._span(pos)
+        n = s.end - s.start
+        return s.t_start + (pos - s.start) * (s.t_end - s.t_start) / n if n else s.t_start
+
+    def end_time(self, pos: int) -> float:
+        """End of the byte at `pos`."""
+        s = self._span(pos)
+        n = s.end - s.start
+        return s.t_start + (pos + 1 - s.start) * (s.t_end - s.t_start) / n if n else s.t_end
+
+    def gap_before(self, pos: int) -> float:
+        """Silence before the byte at `pos` (0 inside a chunk, unless each byte is a chunk)."""
+        s = self._span(pos)
+        return s.gap_before if pos == s.start else 0.0
+
+    def is_boundary(self, pos: int) -> bool:
+        b = self.boundaries
+        i = bisect_left(b, pos)
+        return i < len(b) and b[i] == pos
+
+    def next_boundary(self, pos: int) -> int | None:
+        b = self.boundaries
+        i = bisect_right(b, pos)
+        return b[i] if i < len(b) else None
+
+    def forget_before(self, pos: int) -> None:
+        """Drop boundaries before stream offset `pos` (the framer will not look back)."""
+        b = self.boundaries
+        i = bisect_left(b, pos)
+        if i:
+            del b[:i]
+
+    def inside_gap(self, start: int, end: int) -> bool:
+        """Whether silence longer than t1.5 interrupts the bytes start..end-1."""
+        for span in self.spans:
+            if span.start >= end:
+                break
+            if start < span.start < end and span.gap_before > self.t15:
+                return True
+        return False
+
+    def has_line_error(self, start: int, end: int) -> bool:
+        errors = self.line_errors
+        if not errors:
+            return False
+        hit = any(p in errors for p in range(start, end))
+        errors.difference_update([p for p in errors if p < end])
+        return hit
+
+
+class RtuFramer:
+    """Frames one channel of RTU bytes. Feed chunks in order; call finish() at the end."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        sink: FrameSink,
+        *,
+        channel: int = 0,
+        direction: Direction = Direction.UNKNOWN,
+        exact_timing: bool = False,
+    ) -> None:
+        self.line = line
+        self.sink = sink
+        self.channel = channel
+        self.direction = direction
+        self.timeline = _Timeline(line, exact_timing)
+        self.buf = bytearray()
+        self.base = 0  # stream offset of buf[0]
+        self.pos = 0  # index in buf of the next undecided byte
+        self.noise_start = -1  # index in buf where the current noise span began
+        self.rules = _compile_rules(direction)
+        self.pending_unit = -1  # the last request, awaiting its answer
+        self.pending_fc = -1
+        self.pending_len = 0
+        self.units_seen: set[int] = set()
+        self.last_frame_end: float | None = None
+
+    # -- input ---------------------------------------------------------------------------
+
+    def feed(self, chunk: Chunk) -> None:
+        if not chunk.data:
+            return
+        self.timeline.add(chunk)
+        self.buf += chunk.data
+        self._scan(final=False)
+
+    def idle(self) -> None:
+        """The line has been silent for at least t3.5: decide everything buffered."""
+        self._scan(final=True)
+
+    def finish(self) -> None:
+        self._scan(final=True)
+
+    # -- the scanner ---------------------------------------------------------------------
+
+    def _scan(self, final: bool) -> None:
+        buf = self.buf
+        view = memoryview(buf)
+        end = len(buf)
+        pos = self.pos
+        rules = self.rules
+        check = crc16
+        timeline = self.timeline
+        try:
+            while end - pos >= MIN_RTU:
+                unit = buf[pos]
+                fc = buf[pos + 1]
+                found = 0
+                kind = 0
+                waiting = False
+                # candidate lengths, the shortest first; ties go to the predicted answer
+                # (length, preference, kind): the answer the last request predicts is
+                # preferred (0); any other frame is more likely a request (1) than an
+                # answer nobody asked for (2)
+                cands: list[tuple[int, int, int]] = []
+                if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
+                    if fc & 0x80:
+                        cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
+                    else:
+                        cands.append((self.pending_len, 0, int(Kind.RESPONSE)))
+                for base, cpos, csize, walker, rkind in rules[fc]:
+                    if walker is not None:
+                        length = walker(buf, pos, end)
+                        if length == IMPOSSIBLE:
+                            continue
+                        if length == NEED_MORE:
+                            if not final:
+                                waiting = True
+                            continue
+                    elif csize == 0:
+                        length = base
+                    elif csize == 1:
+                        if pos + cpos >= end:
+                            if not final:
+                                waiting = True
+                            continue
+                        length = base + buf[pos + cpos]
+                    else:
+                        if pos + cpos + 1 >= end:
+                            if not final:
+                                waiting = True
+                            continue
+                        length = base + (buf[pos + cpos] << 8 | buf[pos + cpos + 1])
+                    if MIN_RTU <= length <= MAX_RTU:
+                        cands.append((length, PREFERENCE[rkind], rkind))
+                if len(cands) > 1:
+                    cands.sort()
+                for n, (length, prio, ckind) in enumerate(cands):
+                    if pos + length > end:
+                        if not final:
+                            waiting = True
+                        break
+                    if check(view[pos : pos + length]) == 0:
+                        found = length
+                        kind = ckind
+                        if prio and n + 1 < len(cands):
+                            # A frame followed by 0x00 bytes passes the CRC at every
+                            # length up to the last zero, and a frame whose CRC ends in
+                            # 0x00 passes one byte short: a longer candidate that also
+                            # passes is told apart by preference, never by length.
+                            found, kind, waiting = self._zero_trap(
+                                view, pos, end, cands[n + 1 :], length, prio, ckind, final
+                            )
+                        break
+                if not found and waiting:
+                    break
+                if not found and timeline.is_boundary(self.base + pos):
+                    nxt = timeline.next_boundary(self.base + pos)
+                    if nxt is None and final:
+                        nxt = self.base + end
+                    if nxt is not None:
+                        length = nxt - self.base - pos
+                        if (
+                            MIN_RTU <= length <= MAX_RTU
+                            and pos + length <= end
+                            and check(view[pos : pos + length]) == 0
+                        ):
+                            found = length
+                            kind = int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN)
+                    elif not final and end - pos <= MAX_RTU:
+                        break  # the end of this silence-bounded stretch is not seen yet
+                if not found:
+                    if self.noise_start < 0:
+                        self.noise_start = pos
+                    pos += 1
+                    continue
+                if self.noise_start >= 0:
+                    self._emit_noise(self.noise_start, pos)
+                    self.noise_start = -1
+                self._emit_frame(pos, found, kind)
+                pos += found
+            if final:
+                if end > pos and self.noise_start < 0:
+                    self.noise_start = pos
+                if self.noise_start >= 0:
+                    self._emit_noise(self.noise_start, end)
+                    self.noise_start = -1
+                pos = end
+        finally:
+            view.release()
+        self.pos = pos
+        keep_from = self.noise_start if self.noise_start >= 0 else pos
+        if keep_from > 4096:
+            timeline.forget_before(self.base + keep_from)
+            del self.buf[:keep_from]
+            self.base += keep_from
+            self.pos -= keep_from
+            if self.noise_start >= 0:
+                self.noise_start -= keep_from
+
+    def _zero_trap(
+        self,
+        view: memoryview,
+        pos: int,
+        end: int,
+        longer: list[tuple[int, int, int]],
+        length: int,
+        prio: int,
+        kind: int,
+        final: bool,
+    ) -> tuple[int, int, bool]:
+        best = (prio, length, kind)
+        for length2, prio2, kind2 in longer:
+            if prio2 >= best[0] or length2 == length:
+                continue
+            if pos + length2 > end:
+                if pos + length < end and any(view[pos + length : end]):
+                    continue  # not all zeros after the shorter frame: no ambiguity
+                if not final:
+                    return 0, 0, True  # wait for the bytes that decide
+                continue
+            if not any(view[pos + length : pos + length2]) and crc16(view[pos : pos + length2]) == 0:
+                best = (prio2, length2, kind2)
+        return best[1], best[2], False
+
+    # -- output --------------------------------------------------------------------------
+
+    def _emit_frame(self, pos: int, length: int, kind: int) -> None:
+        buf = self.buf
+        raw = bytes(buf[pos : pos + length])
+        unit = raw[0]
+        fc = raw[1] & 0x7F
+        flags = 0
+        if kind == Kind.UNKNOWN:
+            flags |= Flag.SILENCE_FRAMED
+        if kind == Kind.REQUEST:
+            self.pending_unit = -1
+            if unit != 0:
+                spec = FUNCTIONS.get(fc)
+                predicted = spec.response_for(raw) if spec and spec.response_for else None
+                if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
+                    self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
+        elif kind in (Kind.RESPONSE, Kind.EXCEPTION):
+            if unit == self.pending_unit:
+                self.pending_unit = -1
+        self.units_seen.add(unit)
+        self._send(pos, pos + length, raw, kind, flags)
+
+    def _emit_noise(self, start: int, end: int) -> None:
+        """Bytes no frame claimed. A stretch that has the exact length of a known frame
+        from a known unit is a frame whose CRC is wrong; with exact timing, silence splits
+        the rest into frames with bad checks and noise."""
+        buf = self.buf
+        while start < end:
+            stop = min(end, start + MAX_RTU)
+            if self.timeline.exact:
+                nxt = self.timeline.next_boundary(self.base + start)
+                if nxt is not None and self.base + start < nxt < self.base + stop:
+                    stop = nxt - self.base
+            length = stop - start
+            kind = int(Kind.NOISE)
+            flags = 0
+            if length >= MIN_RTU and self._plausible_frame(start, length):
+                kind = self._kind_of(start, length)
+                flags = Flag.CHECK_BAD
+            self._send(start, stop, bytes(buf[start:stop]), kind, flags)
+            start = stop
+
+    def _plausible_frame(self, start: int, length: int) -> bool:
+        buf = self.buf
+        unit = buf[start]
+        if unit not in self.units_seen:
+            return False
+        if self.timeline.exact and self.timeline.gap_before(self.base + start) >= self.line.t35:
+            return True
+        fc = buf[start + 1]
+        if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
+            if length == (EXCEPTION_LENGTH if fc & 0x80 else self.pending_len):
+                return True
+        for base, cpos, csize, walker, _ in self.rules[fc]:
+            if walker is None and csize == 0 and base == length:
+                return True
+            if walker is None and csize and start + cpos + csize <= len(buf):
+                count = buf[start + cpos]
+                if csize == 2:
+                    count = count << 8 | buf[start + cpos + 1]
+                if base + count == length:
+                    return True
+        return False
+
+    def _kind_of(self, start: int, length: int) -> int:
+        fc = self.buf[start + 1]
+        if fc & 0x80:
+            return int(Kind.EXCEPTION)
+        kinds = {rule[4] for rule in self.rules[fc]}
+        if self.buf[start] == self.pending_unit and fc == self.pending_fc:
+            return int(Kind.RESPONSE)
+        if kinds == {int(Kind.RESPONSE)}:
+            return int(Kind.RESPONSE)
+        if kinds == {int(Kind.REQUEST)} or int(Kind.REQUEST) in kinds:
+            return int(Kind.REQUEST)
+        return int(Kind.UNKNOWN)
+
+    def _send(self, start: int, end: int, raw: bytes, kind: int, flags: int) -> None:
+        tl = self.timeline
+        a = self.base + start
+        b = self.base + end
+        t0 = tl.start_time(a)
+        t1 = tl.end_time(b - 1)
+        if tl.exact and kind != Kind.NOISE:
+            if tl.inside_gap(a, b):
+                flags |= Flag.GAP_INSIDE
+            gap = tl.gap_before(a)
+            if self.last_frame_end is not None and gap < tl.t35:
+                flags |= Flag.SHORT_SILENCE
+        if tl.has_line_error(a, b):
+            flags |= Flag.LINE_ERROR
+        self.last_frame_end = t1
+        self.sink(raw, t0, t1, kind, int(flags), self.channel)
+
+
+# preference of a length rule's kind when it is not the answer the open request predicts
+PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
+
+
+def ascii_body(raw: bytes) -> bytes | None:
+    """The binary body (unit, PDU, LRC) of an ASCII frame, or None if it is not hex."""
+    text = raw[1:]
+    if text.endswith(b"\r\n"):
+        text = text[:-2]
+    elif text.endswith(b"\n") or text.endswith(b"\r"):
+        text = text[:-1]
+    try:
+        return bytes.fromhex(text.decode("ascii"))
+    except ValueError:
+        return None
+
+
+class AsciiFramer:
+    """Frames one channel of Modbus ASCII: ':' opens a frame (and aborts an open one),
+    CR LF closes it, the LRC is checked. Everything outside frames is noise."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        sink: FrameSink,
+        *,
+        channel: int = 0,
+        direction: Direction = Direction.UNKNOWN,
+        exact_timing: bool = False,
+    ) -> None:
+        self.line = line
+        self.sink = sink
+        self.channel = channel
+        self.direction = direction
+        self.timeline = _Timeline(line, exact_timing)
+        self.buf = bytearray()
+        self.base = 0
+        self.pos = 0
+        self.open = -1  # index of the ':' of an open frame
+        self.pending_unit = -1
+        self.pending_fc = -1
+        self.rules = _compile_rules(direction)
+
+    def feed(self, chunk: Chunk) -> None:
+        if not chunk.data:
+            return
+        self.timeline.add(chunk)
+        self.buf += chunk.data
+        self._scan(final=False)
+
+    def idle(self) -> None:
+        """ASCII allows 1 s between characters: idleness alone does not close a frame."""
+
+    def finish(self) -> None:
+        self._scan(final=True)
+
+    def _scan(self, final: bool) -> None:
+        buf = self.buf
+        end = len(buf)
+        pos = self.pos
+        while pos < end:
+            if self.open < 0:
+                colon = buf.find(b":", pos)
+                stop = end if colon < 0 else colon
+                if stop > pos:
+                    self._send(pos, stop, int(Kind.NOISE), 0)
+                if colon < 0:
+                    pos = end
+                    break
+                self.open = colon
+                pos = colon + 1
+                continue
+            nl = buf.find(b"\n", pos)
+            colon = buf.find(b":", pos)
+            limit = self.open + MAX_ASCII
+            if colon >= 0 and (nl < 0 or colon < nl) and colon <= limit:
+                self._close(self.open, colon, Flag.ABORTED)
+                self.open = colon
+                pos = colon + 1
+                continue
+            if nl >= 0 and nl < limit:
+                self._close(self.open, nl + 1, Flag.NONE)
+                self.open = -1
+                pos = nl + 1
+                continue
+            if end >= limit:
+                self._close(self.open, limit, Flag.TOO_LONG)
+                self.open = -1
+                pos = limit
+                continue
+            pos = end
+        if final and self.open >= 0:
+            self._close(self.open, end, Flag.UNTERMINATED)
+            self.open = -1
+        self.pos = pos
+        keep = self.open if self.open >= 0 else pos
+        if keep > 4096:
+            del self.buf[:keep]
+            self.base += keep
+            self.pos -= keep
+            if self.open >= 0:
+                self.open -= keep
+
+    def _close(self, start: int, end: int, flags: int) -> None:
+        raw = bytes(self.buf[start:end])
+        flags |= Flag.ASCII
+        if raw.endswith(b"\n") and not raw.endswith(b"\r\n"):
+            flags |= Flag.NO_CR
+        body = ascii_body(raw)
+        kind = int(Kind.UNKNOWN)
+        if body is None or len(body) < 3:
+            if body is None:
+                flags |= Flag.NON_HEX
+            else:
+                flags |= Flag.CHECK_BAD
+        else:
+            if lrc(body[:-1]) != body[-1]:
+                flags |= Flag.CHECK_BAD
+            kind = self._kind(body)
+        tl = self.timeline
+        if tl.inside_gap(self.base + start, self.base + end) and self._long_gap(start, end):
+            flags |= Flag.LONG_GAP
+        self._send(start, end, kind, flags, raw)
+
+    def _long_gap(self, start: int, end: int) -> bool:
+        for span in self.timeline.spans:
+            if self.base + start < span.start < self.base + end and span.gap_before > 1.0:
+                return True
+        return False
+
+    def _kind(self, body: bytes) -> int:
+        unit, fc = body[0], body[1]
+        length = len(body) - 1 + 2  # as if it were an RTU frame with its CRC
+        if fc & 0x80:
+            kind = int(Kind.EXCEPTION)
+        elif unit == self.pending_unit and fc == self.pending_fc:
+            kind = int(Kind.RESPONSE)
+        else:
+            kind = int(Kind.UNKNOWN)
+            matches = set()
+            for base, cpos, csize, walker, rkind in self.rules[fc]:
+                if walker is not None:
+                    n = walker(body, 0, len(body))
+                elif csize == 0:
+                    n = base
+                elif cpos + csize <= len(body):
+                    count = body[cpos] if csize == 1 else body[cpos] << 8 | body[cpos + 1]
+                    n = base + count
+                else:
+                    continue
+                if n == length:
+                    matches.add(rkind)
+            if int(Kind.REQUEST) in matches:
+                kind = int(Kind.REQUEST)
+            elif matches:
+                kind = int(Kind.RESPONSE)
+        if kind == Kind.REQUEST:
+            self.pending_unit, self.pending_fc = (unit, fc) if unit else (-1, -1)
+        elif unit == self.pending_unit:
+            self.pending_unit = -1
+        return kind
+
+    def _send(self, start: int, end: int, kind: int, flags: int, raw: bytes | None = None) -> None:
+        tl = self.timeline
+        a = self.base + start
+        b = self.base + end
+        if raw is None:
+            raw = bytes(self.buf[start:end])
+        if kind == Kind.NOISE:
+            flags |= Flag.ASCII
+        if tl.has_line_error(a, b):
+            flags |= Flag.LINE_ERROR
+        self.sink(raw, tl.start_time(a), tl.end_time(b - 1), kind, int(flags), self.channel)
+
+
+Framer = RtuFramer | AsciiFramer
+
+
+def looks_ascii(sample: bytes) -> bool | None:
+    """Whether traffic is Modbus ASCII: True, False, or None when there is too little."""
+    if len(sample) < 16:
+        return None
+    allowed = b"0123456789ABCDEFabcdef:\r\n"
+    good = sum(1 for b in sample if b in allowed)
+    return b":" in sample and b"\n" in sample and good >= 0.95 * len(sample)

@@ -1,0 +1,110 @@
+"""Provides request/response pairing over a frame store: transactions, timeouts, retries.
+
+A sniffer does not know who sent what; the framer already told requests from answers by
+their layouts and by order. Pairing then walks the frames in time order with one open
+request per bus (Modbus RTU has one transaction in flight at a time) and decides what
+became of each: answered, exception, timeout, orphan answer, broadcast, retry.
+"""
+
+from __future__ import annotations
+
+from sniffer.framing import Flag, Kind
+from sniffer.model import LineSettings
+from sniffer.store import NO_PARTNER, FrameStore, Status
+
+
+def default_timeout(line: LineSettings) -> float:
+    """Response timeout when none is given: 200 ms plus the time of a longest frame."""
+    return 0.2 + 256 * line.char_time
+
+
+class Pairer:
+    """Pairs the frames of a store incrementally: call `update()` after frames arrive,
+    `tick(now)` while live so that silent slaves time out, `finish()` at the end."""
+
+    def __init__(self, store: FrameStore, timeout: float) -> None:
+        self.store = store
+        self.timeout = timeout
+        self.next = 0
+        self.open = -1  # index of the request waiting for its answer
+        self.last_timed_out = b""  # raw bytes of the last request that got no answer
+
+    def update(self) -> None:
+        s = self.store
+        n = len(s)
+        kind_col, unit_col, fc_col = s.kind, s.unit, s.fc
+        for i in range(self.next, n):
+            kind = kind_col[i]
+            if kind == Kind.NOISE or kind == Kind.EVENT:
+                continue
+            if self.open >= 0 and s.t[i] - s.t_end[self.open] > self.timeout:
+                self._time_out(self.open)
+            if kind == Kind.REQUEST:
+                self._request(i)
+                continue
+            unit = unit_col[i]
+            fc = fc_col[i] & 0x7F
+            op = self.open
+            if op >= 0 and unit_col[op] == unit and fc_col[op] == fc:
+                self._pair(op, i)
+            elif kind == Kind.UNKNOWN:
+                continue
+            else:
+                s.status[i] = Status.ORPHAN
+                if unit == 0:
+                    s.flags[i] |= Flag.ANSWERED_BROADCAST
+        self.next = n
+
+    def _request(self, i: int) -> None:
+        s = self.store
+        if self.open >= 0:
+            self._time_out(self.open)
+        if s.unit[i] == 0:
+            s.status[i] = Status.BROADCAST
+            self.open = -1
+        else:
+            s.status[i] = Status.OPEN
+            self.open = i
+        if self.last_timed_out and s.raw(i) == self.last_timed_out:
+            s.flags[i] |= Flag.RETRY
+        self.last_timed_out = b""
+
+    def _pair(self, req: int, resp: int) -> None:
+        s = self.store
+        s.partner[req] = resp
+        s.partner[resp] = req
+        status = Status.EXCEPTION if s.fc[resp] & 0x80 else Status.OK
+        s.status[req] = status
+        s.status[resp] = status
+        if s.t[resp] - s.t_end[req] > self.timeout:
+            s.flags[resp] |= Flag.LATE
+        self.open = -1
+
+    def _time_out(self, req: int) -> None:
+        s = self.store
+        s.status[req] = Status.TIMEOUT
+        self.last_timed_out = s.raw(req)
+        self.open = -1
+
+    def tick(self, now: float) -> None:
+        """Time out the open request if its answer is overdue at time `now`."""
+        self.update()
+        if self.open >= 0 and now - self.store.t_end[self.open] > self.timeout:
+            self._time_out(self.open)
+
+    def finish(self) -> None:
+        """At the end of a capture an open request stays open: the capture, not the
+        slave, may have stopped first (unless the capture went on past the timeout)."""
+        self.update()
+        s = self.store
+        if self.open >= 0 and len(s) and s.t_end[len(s) - 1] - s.t_end[self.open] > self.timeout:
+            self._time_out(self.open)
+
+
+def latency(store: FrameStore, i: int) -> float | None:
+    """Seconds from the end of a request to the start of its answer (either side's index)."""
+    j = store.partner[i]
+    if j == NO_PARTNER:
+        return None
+    req, resp = (i, j) if store.kind[i] == Kind.REQUEST else (j, i)
+    return store.t[resp] - store.t_end[req]
