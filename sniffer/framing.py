@@ -16,12 +16,15 @@ from __future__ import annotations
 import enum
 from bisect import bisect_left, bisect_right
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from dissectors.checks import crc16, lrc
 from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, IMPOSSIBLE, NEED_MORE, Walker
 from sniffer.model import Chunk, Direction, LineSettings
+
+if TYPE_CHECKING:
+    from sniffer.store import FrameStore
 
 MAX_RTU = 256
 MAX_ASCII = 513
@@ -64,12 +67,6 @@ class Flag(enum.IntFlag):
 
 # Pairing and device-timing flags are set later, on stored frames.
 PROBLEM_MASK = (1 << 24) - 1 - Flag.SILENCE_FRAMED
-
-FrameSink = Callable[[bytes, float, float, int, int, int], None]
-"""sink(raw, t_start, t_end, kind, flags, channel): one frame, noise span or event."""
-
-EventSink = Callable[[float, str, int], None]
-"""events(t, text, channel): something a source reported that carries no bus bytes."""
 
 # A rule as the hot loop wants it: (base, count_pos, count_size, walker, kind)
 _Rule = tuple[int, int, int, Walker | None, int]
@@ -116,6 +113,10 @@ class _Timeline:
         self.line_errors: set[int] = set()
         self.last_end: float | None = None
         self.offset = 0
+        # the newest chunk: where it starts, when, and seconds per byte
+        self.cur_start = 0
+        self.cur_t0 = 0.0
+        self.cur_rate = 0.0
 
     def add(self, chunk: Chunk) -> None:
         n = len(chunk.data)
@@ -130,6 +131,9 @@ class _Timeline:
         if t_start > chunk.t_end:
             t_start = chunk.t_end
         self.spans.append(_Span(start, start + n, t_start, chunk.t_end, gap))
+        self.cur_start = start
+        self.cur_t0 = t_start
+        self.cur_rate = (chunk.t_end - t_start) / n if n else 0.0
         if gap >= self.t35:
             self.boundaries.append(start)
         if chunk.event and n:
@@ -173,11 +177,16 @@ class _Timeline:
         return b[i] if i < len(b) else None
 
     def forget_before(self, pos: int) -> None:
-        """Drop boundaries before stream offset `pos` (the framer will not look back)."""
+        """Drop what lies before stream offset `pos` (the framer will not look back)."""
         b = self.boundaries
         i = bisect_left(b, pos)
         if i:
             del b[:i]
+        spans = self.spans
+        while len(spans) > 1 and spans[0].end <= pos:
+            spans.popleft()
+        if self.line_errors:
+            self.line_errors.difference_update([p for p in self.line_errors if p < pos])
 
     def inside_gap(self, start: int, end: int) -> bool:
         """Whether silence longer than t1.5 interrupts the bytes start..end-1."""
@@ -198,30 +207,47 @@ class _Timeline:
 
 
 class RtuFramer:
-    """Frames one channel of RTU bytes. Feed chunks in order; call finish() at the end."""
+    """Frames one channel of RTU bytes into `out`. Feed chunks in order; finish() at the end.
+
+    The bytes are kept in `out`'s stream for the channel; rows refer to them by offset.
+    """
 
     def __init__(
         self,
         line: LineSettings,
-        sink: FrameSink,
+        out: FrameStore,
         *,
         channel: int = 0,
         direction: Direction = Direction.UNKNOWN,
         exact_timing: bool = False,
     ) -> None:
         self.line = line
-        self.sink = sink
+        self.out = out
+        self.stream = out.stream(channel)
         self.channel = channel
         self.direction = direction
         self.timeline = _Timeline(line, exact_timing)
-        self.buf = bytearray()
-        self.base = 0  # stream offset of buf[0]
-        self.pos = 0  # index in buf of the next undecided byte
-        self.noise_start = -1  # index in buf where the current noise span began
+        self.pos = len(self.stream)  # offset of the next undecided byte
+        self.timeline.offset = self.pos
+        self.noise_start = -1  # offset where the current noise span began
         self.rules = _compile_rules(direction)
+        self.predict = [
+            FUNCTIONS[code].response_for if code in FUNCTIONS else None for code in range(128)
+        ]
+        # request lengths for the fast path: base, plus the byte at count_pos if not 0
+        self.request_base = [0] * 256
+        self.request_count = [0] * 256
+        for code, spec in FUNCTIONS.items():
+            r = spec.request_length
+            if r is None or direction == Direction.SLAVE or r.walker or r.count_size > 1:
+                continue
+            self.request_base[code] = r.base
+            self.request_count[code] = r.count_pos if r.count_size else 0
         self.pending_unit = -1  # the last request, awaiting its answer
         self.pending_fc = -1
         self.pending_len = 0
+        self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
+        self.pair_inline = True  # off while `out` is a staging store (several channels)
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
 
@@ -231,7 +257,7 @@ class RtuFramer:
         if not chunk.data:
             return
         self.timeline.add(chunk)
-        self.buf += chunk.data
+        self.stream += chunk.data
         self._scan(final=False)
 
     def idle(self) -> None:
@@ -244,123 +270,212 @@ class RtuFramer:
     # -- the scanner ---------------------------------------------------------------------
 
     def _scan(self, final: bool) -> None:
-        buf = self.buf
-        view = memoryview(buf)
+        self._scan_bytes(self.stream, final)
+        self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+
+    def _scan_bytes(self, buf: bytearray, final: bool) -> None:
         end = len(buf)
         pos = self.pos
         rules = self.rules
+        request_base = self.request_base
+        request_count = self.request_count
+        predict = self.predict
         check = crc16
-        timeline = self.timeline
-        try:
-            while end - pos >= MIN_RTU:
-                unit = buf[pos]
-                fc = buf[pos + 1]
-                found = 0
-                kind = 0
-                waiting = False
-                # candidate lengths, the shortest first; ties go to the predicted answer
-                # (length, preference, kind): the answer the last request predicts is
-                # preferred (0); any other frame is more likely a request (1) than an
-                # answer nobody asked for (2)
-                cands: list[tuple[int, int, int]] = []
-                if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
-                    if fc & 0x80:
-                        cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
-                    else:
-                        cands.append((self.pending_len, 0, int(Kind.RESPONSE)))
-                for base, cpos, csize, walker, rkind in rules[fc]:
-                    if walker is not None:
-                        length = walker(buf, pos, end)
-                        if length == IMPOSSIBLE:
-                            continue
-                        if length == NEED_MORE:
-                            if not final:
-                                waiting = True
-                            continue
-                    elif csize == 0:
-                        length = base
-                    elif csize == 1:
-                        if pos + cpos >= end:
-                            if not final:
-                                waiting = True
-                            continue
-                        length = base + buf[pos + cpos]
-                    else:
-                        if pos + cpos + 1 >= end:
-                            if not final:
-                                waiting = True
-                            continue
-                        length = base + (buf[pos + cpos] << 8 | buf[pos + cpos + 1])
-                    if MIN_RTU <= length <= MAX_RTU:
-                        cands.append((length, PREFERENCE[rkind], rkind))
-                if len(cands) > 1:
-                    cands.sort()
-                for n, (length, prio, ckind) in enumerate(cands):
-                    if pos + length > end:
-                        if not final:
-                            waiting = True
+        tl = self.timeline
+        out = self.out
+        exact = tl.exact
+        # the newest chunk's timing, for the inline time estimate of frames inside it
+        cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
+        # row columns, appended inline on the fast paths
+        a_off, a_len, a_t, a_te = out.offset.append, out.length.append, out.t.append, out.t_end.append
+        a_kind, a_unit, a_fc = out.kind.append, out.unit.append, out.fc.append
+        # rows the fast path pairs, flat: request row, answer row, ...
+        pairs: list[int] = []
+        pairs_append = pairs.append
+        row = len(out.t)
+        pr = self.pending_row if self.pair_inline else -1
+        noise_free = self.noise_start < 0
+        # the open request, as locals: written back before every slow-path call
+        pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+        while end - pos >= MIN_RTU:
+            unit = buf[pos]
+            fc = buf[pos + 1]
+            found = 0
+            kind = 0
+            # fast path 1: the answer the open request predicts, or its exception
+            if unit == pu and (fc == pf or fc == pf | 0x80):
+                length = pl if fc == pf else EXCEPTION_LENGTH
+                if pos + length > end and not final:
+                    break  # wait for the rest of it
+                if pos + length <= end and check(buf[pos : pos + length]) == 0:
+                    found = length
+                    kind = 2 if fc == pf else 3  # Kind.RESPONSE, Kind.EXCEPTION
+            # fast path 2: a request, when no answer is predicted for it
+            elif noise_free and not exact:
+                length = request_base[fc]
+                if length:
+                    cpos = request_count[fc]
+                    if cpos:
+                        if pos + cpos >= end and not final:
+                            break
+                        length += buf[pos + cpos] if pos + cpos < end else 0
+                    if pos + length > end and not final:
                         break
-                    if check(view[pos : pos + length]) == 0:
+                    if pos + length <= end and check(buf[pos : pos + length]) == 0:
                         found = length
-                        kind = ckind
-                        if prio and n + 1 < len(cands):
-                            # A frame followed by 0x00 bytes passes the CRC at every
-                            # length up to the last zero, and a frame whose CRC ends in
-                            # 0x00 passes one byte short: a longer candidate that also
-                            # passes is told apart by preference, never by length.
-                            found, kind, waiting = self._zero_trap(
-                                view, pos, end, cands[n + 1 :], length, prio, ckind, final
-                            )
-                        break
-                if not found and waiting:
-                    break
-                if not found and timeline.is_boundary(self.base + pos):
-                    nxt = timeline.next_boundary(self.base + pos)
-                    if nxt is None and final:
-                        nxt = self.base + end
-                    if nxt is not None:
-                        length = nxt - self.base - pos
-                        if (
-                            MIN_RTU <= length <= MAX_RTU
-                            and pos + length <= end
-                            and check(view[pos : pos + length]) == 0
-                        ):
-                            found = length
-                            kind = int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN)
-                    elif not final and end - pos <= MAX_RTU:
-                        break  # the end of this silence-bounded stretch is not seen yet
-                if not found:
-                    if self.noise_start < 0:
-                        self.noise_start = pos
-                    pos += 1
-                    continue
-                if self.noise_start >= 0:
-                    self._emit_noise(self.noise_start, pos)
-                    self.noise_start = -1
-                self._emit_frame(pos, found, kind)
+                        kind = 1  # Kind.REQUEST
+            if found and not exact and noise_free and pos >= cur_start:
+                a_off(pos)
+                a_len(found)
+                a_t(cur_t0 + (pos - cur_start) * cur_rate)
+                a_te(cur_t0 + (pos + found - cur_start) * cur_rate)
+                a_kind(kind)
+                a_unit(unit)
+                a_fc(fc)
+                if kind != 1 and pr >= 0:
+                    pairs_append(pr)  # this row answers row pr
+                    pairs_append(row)
+                pr = -1
+                pu = -1
+                if kind == 1 and unit:
+                    pr = row
+                    if fc == 3 or fc == 4:
+                        pu, pf, pl = unit, fc, 5 + 2 * (buf[pos + 4] << 8 | buf[pos + 5])
+                    elif fc == 1 or fc == 2:
+                        pu, pf, pl = unit, fc, 5 + ((buf[pos + 4] << 8 | buf[pos + 5]) + 7) // 8
+                    else:
+                        rule = predict[fc & 0x7F]
+                        if rule is not None:
+                            predicted = rule(buf[pos : pos + found])
+                            if predicted is not None:
+                                pu, pf, pl = unit, fc, predicted
+                    if pl > MAX_RTU:
+                        pu = -1
+                row += 1
                 pos += found
-            if final:
-                if end > pos and self.noise_start < 0:
+                continue
+            self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
+            self.pending_row = pr
+            self._flush_rows(pairs, row)
+            found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
+            if not found and waiting:
+                break
+            if not found:
+                found, kind, waiting = self._silence_framed(buf, pos, end, fc, final)
+                if waiting:
+                    break
+            if not found:
+                if self.noise_start < 0:
                     self.noise_start = pos
-                if self.noise_start >= 0:
-                    self._emit_noise(self.noise_start, end)
-                    self.noise_start = -1
-                pos = end
-        finally:
-            view.release()
-        self.pos = pos
-        keep_from = self.noise_start if self.noise_start >= 0 else pos
-        if keep_from > 4096:
-            timeline.forget_before(self.base + keep_from)
-            del self.buf[:keep_from]
-            self.base += keep_from
-            self.pos -= keep_from
+                    noise_free = False
+                pos += 1
+                continue
             if self.noise_start >= 0:
-                self.noise_start -= keep_from
+                self._emit_noise(self.noise_start, pos)
+                self.noise_start = -1
+            self._emit_frame(buf, pos, found, kind)
+            pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+            pr = self.pending_row
+            row = len(out.t)
+            noise_free = True
+            pos += found
+        self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
+        self.pending_row = pr
+        self._flush_rows(pairs, row)
+        if final:
+            if end > pos and self.noise_start < 0:
+                self.noise_start = pos
+            if self.noise_start >= 0:
+                self._emit_noise(self.noise_start, end)
+                self.noise_start = -1
+            pos = end
+        self.pos = pos
+
+    def _flush_rows(self, pairs: list[int], row: int) -> None:
+        """Complete the columns the fast path leaves out, and record its pairs."""
+        out = self.out
+        if len(out.flags) < row:
+            self.units_seen.update(out.unit[len(out.flags) : row])
+            out.pad(self.channel)
+        if pairs and self.pair_inline:
+            out.pair_rows(pairs)
+        pairs.clear()
+
+    def _candidates(
+        self,
+        buf: bytearray,
+        pos: int,
+        end: int,
+        unit: int,
+        fc: int,
+        final: bool,
+    ) -> tuple[int, int, bool]:
+        """Test every length the registry allows at `pos`: (length, kind, waiting)."""
+        waiting = False
+        # (length, preference, kind): the answer the last request predicts is preferred
+        # (0); any other frame is more likely a request (1) than an answer nobody asked
+        # for (2)
+        cands: list[tuple[int, int, int]] = []
+        if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
+            if fc & 0x80:
+                cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
+            else:
+                cands.append((self.pending_len, 0, int(Kind.RESPONSE)))
+        for base, cpos, csize, walker, rkind in self.rules[fc]:
+            if walker is not None:
+                length = walker(buf, pos, end)
+                if length == IMPOSSIBLE:
+                    continue
+                if length == NEED_MORE:
+                    waiting = waiting or not final
+                    continue
+            elif csize == 0:
+                length = base
+            elif pos + cpos + csize > end:
+                waiting = waiting or not final
+                continue
+            elif csize == 1:
+                length = base + buf[pos + cpos]
+            else:
+                length = base + (buf[pos + cpos] << 8 | buf[pos + cpos + 1])
+            if MIN_RTU <= length <= MAX_RTU:
+                cands.append((length, PREFERENCE[rkind], rkind))
+        if len(cands) > 1:
+            cands.sort()
+        for n, (length, prio, ckind) in enumerate(cands):
+            if pos + length > end:
+                return 0, 0, waiting or not final
+            if crc16(buf[pos : pos + length]) == 0:
+                if prio and n + 1 < len(cands):
+                    # A frame followed by 0x00 bytes passes the CRC at every length up
+                    # to the last zero, and a frame whose CRC ends in 0x00 passes one
+                    # byte short: a longer candidate that also passes is told apart by
+                    # preference, never by length.
+                    return self._zero_trap(buf, pos, end, cands[n + 1 :], length, prio, ckind, final)
+                return length, ckind, False
+        return 0, 0, waiting
+
+    def _silence_framed(
+        self, buf: bytearray, pos: int, end: int, fc: int, final: bool
+    ) -> tuple[int, int, bool]:
+        """A frame no length rule knows (user or unknown function codes), bounded by
+        silence on both sides, with a right CRC: (length, kind, waiting)."""
+        tl = self.timeline
+        if not tl.is_boundary(pos):
+            return 0, 0, False
+        nxt = tl.next_boundary(pos)
+        if nxt is None:
+            if not final:
+                return 0, 0, end - pos <= MAX_RTU  # its end is not seen yet
+            nxt = end
+        length = nxt - pos
+        if MIN_RTU <= length <= MAX_RTU and crc16(buf[pos : pos + length]) == 0:
+            return length, int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN), False
+        return 0, 0, False
 
     def _zero_trap(
         self,
-        view: memoryview,
+        buf: bytearray,
         pos: int,
         end: int,
         longer: list[tuple[int, int, int]],
@@ -374,64 +489,63 @@ class RtuFramer:
             if prio2 >= best[0] or length2 == length:
                 continue
             if pos + length2 > end:
-                if pos + length < end and any(view[pos + length : end]):
+                if pos + length < end and any(buf[pos + length : end]):
                     continue  # not all zeros after the shorter frame: no ambiguity
                 if not final:
                     return 0, 0, True  # wait for the bytes that decide
                 continue
-            if not any(view[pos + length : pos + length2]) and crc16(view[pos : pos + length2]) == 0:
+            if not any(buf[pos + length : pos + length2]) and crc16(buf[pos : pos + length2]) == 0:
                 best = (prio2, length2, kind2)
         return best[1], best[2], False
 
-    # -- output --------------------------------------------------------------------------
+    # -- output (the slow path) ----------------------------------------------------------
 
-    def _emit_frame(self, pos: int, length: int, kind: int) -> None:
-        buf = self.buf
-        raw = bytes(buf[pos : pos + length])
-        unit = raw[0]
-        fc = raw[1] & 0x7F
+    def _emit_frame(self, buf: bytearray, pos: int, length: int, kind: int) -> None:
+        unit = buf[pos]
+        fc = buf[pos + 1] & 0x7F
         flags = 0
         if kind == Kind.UNKNOWN:
             flags |= Flag.SILENCE_FRAMED
+        if kind in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION):
+            self.pending_row = -1  # pairing of slow-path rows is left to the Pairer
         if kind == Kind.REQUEST:
             self.pending_unit = -1
-            if unit != 0:
-                spec = FUNCTIONS.get(fc)
-                predicted = spec.response_for(raw) if spec and spec.response_for else None
+            rule = self.predict[fc]
+            if unit != 0 and rule is not None:
+                predicted = rule(buf[pos : pos + length])
                 if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                     self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
-        elif kind in (Kind.RESPONSE, Kind.EXCEPTION):
-            if unit == self.pending_unit:
-                self.pending_unit = -1
+        elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
+            self.pending_unit = -1
         self.units_seen.add(unit)
-        self._send(pos, pos + length, raw, kind, flags)
+        self._row(pos, pos + length, kind, flags)
 
     def _emit_noise(self, start: int, end: int) -> None:
         """Bytes no frame claimed. A stretch that has the exact length of a known frame
         from a known unit is a frame whose CRC is wrong; with exact timing, silence splits
         the rest into frames with bad checks and noise."""
-        buf = self.buf
+        tl = self.timeline
         while start < end:
             stop = min(end, start + MAX_RTU)
-            if self.timeline.exact:
-                nxt = self.timeline.next_boundary(self.base + start)
-                if nxt is not None and self.base + start < nxt < self.base + stop:
-                    stop = nxt - self.base
+            if tl.exact:
+                nxt = tl.next_boundary(start)
+                if nxt is not None and start < nxt < stop:
+                    stop = nxt
             length = stop - start
             kind = int(Kind.NOISE)
             flags = 0
             if length >= MIN_RTU and self._plausible_frame(start, length):
-                kind = self._kind_of(start, length)
+                kind = self._kind_of(start)
                 flags = Flag.CHECK_BAD
-            self._send(start, stop, bytes(buf[start:stop]), kind, flags)
+            self._row(start, stop, kind, flags)
             start = stop
 
     def _plausible_frame(self, start: int, length: int) -> bool:
-        buf = self.buf
+        buf = self.stream
         unit = buf[start]
         if unit not in self.units_seen:
             return False
-        if self.timeline.exact and self.timeline.gap_before(self.base + start) >= self.line.t35:
+        if self.timeline.exact and self.timeline.gap_before(start) >= self.line.t35:
             return True
         fc = buf[start + 1]
         if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
@@ -448,35 +562,33 @@ class RtuFramer:
                     return True
         return False
 
-    def _kind_of(self, start: int, length: int) -> int:
-        fc = self.buf[start + 1]
+    def _kind_of(self, start: int) -> int:
+        fc = self.stream[start + 1]
         if fc & 0x80:
             return int(Kind.EXCEPTION)
+        if self.stream[start] == self.pending_unit and fc == self.pending_fc:
+            return int(Kind.RESPONSE)
         kinds = {rule[4] for rule in self.rules[fc]}
-        if self.buf[start] == self.pending_unit and fc == self.pending_fc:
-            return int(Kind.RESPONSE)
-        if kinds == {int(Kind.RESPONSE)}:
-            return int(Kind.RESPONSE)
-        if kinds == {int(Kind.REQUEST)} or int(Kind.REQUEST) in kinds:
+        if int(Kind.REQUEST) in kinds:
             return int(Kind.REQUEST)
+        if kinds:
+            return int(Kind.RESPONSE)
         return int(Kind.UNKNOWN)
 
-    def _send(self, start: int, end: int, raw: bytes, kind: int, flags: int) -> None:
+    def _row(self, start: int, end: int, kind: int, flags: int) -> None:
         tl = self.timeline
-        a = self.base + start
-        b = self.base + end
-        t0 = tl.start_time(a)
-        t1 = tl.end_time(b - 1)
+        t0 = tl.start_time(start)
+        t1 = tl.end_time(end - 1)
         if tl.exact and kind != Kind.NOISE:
-            if tl.inside_gap(a, b):
+            if tl.inside_gap(start, end):
                 flags |= Flag.GAP_INSIDE
-            gap = tl.gap_before(a)
-            if self.last_frame_end is not None and gap < tl.t35:
+            if self.last_frame_end is not None and tl.gap_before(start) < tl.t35:
                 flags |= Flag.SHORT_SILENCE
-        if tl.has_line_error(a, b):
+        if tl.has_line_error(start, end):
             flags |= Flag.LINE_ERROR
-        self.last_frame_end = t1
-        self.sink(raw, t0, t1, kind, int(flags), self.channel)
+        if kind != Kind.NOISE:
+            self.last_frame_end = t1
+        self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
 
 
 # preference of a length rule's kind when it is not the answer the open request predicts
@@ -503,21 +615,22 @@ class AsciiFramer:
     def __init__(
         self,
         line: LineSettings,
-        sink: FrameSink,
+        out: FrameStore,
         *,
         channel: int = 0,
         direction: Direction = Direction.UNKNOWN,
         exact_timing: bool = False,
     ) -> None:
         self.line = line
-        self.sink = sink
+        self.out = out
+        self.stream = out.stream(channel)
         self.channel = channel
         self.direction = direction
         self.timeline = _Timeline(line, exact_timing)
-        self.buf = bytearray()
-        self.base = 0
-        self.pos = 0
-        self.open = -1  # index of the ':' of an open frame
+        self.pos = len(self.stream)
+        self.timeline.offset = self.pos
+        self.open = -1  # offset of the ':' of an open frame
+        self.pair_inline = False  # rows are paired by the Pairer only
         self.pending_unit = -1
         self.pending_fc = -1
         self.rules = _compile_rules(direction)
@@ -526,7 +639,7 @@ class AsciiFramer:
         if not chunk.data:
             return
         self.timeline.add(chunk)
-        self.buf += chunk.data
+        self.stream += chunk.data
         self._scan(final=False)
 
     def idle(self) -> None:
@@ -536,7 +649,7 @@ class AsciiFramer:
         self._scan(final=True)
 
     def _scan(self, final: bool) -> None:
-        buf = self.buf
+        buf = self.stream
         end = len(buf)
         pos = self.pos
         while pos < end:
@@ -544,7 +657,7 @@ class AsciiFramer:
                 colon = buf.find(b":", pos)
                 stop = end if colon < 0 else colon
                 if stop > pos:
-                    self._send(pos, stop, int(Kind.NOISE), 0)
+                    self._row(pos, stop, int(Kind.NOISE), int(Flag.ASCII))
                 if colon < 0:
                     pos = end
                     break
@@ -559,7 +672,7 @@ class AsciiFramer:
                 self.open = colon
                 pos = colon + 1
                 continue
-            if nl >= 0 and nl < limit:
+            if 0 <= nl < limit:
                 self._close(self.open, nl + 1, Flag.NONE)
                 self.open = -1
                 pos = nl + 1
@@ -574,38 +687,32 @@ class AsciiFramer:
             self._close(self.open, end, Flag.UNTERMINATED)
             self.open = -1
         self.pos = pos
-        keep = self.open if self.open >= 0 else pos
-        if keep > 4096:
-            del self.buf[:keep]
-            self.base += keep
-            self.pos -= keep
-            if self.open >= 0:
-                self.open -= keep
+        self.timeline.forget_before(self.open if self.open >= 0 else pos)
 
     def _close(self, start: int, end: int, flags: int) -> None:
-        raw = bytes(self.buf[start:end])
+        raw = bytes(self.stream[start:end])
         flags |= Flag.ASCII
         if raw.endswith(b"\n") and not raw.endswith(b"\r\n"):
             flags |= Flag.NO_CR
         body = ascii_body(raw)
         kind = int(Kind.UNKNOWN)
-        if body is None or len(body) < 3:
-            if body is None:
-                flags |= Flag.NON_HEX
-            else:
-                flags |= Flag.CHECK_BAD
+        if body is None:
+            flags |= Flag.NON_HEX
+        elif len(body) < 3:
+            flags |= Flag.CHECK_BAD
         else:
             if lrc(body[:-1]) != body[-1]:
                 flags |= Flag.CHECK_BAD
             kind = self._kind(body)
-        tl = self.timeline
-        if tl.inside_gap(self.base + start, self.base + end) and self._long_gap(start, end):
+        if self._long_gap(start, end):
             flags |= Flag.LONG_GAP
-        self._send(start, end, kind, flags, raw)
+        self._row(start, end, kind, flags)
 
     def _long_gap(self, start: int, end: int) -> bool:
         for span in self.timeline.spans:
-            if self.base + start < span.start < self.base + end and span.gap_before > 1.0:
+            if span.start >= end:
+                break
+            if start < span.start < end and span.gap_before > 1.0:
                 return True
         return False
 
@@ -641,17 +748,13 @@ class AsciiFramer:
             self.pending_unit = -1
         return kind
 
-    def _send(self, start: int, end: int, kind: int, flags: int, raw: bytes | None = None) -> None:
+    def _row(self, start: int, end: int, kind: int, flags: int) -> None:
         tl = self.timeline
-        a = self.base + start
-        b = self.base + end
-        if raw is None:
-            raw = bytes(self.buf[start:end])
-        if kind == Kind.NOISE:
-            flags |= Flag.ASCII
-        if tl.has_line_error(a, b):
+        if tl.has_line_error(start, end):
             flags |= Flag.LINE_ERROR
-        self.sink(raw, tl.start_time(a), tl.end_time(b - 1), kind, int(flags), self.channel)
+        t0 = tl.start_time(start)
+        t1 = tl.end_time(end - 1)
+        self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
 
 
 Framer = RtuFramer | AsciiFramer

@@ -31,29 +31,46 @@ class Pairer:
 
     def update(self) -> None:
         s = self.store
+        s.sync()
         n = len(s)
-        kind_col, unit_col, fc_col = s.kind, s.unit, s.fc
+        kind, unit, fc, partner = s.kind, s.unit, s.fc, s.partner
+        t, t_end, timeout = s.t, s.t_end, self.timeout
         for i in range(self.next, n):
-            kind = kind_col[i]
-            if kind == Kind.NOISE or kind == Kind.EVENT:
+            k = kind[i]
+            if k == 0 or k == 5:  # noise, events
                 continue
-            if self.open >= 0 and s.t[i] - s.t_end[self.open] > self.timeout:
-                self._time_out(self.open)
-            if kind == Kind.REQUEST:
+            op = self.open
+            if op >= 0 and t[i] - t_end[op] > timeout:
+                self._time_out(op)
+                op = -1
+            j = partner[i]
+            if j >= 0:
+                # paired as it was framed (the answer its request predicted)
+                if j > i:
+                    if op >= 0:
+                        self._time_out(op)
+                    self.open = -1
+                    if self.last_timed_out:
+                        self._check_retry(i)
+                    if t[j] - t_end[i] > timeout:
+                        s.flags[j] |= Flag.LATE
+                continue
+            if k == 1:  # Kind.REQUEST
                 self._request(i)
                 continue
-            unit = unit_col[i]
-            fc = fc_col[i] & 0x7F
-            op = self.open
-            if op >= 0 and unit_col[op] == unit and fc_col[op] == fc:
+            u = unit[i]
+            if op >= 0 and unit[op] == u and fc[op] == fc[i] & 0x7F:
                 self._pair(op, i)
-            elif kind == Kind.UNKNOWN:
-                continue
-            else:
+            elif k != Kind.UNKNOWN:
                 s.status[i] = Status.ORPHAN
-                if unit == 0:
+                if u == 0:
                     s.flags[i] |= Flag.ANSWERED_BROADCAST
         self.next = n
+
+    def _check_retry(self, i: int) -> None:
+        if self.store.raw(i) == self.last_timed_out:
+            self.store.flags[i] |= Flag.RETRY
+        self.last_timed_out = b""
 
     def _request(self, i: int) -> None:
         s = self.store
@@ -65,9 +82,8 @@ class Pairer:
         else:
             s.status[i] = Status.OPEN
             self.open = i
-        if self.last_timed_out and s.raw(i) == self.last_timed_out:
-            s.flags[i] |= Flag.RETRY
-        self.last_timed_out = b""
+        if self.last_timed_out:
+            self._check_retry(i)
 
     def _pair(self, req: int, resp: int) -> None:
         s = self.store

@@ -1,30 +1,31 @@
 """Provides the pipeline: chunks from any source in, framed and paired frames in a store out.
 
-One framer per channel (a port or probe per direction is framed on its own); frames of
+One framer per channel (a port or probe per direction is framed on its own); rows of
 several channels are merged by time before they reach the store. The same pipeline
 serves replay and live capture, so a recording frames exactly as the line did.
 """
 
 from __future__ import annotations
 
-import heapq
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from sniffer.framing import AsciiFramer, Framer, Kind, RtuFramer, looks_ascii
+from sniffer.framing import AsciiFramer, Flag, Framer, Kind, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pairing import Pairer, default_timeout
 from sniffer.store import FrameStore
 
-MERGE_SLACK = 1.0  # seconds a channel's frames are held back so others can catch up
+MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 
 
 @dataclass
 class _Channel:
-    framer: Framer | None
+    number: int
     direction: Direction
-    sample: bytearray = field(default_factory=bytearray)
-    held: list[Chunk] = field(default_factory=list)
+    framer: Framer | None = None
+    staging: FrameStore | None = None  # rows waiting to be merged (several channels)
+    read: int = 0  # next staging row to merge
+    held: list[Chunk] | None = None  # chunks kept while the mode is being detected
     last_t: float = float("-inf")
 
 
@@ -45,41 +46,27 @@ class Pipeline:
         self.pairer = Pairer(self.store, timeout if timeout is not None else default_timeout(line))
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}
-        self._heap: list[tuple[float, int, bytes, float, int, int, int]] = []
-        self._seq = 0
+        self._sample = bytearray()
+
+    @property
+    def multi(self) -> bool:
+        return len(self.channels) > 1
 
     # -- input ---------------------------------------------------------------------------
 
     def feed(self, chunk: Chunk) -> None:
         ch = self.channels.get(chunk.channel)
         if ch is None:
-            ch = _Channel(framer=None, direction=chunk.direction)
-            self.channels[chunk.channel] = ch
+            ch = self._add_channel(chunk.channel, chunk.direction)
         if chunk.event and not chunk.data:
             text = chunk.event + (f": {chunk.note}" if chunk.note else "")
-            if len(self.channels) <= 1:
-                self.store.add_event(chunk.t_end, text, chunk.channel)
-            else:
-                self._hold(chunk.t_end, b"", chunk.t_end, int(Kind.EVENT), 0, chunk.channel)
-                self.store.notes[-self._seq] = text
+            (ch.staging or self.store).add_event(chunk.t_end, text, chunk.channel)
+            ch.last_t = max(ch.last_t, chunk.t_end)
             self._release(final=False)
             return
-        if ch.framer is None:
-            if self.mode is None:
-                ch.held.append(chunk)
-                ch.sample += chunk.data
-                verdict = looks_ascii(bytes(ch.sample[:512]))
-                if verdict is None and len(ch.sample) < 64:
-                    return
-                self.mode = "ascii" if verdict else "rtu"
-            ch.framer = self._make_framer(chunk.channel, ch.direction)
-            held, ch.held = ch.held, []
-            for old in held:
-                ch.framer.feed(old)
-            if held:
-                ch.last_t = held[-1].t_end
-                self._release(final=False)
-                return
+        if ch.framer is None and not self._detect(ch, chunk):
+            return
+        assert ch.framer is not None
         ch.framer.feed(chunk)
         ch.last_t = chunk.t_end
         self._release(final=False)
@@ -89,7 +76,7 @@ class Pipeline:
             self.feed(chunk)
 
     def idle(self, now: float) -> None:
-        """Live sources call this when the line has been quiet: frames buffered in the
+        """Live sources call this when the line has been quiet: bytes buffered in the
         framers are decided, and overdue requests time out."""
         for ch in self.channels.values():
             if ch.framer is not None and now - ch.last_t >= self.line.t35:
@@ -98,57 +85,101 @@ class Pipeline:
         self.pairer.tick(now)
 
     def finish(self) -> None:
-        for number, ch in self.channels.items():
+        for ch in self.channels.values():
             if ch.framer is None:
                 self.mode = self.mode or "rtu"
-                ch.framer = self._make_framer(number, ch.direction)
-                for old in ch.held:
-                    ch.framer.feed(old)
-                ch.held = []
+                self._start_framer(ch)
+            assert ch.framer is not None
             ch.framer.finish()
         self._release(final=True)
         self.pairer.finish()
 
     # -- internals -----------------------------------------------------------------------
 
-    def _make_framer(self, channel: int, direction: Direction) -> Framer:
+    def _add_channel(self, number: int, direction: Direction) -> _Channel:
+        ch = _Channel(number, direction)
+        self.channels[number] = ch
+        if len(self.channels) == 2:
+            # from now on every channel's rows wait in staging to be merged by time
+            for other in self.channels.values():
+                other.staging = FrameStore(self.store.streams)
+                if other.framer is not None:
+                    other.framer.out = other.staging
+                    other.framer.pair_inline = False
+        elif len(self.channels) > 2:
+            ch.staging = FrameStore(self.store.streams)
+        return ch
+
+    def _detect(self, ch: _Channel, chunk: Chunk) -> bool:
+        """Start the channel's framer, once the mode is known. False while still unsure."""
+        if self.mode is None:
+            if ch.held is None:
+                ch.held = []
+            ch.held.append(chunk)
+            self._sample += chunk.data
+            verdict = looks_ascii(bytes(self._sample[:512]))
+            if verdict is None and len(self._sample) < 64:
+                return False
+            self.mode = "ascii" if verdict else "rtu"
+            self._start_framer(ch)
+            return False
+        self._start_framer(ch)
+        return True
+
+    def _start_framer(self, ch: _Channel) -> None:
         cls = AsciiFramer if self.mode == "ascii" else RtuFramer
-        return cls(
+        ch.framer = cls(
             self.line,
-            self._sink,
-            channel=channel,
-            direction=direction,
+            ch.staging or self.store,
+            channel=ch.number,
+            direction=ch.direction,
             exact_timing=self.exact_timing,
         )
-
-    def _sink(self, raw: bytes, t0: float, t1: float, kind: int, flags: int, ch: int) -> None:
-        if len(self.channels) <= 1:
-            self.store.append(raw, t0, t1, kind, flags, ch)
-            return
-        self._hold(t0, raw, t1, kind, flags, ch)
-
-    def _hold(self, t0: float, raw: bytes, t1: float, kind: int, flags: int, ch: int) -> None:
-        self._seq += 1
-        heapq.heappush(self._heap, (t0, self._seq, raw, t1, kind, flags, ch))
+        if isinstance(ch.framer, RtuFramer):
+            ch.framer.pair_inline = ch.staging is None
+        held, ch.held = ch.held or [], None
+        for old in held:
+            ch.framer.feed(old)
+            ch.last_t = old.t_end
+        for other in self.channels.values():
+            if other is not ch and other.held:
+                self._start_framer(other)
 
     def _release(self, final: bool, now: float | None = None) -> None:
-        heap = self._heap
-        if heap:
+        if self.multi:
             if final:
                 watermark = float("inf")
             else:
-                latest = [c.last_t for c in self.channels.values()]
-                watermark = min(latest) - MERGE_SLACK if latest else float("-inf")
+                watermark = min(c.last_t for c in self.channels.values()) - MERGE_SLACK
                 if now is not None:
                     watermark = max(watermark, now - MERGE_SLACK)
-            store = self.store
-            while heap and heap[0][0] <= watermark:
-                t0, seq, raw, t1, kind, flags, ch = heapq.heappop(heap)
-                if kind == Kind.EVENT:
-                    store.add_event(t0, store.notes.pop(-seq, ""), ch)
-                else:
-                    store.append(raw, t0, t1, kind, flags, ch)
+            self._merge(watermark)
         self.pairer.update()
+
+    def _merge(self, watermark: float) -> None:
+        store = self.store
+        staged = [c for c in self.channels.values() if c.staging is not None]
+        while True:
+            best: _Channel | None = None
+            best_t = watermark
+            for c in staged:
+                st = c.staging
+                assert st is not None
+                if c.read < len(st) and st.t[c.read] <= best_t:
+                    best, best_t = c, st.t[c.read]
+            if best is None:
+                break
+            assert best.staging is not None
+            store.copy_row(best.staging, best.read)
+            best.read += 1
+        for c in staged:
+            st = c.staging
+            assert st is not None
+            if c.read and c.read == len(st):
+                c.staging = FrameStore(store.streams)
+                if c.framer is not None:
+                    c.framer.out = c.staging
+                c.read = 0
 
 
 def frame_capture(
@@ -163,3 +194,6 @@ def frame_capture(
     pipeline.feed_all(chunks)
     pipeline.finish()
     return pipeline.store
+
+
+__all__ = ["Flag", "Kind", "Pipeline", "frame_capture"]

@@ -65,10 +65,15 @@ class FrameView:
 
 
 class FrameStore:
-    """Columns of frames in capture order. `append` is a framer's sink."""
+    """Columns of rows (frames, noise spans, events) in capture order.
 
-    def __init__(self) -> None:
-        self.data = bytearray()
+    The bytes of each channel are kept once, as read, in `streams[channel]`; a row
+    points into its channel's stream by offset and length. Framers append rows; pairing
+    fills `partner` and `status`, which `sync()` keeps as long as the other columns.
+    """
+
+    def __init__(self, streams: dict[int, bytearray] | None = None) -> None:
+        self.streams: dict[int, bytearray] = streams if streams is not None else {}
         self.offset = array("Q")
         self.length = array("I")
         self.t = array("d")
@@ -81,53 +86,112 @@ class FrameStore:
         self.partner = array("q")
         self.status = array("B")
         self.notes: dict[int, str] = {}  # event texts and other per-row notes
-        self.bytes_total = 0
 
     def __len__(self) -> int:
         return len(self.t)
 
-    def append(self, raw: bytes, t0: float, t1: float, kind: int, flags: int, channel: int) -> None:
-        self.offset.append(len(self.data))
-        self.length.append(len(raw))
-        self.data += raw
-        self.bytes_total += len(raw)
+    def stream(self, channel: int) -> bytearray:
+        """The bytes read on `channel` so far (created empty on first use)."""
+        found = self.streams.get(channel)
+        if found is None:
+            found = self.streams[channel] = bytearray()
+        return found
+
+    @property
+    def bytes_total(self) -> int:
+        return sum(len(s) for s in self.streams.values())
+
+    def pad(self, channel: int) -> None:
+        """Complete rows a framer's fast path appended without flags, channel and pairing
+        (all zero, `channel`, unpaired): appending four columns in bulk is cheaper."""
+        missing = len(self.t) - len(self.flags)
+        if missing > 0:
+            self.flags.frombytes(bytes(4 * missing))
+            self.channel.frombytes(bytes([channel]) * missing)
+        self.sync()
+
+    def pair_rows(self, pairs: list[int]) -> None:
+        """Record answered requests: `pairs` is flat, request row then answer row."""
+        partner, status, fc = self.partner, self.status, self.fc
+        for k in range(0, len(pairs), 2):
+            req = pairs[k]
+            resp = pairs[k + 1]
+            partner[req] = resp
+            partner[resp] = req
+            status[req] = status[resp] = Status.EXCEPTION if fc[resp] & 0x80 else Status.OK
+
+    def add_row(
+        self, channel: int, offset: int, length: int, t0: float, t1: float, kind: int, flags: int
+    ) -> None:
+        self.pad(channel)
+        stream = self.streams[channel]
+        unit = fc = 0
+        if kind != Kind.NOISE and kind != Kind.EVENT:
+            if flags & Flag.ASCII:
+                body = ascii_body(bytes(stream[offset : offset + length]))
+                if body is not None and len(body) > 1:
+                    unit, fc = body[0], body[1]
+            elif length >= 2:
+                unit, fc = stream[offset], stream[offset + 1]
+        self.offset.append(offset)
+        self.length.append(length)
         self.t.append(t0)
         self.t_end.append(t1)
         self.kind.append(kind)
-        if kind == Kind.NOISE or kind == Kind.EVENT:
-            self.unit.append(0)
-            self.fc.append(0)
-        elif flags & Flag.ASCII:
-            body = ascii_body(raw)
-            self.unit.append(body[0] if body and len(body) > 0 else 0)
-            self.fc.append(body[1] if body and len(body) > 1 else 0)
-        else:
-            self.unit.append(raw[0])
-            self.fc.append(raw[1])
+        self.unit.append(unit)
+        self.fc.append(fc)
         self.flags.append(flags)
         self.channel.append(channel)
         self.partner.append(NO_PARTNER)
         self.status.append(Status.NONE)
 
+    def copy_row(self, other: FrameStore, i: int) -> None:
+        """Append row `i` of `other`, a store sharing this one's streams (unpaired)."""
+        self.sync()
+        if i in other.notes:
+            self.notes[len(self)] = other.notes[i]
+        self.offset.append(other.offset[i])
+        self.length.append(other.length[i])
+        self.t.append(other.t[i])
+        self.t_end.append(other.t_end[i])
+        self.kind.append(other.kind[i])
+        self.unit.append(other.unit[i])
+        self.fc.append(other.fc[i])
+        self.flags.append(other.flags[i])
+        self.channel.append(other.channel[i])
+        self.partner.append(NO_PARTNER)
+        self.status.append(Status.NONE)
+
     def add_event(self, t: float, text: str, channel: int = 0) -> None:
+        self.stream(channel)
         self.notes[len(self)] = text
-        self.append(b"", t, t, int(Kind.EVENT), 0, channel)
+        offset = len(self.streams[channel])
+        self.add_row(channel, offset, 0, t, t, int(Kind.EVENT), int(Flag.LINE_EVENT))
+
+    def sync(self) -> None:
+        """Grow the pairing columns to the length of the others."""
+        missing = len(self.t) - len(self.status)
+        if missing > 0:
+            self.status.frombytes(bytes(missing))
+            self.partner.extend(_MINUS_ONES[:missing] if missing <= 4096 else [-1] * missing)
 
     def raw(self, i: int) -> bytes:
         start = self.offset[i]
-        return bytes(self.data[start : start + self.length[i]])
+        return bytes(self.streams[self.channel[i]][start : start + self.length[i]])
 
     def view(self, i: int) -> FrameView:
+        self.sync()
         fc = self.fc[i]
+        kind = Kind(self.kind[i])
         return FrameView(
             index=i,
             raw=self.raw(i),
             t=self.t[i],
             t_end=self.t_end[i],
-            kind=Kind(self.kind[i]),
+            kind=kind,
             unit=self.unit[i],
             function=fc & 0x7F,
-            exception=bool(fc & 0x80) and self.kind[i] != Kind.NOISE,
+            exception=bool(fc & 0x80) and kind not in (Kind.NOISE, Kind.EVENT),
             flags=self.flags[i],
             channel=self.channel[i],
             partner=self.partner[i],
@@ -135,7 +199,10 @@ class FrameStore:
         )
 
     def memory_bytes(self) -> int:
-        """Bytes held by the columns (what a capture costs in memory)."""
+        """Bytes held by the streams and the columns (what a capture costs in memory)."""
         cols = (self.offset, self.length, self.t, self.t_end, self.kind, self.unit, self.fc)
         more = (self.flags, self.channel, self.partner, self.status)
-        return len(self.data) + sum(c.itemsize * len(c) for c in (*cols, *more))
+        return self.bytes_total + sum(c.itemsize * len(c) for c in (*cols, *more))
+
+
+_MINUS_ONES = array("q", [-1] * 4096)

@@ -35,6 +35,7 @@ SOCAT_HEADER = re.compile(
     r"length=(\d+) from=(\d+) to=(\d+)\s*$",
     re.MULTILINE,
 )
+_PRINTABLE = bytes(range(32, 127)) + b"\t\n\r"
 OFFSET_LINE = re.compile(r"^[\s>]*([0-9A-Fa-f]{3,})[:\s]\s*[0-9A-Fa-f]{2}(?:\s|$)", re.MULTILINE)
 
 
@@ -59,8 +60,8 @@ def _text(head: bytes) -> str | None:
     """The head as text if it looks like text (no NULs, mostly printable), else None."""
     if not head or b"\0" in head:
         return None
-    printable = sum(1 for b in head if 32 <= b < 127 or b in (9, 10, 13))
-    if printable < 0.95 * len(head):
+    unprintable = len(head.translate(None, _PRINTABLE))
+    if unprintable > 0.05 * len(head):
         return None
     return head.decode("latin-1")
 

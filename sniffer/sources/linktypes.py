@@ -19,6 +19,7 @@ words are ignored, so the form can grow.
 
 from __future__ import annotations
 
+import math
 import re
 import struct
 from dataclasses import dataclass
@@ -133,8 +134,8 @@ def build_rtac(t: float, data: bytes, event: int, control_lines: int) -> bytes:
     """An RTAC serial packet: header stamped with `t` (Unix seconds), then `data`."""
     if t < 0:
         raise ValueError(f"RTAC time must not be negative, not {t}")
-    micros = round(t * 1e6)
-    secs, usecs = divmod(micros, 1_000_000)
+    whole = math.floor(t)
+    secs, usecs = divmod(whole * 1_000_000 + round((t - whole) * 1e6), 1_000_000)
     return RTAC_HEADER.pack(secs & 0xFFFFFFFF, usecs, event & 0xFF, control_lines & 0xFF, 0) + data
 
 

@@ -1,0 +1,297 @@
+"""Provides the hex text dump readers: `socat -x -v` logs and text2pcap-style dumps.
+
+socat: each transfer is a header line `> 2024/05/01 12:00:00.123456  length=8 from=0
+to=7` followed by lines of hex bytes (and an ASCII column), then `--`. `>` (first address
+to second) is channel 0, Direction.MASTER; `<` is channel 1, Direction.SLAVE. The header
+time is local wall-clock time and becomes the chunk's `t_end`. socat 1.7.4 prints the
+microseconds as nine digits (`.000821692` for .821692 s): a file whose nine-digit
+fractions are all below 1,000,000 is read that way.
+
+text2pcap (as `od -Ax -tx1` writes, which text2pcap reads): each line is an offset of
+more than two hex digits, a colon, space or tab, then bytes as two hex digits; offset 0
+starts a packet; an offset smaller than expected cuts the previous line (its ASCII
+column looked like hex); any other unexpected offset ends the packet with a warning.
+Lines starting with `#` are comments. The text between packets may start with a
+direction (`I` inbound: Direction.SLAVE, channel 1; `O` outbound: Direction.MASTER,
+channel 0, the master's point of view, as text2pcap -D writes it) and a time, which
+becomes the packet's `t_end`. Times understood: ISO 8601 (`2024-05-01T12:00:00.5Z`,
+a space instead of `T`, an optional UTC offset; none means local time),
+`2024/05/01 12:00:00.5`, a time of day `12:00:00.5` (seconds since midnight), and
+plain seconds `1714564800.5`. Packets without a time follow the previous one by one
+character time per byte, as raw bytes do.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta, timezone
+from pathlib import Path
+
+from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.detect import SOCAT_HEADER
+
+_HEX_RUN = re.compile(r"^ ((?:[0-9A-Fa-f]{2} )*[0-9A-Fa-f]{2})(?: |$)")
+_OFFSET = re.compile(r"^[\s>]*([0-9A-Fa-f]{3,})(?:[:\s]|$)(.*)$")
+_BYTE = re.compile(r"^[0-9A-Fa-f]{2}$")
+_DIRECTION = re.compile(r"^([IO])(?:\s+|$)(.*)$")
+_ISO = re.compile(
+    r"^(\d{4})-(\d\d)-(\d\d)[T ](\d\d):(\d\d):(\d\d)(?:[.,](\d+))?"
+    r"\s*(Z|[+-]\d\d:?\d\d)?(?:\s|$)"
+)
+_SLASHED = re.compile(r"^(\d{4})/(\d\d)/(\d\d)[ T](\d\d):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
+_TIME_OF_DAY = re.compile(r"^(\d{1,2}):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
+_SECONDS = re.compile(r"^(\d+)\.(\d+)(?:\s|$)")
+_MASTER_LABEL = {0: "> (first address to second)", 1: "< (second address to first)"}
+
+
+def _fraction(digits: str | None) -> float:
+    return int(digits) / 10 ** len(digits) if digits else 0.0
+
+
+def _wall_clock(fields: tuple[str, ...], fraction: float, zone: str | None) -> float | None:
+    """Unix time of a date and time (local time unless `zone` says otherwise)."""
+    try:
+        year, month, day, hour, minute, second = (int(f) for f in fields)
+        tzinfo = None
+        if zone == "Z":
+            tzinfo = UTC
+        elif zone:
+            sign = -1 if zone[0] == "-" else 1
+            digits = zone[1:].replace(":", "")
+            delta = timedelta(hours=int(digits[:2]), minutes=int(digits[2:]))
+            tzinfo = timezone(sign * delta)
+        moment = datetime(year, month, day, hour, minute, second, tzinfo=tzinfo)
+        return moment.timestamp() + fraction
+    except (ValueError, OverflowError, OSError):
+        return None
+
+
+def parse_time(text: str) -> float | None:
+    """The time at the start of `text` in one of the forms in the module doc, or None."""
+    if match := _ISO.match(text):
+        return _wall_clock(match.groups()[:6], _fraction(match[7]), match[8])
+    if match := _SLASHED.match(text):
+        return _wall_clock(match.groups()[:6], _fraction(match[7]), None)
+    if match := _TIME_OF_DAY.match(text):
+        hours, minutes, seconds = int(match[1]), int(match[2]), int(match[3])
+        return hours * 3600 + minutes * 60 + seconds + _fraction(match[4])
+    if match := _SECONDS.match(text):
+        return int(match[1]) + _fraction(match[2])
+    return None
+
+
+# ---------------------------------------------------------------- socat
+
+
+def _read_text(path: Path) -> str:
+    return path.read_bytes().decode("latin-1")
+
+
+def _socat_microsecond_bug(text: str) -> bool:
+    fractions = [m[8] for m in SOCAT_HEADER.finditer(text) if m[8]]
+    nine = [f for f in fractions if len(f) == 9]
+    return bool(nine) and len(nine) == len(fractions) and all(f.startswith("000") for f in nine)
+
+
+def open_socat(path: Path, options: ReadOptions) -> Capture:
+    """Open a `socat -x -v` log."""
+    text = _read_text(path)
+    directions = {m[1] for m in SOCAT_HEADER.finditer(text)}
+    channels = {0 if d == ">" else 1: _MASTER_LABEL[0 if d == ">" else 1] for d in directions}
+    line = options.line(None)
+    info = SourceInfo(
+        path=str(path), format="socat", line=line, channels=dict(sorted(channels.items()))
+    )
+    warnings: list[str] = []
+    chunks = _socat_chunks(text, _socat_microsecond_bug(text), warnings)
+    return Capture(info=info, _chunks=chunks, warnings=warnings)
+
+
+@dataclass
+class _SocatRecord:
+    direction: str
+    t: float
+    length: int
+    line_number: int
+    offset: int
+    data: bytearray
+
+
+def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[Chunk]:
+    record: _SocatRecord | None = None
+    offset = 0
+
+    def finish(rec: _SocatRecord) -> Iterator[Chunk]:
+        if len(rec.data) < rec.length:
+            warnings.append(
+                f"socat record at line {rec.line_number} (byte offset {rec.offset}) announces "
+                f"{rec.length} bytes but has {len(rec.data)}; the record is skipped"
+            )
+            return
+        master = rec.direction == ">"
+        yield Chunk(
+            data=bytes(rec.data),
+            t_end=rec.t,
+            channel=0 if master else 1,
+            direction=Direction.MASTER if master else Direction.SLAVE,
+        )
+
+    for number, raw_line in enumerate(text.splitlines(keepends=True), start=1):
+        line_offset = offset
+        offset += len(raw_line)
+        line = raw_line.rstrip("\r\n")
+        header = SOCAT_HEADER.match(line)
+        if header:
+            if record is not None:
+                yield from finish(record)
+            digits = header[8]
+            if micro_bug and digits and len(digits) == 9:
+                fraction = int(digits) / 1e6
+            else:
+                fraction = _fraction(digits)
+            t = _wall_clock(tuple(header.groups()[1:7]), fraction, None)
+            if t is None:
+                warnings.append(f"socat header at line {number} has an impossible time; skipped")
+                record = None
+                continue
+            record = _SocatRecord(header[1], t, int(header[9]), number, line_offset, bytearray())
+            continue
+        if record is None:
+            continue
+        if line.strip() == "--":
+            yield from finish(record)
+            record = None
+            continue
+        hexes = _HEX_RUN.match(line)
+        if hexes is None:
+            continue
+        data = bytes.fromhex(hexes[1])
+        room = record.length - len(record.data)
+        if len(data) > room:
+            warnings.append(
+                f"socat record at line {record.line_number} has more bytes than its "
+                f"length={record.length}; the extra ones at line {number} are ignored"
+            )
+            data = data[:room]
+        record.data += data
+    if record is not None:
+        yield from finish(record)
+
+
+# ---------------------------------------------------------------- text2pcap
+
+
+def _has_directions(text: str) -> bool:
+    return any(
+        _DIRECTION.match(line.strip()) and not _OFFSET.match(line) for line in text.splitlines()
+    )
+
+
+def open_hexdump(path: Path, options: ReadOptions) -> Capture:
+    """Open a text2pcap-style hex dump."""
+    text = _read_text(path)
+    line = options.line(None)
+    directions = _has_directions(text)
+    channels = {0: "O (outbound)", 1: "I (inbound)"} if directions else {0: "hexdump"}
+    info = SourceInfo(path=str(path), format="hexdump", line=line, channels=channels)
+    warnings: list[str] = []
+    return Capture(info=info, _chunks=_hexdump_chunks(text, line, warnings), warnings=warnings)
+
+
+def _line_bytes(rest: str) -> bytes:
+    """The bytes after an offset: two-hex-digit tokens up to the first other token."""
+    out = bytearray()
+    for token in rest.split():
+        if not _BYTE.match(token):
+            break
+        out.append(int(token, 16))
+    return bytes(out)
+
+
+@dataclass
+class _Packet:
+    data: bytearray
+    last_offset: int  # offset of the most recent line
+    last_length: int  # bytes that line contributed
+    t: float | None
+    direction: str
+
+
+def _hexdump_chunks(text: str, line: LineSettings, warnings: list[str]) -> Iterator[Chunk]:
+    packet: _Packet | None = None
+    t_prev = 0.0
+    pending_time: float | None = None
+    pending_direction = ""
+    preamble_open = True  # the next preamble line is the first after a packet
+    skipping = False  # after an unexpected offset, until the next offset 0
+    char = line.char_time
+
+    def finish(p: _Packet) -> Iterator[Chunk]:
+        nonlocal t_prev
+        if not p.data:
+            return
+        t = p.t if p.t is not None else t_prev + len(p.data) * char
+        t_start = None if p.t is not None else t_prev
+        t_prev = t
+        if p.direction == "O":
+            channel, direction = 0, Direction.MASTER
+        elif p.direction == "I":
+            channel, direction = 1, Direction.SLAVE
+        else:
+            channel, direction = 0, Direction.UNKNOWN
+        yield Chunk(
+            data=bytes(p.data), t_end=t, t_start=t_start, channel=channel, direction=direction
+        )
+
+    offset = 0
+    for number, raw_line in enumerate(text.splitlines(keepends=True), start=1):
+        line_offset = offset
+        offset += len(raw_line)
+        stripped = raw_line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        match = _OFFSET.match(raw_line.rstrip("\r\n"))
+        if match is None:  # preamble text between packets
+            if packet is not None:
+                yield from finish(packet)
+                packet = None
+            if preamble_open:
+                preamble_open = False
+                rest = stripped
+                if direction := _DIRECTION.match(rest):
+                    pending_direction = direction[1]
+                    rest = direction[2].strip()
+                pending_time = parse_time(rest)
+            continue
+        position = int(match[1], 16)
+        data = _line_bytes(match[2])
+        if position == 0:
+            if packet is not None:
+                yield from finish(packet)
+            packet = _Packet(bytearray(data), 0, len(data), pending_time, pending_direction)
+            pending_time, pending_direction = None, ""
+            preamble_open = True
+            skipping = False
+            continue
+        if packet is None or skipping:
+            continue
+        expected = packet.last_offset + packet.last_length
+        if packet.last_offset < position <= expected:
+            cut = expected - position  # the previous line's ASCII column looked like hex
+            if cut:
+                del packet.data[len(packet.data) - cut :]
+            packet.data += data
+            packet.last_offset, packet.last_length = position, len(data)
+            continue
+        warnings.append(
+            f"hexdump line {number} (byte offset {line_offset}): offset {position:#x}, "
+            f"expected {expected:#x}; the packet ends there"
+        )
+        yield from finish(packet)
+        packet = None
+        skipping = True
+    if packet is not None:
+        yield from finish(packet)

@@ -1,0 +1,590 @@
+"""Provides the pcap and pcapng readers for serial link types 147, 250 and 252.
+
+pcap: both byte orders, microsecond and nanosecond magics (and the "modified" variant with
+a longer record header). pcapng: both byte orders, several sections and interfaces,
+SHB/IDB/EPB/SPB and the obsolete PB; `if_tsresol`, `if_tsoffset`, `opt_comment` (kept as
+the chunk's note) and `epb_flags`/`pack_flags`. Other blocks are skipped.
+
+Each interface is its own chunk channel (numbered across sections in file order). Chunk
+`t_end` is the packet time.
+
+Direction (see `packet_direction`):
+- an interface whose modscope description names a role (`master`/`slave`) gives that
+  role to all its packets;
+- link type 252 holds frames exported from a master's point of view: flags outbound (2)
+  -> MASTER, inbound (1) -> SLAVE;
+- link types 147 and 250 hold what a port read. A passive tap sees everything inbound, so
+  inbound (1) -> UNKNOWN; outbound (2), or an RTAC `DATA_TX_START` record, means the
+  capturing host sent it -> MASTER.
+
+Link type 250: the RTAC header time is the chunk's `t_start` when it lies before the
+packet time (by less than a minute); RTAC events become event chunks ("framing error",
+"parity error", "data lost", "break", "control lines" with the line states as note),
+after the data chunk when the record carries bytes too.
+
+Link type 252: each packet is one frame. `t_end` is the packet time and `t_start` one
+frame length earlier, moved later where needed so that every frame starts at least t3.5
+after the previous one on its channel ends: the framer then never joins two frames.
+
+A modscope `if_description` (see `linktypes`) gives the interface's line settings; the
+first one found is the capture's. SPBs carry no time: their bytes are placed one
+character time per byte after the interface's previous packet.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import BinaryIO
+
+from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.detect import PCAP_MAGICS
+from sniffer.sources.linktypes import (
+    BLOCK_EPB,
+    BLOCK_IDB,
+    BLOCK_PB,
+    BLOCK_SHB,
+    BLOCK_SPB,
+    EPB_DIRECTION_MASK,
+    EPB_FLAG_INBOUND,
+    EPB_FLAG_OUTBOUND,
+    EPB_FLAGS,
+    IF_DESCRIPTION,
+    IF_NAME,
+    IF_TSOFFSET,
+    IF_TSRESOL,
+    LINKTYPE_RTAC_SERIAL,
+    LINKTYPE_USER0,
+    LINKTYPE_WIRESHARK_UPPER_PDU,
+    OPT_COMMENT,
+    OPT_ENDOFOPT,
+    RTAC_DATA_TX_START,
+    RTAC_EVENTS,
+    RTAC_STATUS_CHANGE,
+    InterfaceNote,
+    control_lines_text,
+    parse_interface_description,
+    parse_rtac,
+    parse_upper_pdu,
+)
+
+MAX_BLOCK = 1 << 26  # 64 MiB: anything larger is taken as damage, not data
+LINKTYPE_NAMES = {
+    LINKTYPE_USER0: "USER0 raw serial",
+    LINKTYPE_RTAC_SERIAL: "RTAC serial",
+    LINKTYPE_WIRESHARK_UPPER_PDU: "exported PDU",
+}
+RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
+
+
+def packet_direction(linktype: int, role: Direction, flags: int | None) -> Direction:
+    """Direction of a packet from its interface's role and its EPB flags (module doc)."""
+    if role != Direction.UNKNOWN:
+        return role
+    bits = (flags or 0) & EPB_DIRECTION_MASK
+    if linktype == LINKTYPE_WIRESHARK_UPPER_PDU:
+        if bits == EPB_FLAG_OUTBOUND:
+            return Direction.MASTER
+        if bits == EPB_FLAG_INBOUND:
+            return Direction.SLAVE
+        return Direction.UNKNOWN
+    return Direction.MASTER if bits == EPB_FLAG_OUTBOUND else Direction.UNKNOWN
+
+
+@dataclass
+class _Interface:
+    """One capture interface and the reading state that belongs to it."""
+
+    linktype: int
+    channel: int
+    line: LineSettings
+    label: str
+    note: InterfaceNote = field(default_factory=lambda: InterfaceNote(None))
+    ticks_per_second: int = 1_000_000
+    offset_seconds: int = 0
+    snaplen: int = 0
+    last_end: float | None = None
+    warned: bool = False
+
+
+class _PacketDecoder:
+    """Turns packets of one interface into chunks, by link type."""
+
+    def __init__(self, warnings: list[str]) -> None:
+        self.warnings = warnings
+        self.other_dissectors: set[str] = set()
+
+    def chunks(
+        self,
+        iface: _Interface,
+        t: float | None,
+        data: bytes,
+        flags: int | None,
+        comment: str,
+        offset: int,
+    ) -> Iterator[Chunk]:
+        if iface.linktype not in LINKTYPE_NAMES:
+            if not iface.warned:
+                iface.warned = True
+                self.warnings.append(
+                    f"{iface.label}: link type {iface.linktype} is not serial data "
+                    "(147, 250 or 252); its packets are skipped"
+                )
+            return
+        if t is None:  # an SPB: no time of its own
+            t = (iface.last_end or 0.0) + len(data) * iface.line.char_time
+        if iface.linktype == LINKTYPE_USER0:
+            yield from self._user0(iface, t, data, flags, comment)
+        elif iface.linktype == LINKTYPE_RTAC_SERIAL:
+            yield from self._rtac(iface, t, data, flags, comment, offset)
+        else:
+            yield from self._upper_pdu(iface, t, data, flags, comment, offset)
+
+    def _user0(
+        self, iface: _Interface, t: float, data: bytes, flags: int | None, comment: str
+    ) -> Iterator[Chunk]:
+        iface.last_end = t
+        if data:
+            direction = packet_direction(iface.linktype, iface.note.role, flags)
+            yield Chunk(
+                data=data, t_end=t, channel=iface.channel, direction=direction, note=comment
+            )
+
+    def _rtac(
+        self,
+        iface: _Interface,
+        t: float,
+        data: bytes,
+        flags: int | None,
+        comment: str,
+        offset: int,
+    ) -> Iterator[Chunk]:
+        iface.last_end = t
+        record = parse_rtac(data)
+        if record is None:
+            self.warnings.append(
+                f"RTAC packet at byte offset {offset} is {len(data)} bytes, shorter than "
+                "its 12-byte header; skipped"
+            )
+            return
+        if record.event == RTAC_DATA_TX_START and not (flags or 0) & EPB_DIRECTION_MASK:
+            flags = EPB_FLAG_OUTBOUND
+        direction = packet_direction(iface.linktype, iface.note.role, flags)
+        lead = t - record.seconds
+        t_start = record.seconds if 0.0 < lead < RTAC_MAX_LEAD else None
+        if record.data:
+            yield Chunk(
+                data=record.data,
+                t_end=t,
+                t_start=t_start,
+                channel=iface.channel,
+                direction=direction,
+                note=comment,
+            )
+        event, note = RTAC_EVENTS.get(
+            record.event, ("unknown event", f"RTAC event type 0x{record.event:02X}")
+        )
+        if record.event == RTAC_STATUS_CHANGE:
+            note = control_lines_text(record.control_lines)
+        if event:
+            yield Chunk(
+                data=b"",
+                t_end=t,
+                channel=iface.channel,
+                direction=direction,
+                event=event,
+                note=note,
+            )
+
+    def _upper_pdu(
+        self,
+        iface: _Interface,
+        t: float,
+        data: bytes,
+        flags: int | None,
+        comment: str,
+        offset: int,
+    ) -> Iterator[Chunk]:
+        record = parse_upper_pdu(data)
+        if record is None:
+            self.warnings.append(
+                f"exported-PDU packet at byte offset {offset} has broken tags; skipped"
+            )
+            return
+        if record.dissector != "mbrtu" and record.dissector not in self.other_dissectors:
+            self.other_dissectors.add(record.dissector)
+            self.warnings.append(
+                f"{iface.label}: exported PDUs for dissector {record.dissector!r}, expected "
+                "'mbrtu'; passed on as bytes"
+            )
+        if not record.pdu:
+            return
+        line = iface.line
+        t_start = t - len(record.pdu) * line.char_time
+        if iface.last_end is not None:
+            t_start = max(t_start, iface.last_end + line.t35)
+        t_end = max(t, t_start)
+        iface.last_end = t_end
+        direction = packet_direction(iface.linktype, iface.note.role, flags)
+        yield Chunk(
+            data=record.pdu,
+            t_end=t_end,
+            t_start=t_start,
+            channel=iface.channel,
+            direction=direction,
+            note=comment,
+        )
+
+
+def _file_size(handle: BinaryIO) -> int:
+    return os.fstat(handle.fileno()).st_size
+
+
+# ---------------------------------------------------------------- pcap
+
+
+@dataclass(frozen=True, slots=True)
+class _PcapHeader:
+    order: str
+    nanoseconds: bool
+    modified: bool
+    linktype: int
+    snaplen: int
+
+
+def _pcap_header(head: bytes) -> _PcapHeader:
+    (magic,) = struct.unpack_from("<I", head)
+    order, nanoseconds, modified = PCAP_MAGICS[magic]
+    snaplen, network = struct.unpack_from(order + "II", head, 16)
+    return _PcapHeader(order, nanoseconds, modified, network & 0xFFFF, snaplen)
+
+
+def open_pcap(path: Path, options: ReadOptions, head: bytes) -> Capture:
+    """Open a pcap file (detected from `head`); one interface, channel 0."""
+    header = _pcap_header(head)
+    line = options.line(None)
+    name = LINKTYPE_NAMES.get(header.linktype, f"link type {header.linktype}")
+    label = f"pcap {name}"
+    iface = _Interface(
+        linktype=header.linktype,
+        channel=0,
+        line=line,
+        label=label,
+        ticks_per_second=1_000_000_000 if header.nanoseconds else 1_000_000,
+        snaplen=header.snaplen,
+    )
+    warnings: list[str] = []
+    info = SourceInfo(path=str(path), format="pcap", line=line, channels={0: label})
+    return Capture(
+        info=info, _chunks=_pcap_chunks(path, header, iface, warnings), warnings=warnings
+    )
+
+
+def _pcap_chunks(
+    path: Path, header: _PcapHeader, iface: _Interface, warnings: list[str]
+) -> Iterator[Chunk]:
+    decoder = _PacketDecoder(warnings)
+    record = struct.Struct(header.order + ("IIIIIHBB" if header.modified else "IIII"))
+    with path.open("rb") as handle:
+        size = _file_size(handle)
+        offset = 24
+        handle.seek(offset)
+        while offset < size:
+            raw = handle.read(record.size)
+            if len(raw) < record.size:
+                warnings.append(
+                    f"truncated pcap record header at byte offset {offset}: "
+                    f"{len(raw)} of {record.size} bytes; reading stopped there"
+                )
+                return
+            secs, frac, incl_len = record.unpack(raw)[:3]
+            if incl_len > MAX_BLOCK:
+                warnings.append(
+                    f"corrupt pcap record at byte offset {offset}: length {incl_len}; "
+                    "reading stopped there"
+                )
+                return
+            if offset + record.size + incl_len > size:
+                warnings.append(
+                    f"truncated pcap record at byte offset {offset}: {incl_len} bytes "
+                    f"announced, {size - offset - record.size} present; reading stopped there"
+                )
+                return
+            data = handle.read(incl_len)
+            t = secs + frac / iface.ticks_per_second
+            yield from decoder.chunks(iface, t, data, None, "", offset)
+            offset += record.size + incl_len
+
+
+# ---------------------------------------------------------------- pcapng
+
+
+@dataclass(frozen=True, slots=True)
+class _Block:
+    offset: int
+    type: int
+    body: bytes
+    order: str
+
+
+def _blocks(handle: BinaryIO, warnings: list[str]) -> Iterator[_Block]:
+    """Every complete block of a pcapng file; a damaged one ends the walk with a warning."""
+    size = _file_size(handle)
+    order = "<"
+    offset = 0
+    handle.seek(0)
+    while offset < size:
+        header = handle.read(8)
+        if len(header) < 8:
+            warnings.append(
+                f"truncated pcapng block at byte offset {offset}: {len(header)} bytes of "
+                "its header; reading stopped there"
+            )
+            return
+        prefix = b""
+        if header[:4] == b"\x0a\x0d\x0d\x0a":
+            prefix = handle.read(4)
+            if prefix == b"\x4d\x3c\x2b\x1a":
+                order = "<"
+            elif prefix == b"\x1a\x2b\x3c\x4d":
+                order = ">"
+            else:
+                warnings.append(
+                    f"corrupt pcapng section header at byte offset {offset}: no byte-order "
+                    "magic; reading stopped there"
+                )
+                return
+        elif offset == 0:
+            warnings.append("pcapng file does not start with a section header")
+            return
+        block_type, total = struct.unpack(order + "II", header)
+        if total < 12 + len(prefix) or total % 4 or total > MAX_BLOCK:
+            warnings.append(
+                f"corrupt pcapng block at byte offset {offset}: length {total}; "
+                "reading stopped there"
+            )
+            return
+        if offset + total > size:
+            warnings.append(
+                f"truncated pcapng block at byte offset {offset}: {total} bytes announced, "
+                f"{size - offset} present; reading stopped there"
+            )
+            return
+        body = prefix + handle.read(total - 12 - len(prefix))
+        (trailer,) = struct.unpack(order + "I", handle.read(4))
+        if trailer != total:
+            warnings.append(
+                f"corrupt pcapng block at byte offset {offset}: its lengths differ "
+                f"({total} and {trailer}); reading stopped there"
+            )
+            return
+        yield _Block(offset, block_type, body, order)
+        offset += total
+
+
+def _options(body: bytes, start: int, order: str) -> list[tuple[int, bytes]]:
+    """The options of a block body from `start`; a malformed tail is ignored."""
+    found: list[tuple[int, bytes]] = []
+    pos = start
+    while pos + 4 <= len(body):
+        code, length = struct.unpack_from(order + "HH", body, pos)
+        pos += 4
+        if code == OPT_ENDOFOPT or pos + length > len(body):
+            break
+        found.append((code, body[pos : pos + length]))
+        pos += length + (-length % 4)
+    return found
+
+
+def _text(value: bytes) -> str:
+    return value.split(b"\0", 1)[0].decode("utf-8", errors="replace")
+
+
+def _comment(options: list[tuple[int, bytes]]) -> str:
+    return "\n".join(_text(value) for code, value in options if code == OPT_COMMENT)
+
+
+def _flags(options: list[tuple[int, bytes]], order: str) -> int | None:
+    for code, value in options:
+        if code == EPB_FLAGS and len(value) >= 4:
+            flags: int = struct.unpack_from(order + "I", value)[0]
+            return flags
+    return None
+
+
+class _Section:
+    """Interfaces of the file: a new section header starts a new list of ids."""
+
+    def __init__(self, options: ReadOptions, warnings: list[str]) -> None:
+        self.options = options
+        self.warnings = warnings
+        self.current: list[_Interface] = []
+        self.all: list[_Interface] = []
+        self.file_line: LineSettings | None = None
+        self.unknown: set[tuple[int, int]] = set()
+
+    def new_section(self) -> None:
+        self.current = []
+
+    def add(self, block: _Block) -> _Interface:
+        order, body = block.order, block.body
+        channel = len(self.all)
+        if len(body) < 8:
+            self.warnings.append(
+                f"corrupt interface description at byte offset {block.offset}; "
+                "its packets are skipped"
+            )
+            iface = _Interface(-1, channel, self.options.line(None), f"interface {channel}")
+        else:
+            linktype, _reserved, snaplen = struct.unpack_from(order + "HHI", body)
+            iface = self._interface(linktype, snaplen, _options(body, 8, order), order, channel)
+        self.current.append(iface)
+        self.all.append(iface)
+        return iface
+
+    def _interface(
+        self,
+        linktype: int,
+        snaplen: int,
+        options: list[tuple[int, bytes]],
+        order: str,
+        channel: int,
+    ) -> _Interface:
+        name = description = ""
+        ticks = 1_000_000
+        offset_seconds = 0
+        for code, value in options:
+            if code == IF_NAME:
+                name = _text(value)
+            elif code == IF_DESCRIPTION:
+                description = _text(value)
+            elif code == IF_TSRESOL and value:
+                exponent = value[0] & 0x7F
+                ticks = 2**exponent if value[0] & 0x80 else 10**exponent
+            elif code == IF_TSOFFSET and len(value) >= 8:
+                (offset_seconds,) = struct.unpack_from(order + "q", value)
+        note = parse_interface_description(description)
+        if note.line is not None:
+            if self.file_line is None:
+                self.file_line = note.line
+            elif note.line != self.file_line:
+                self.warnings.append(
+                    f"interface {channel} records {note.line.describe()}, another "
+                    f"{self.file_line.describe()}; each interface is read with its own"
+                )
+        kind = LINKTYPE_NAMES.get(linktype, f"link type {linktype}")
+        label = f"{name or description or f'interface {channel}'} ({kind})"
+        return _Interface(
+            linktype=linktype,
+            channel=channel,
+            line=self.options.line(note.line),
+            label=label,
+            note=note,
+            ticks_per_second=ticks,
+            offset_seconds=offset_seconds,
+            snaplen=snaplen,
+        )
+
+    def get(self, index: int, offset: int) -> _Interface | None:
+        if 0 <= index < len(self.current):
+            return self.current[index]
+        if (len(self.all), index) not in self.unknown:
+            self.unknown.add((len(self.all), index))
+            self.warnings.append(
+                f"packet at byte offset {offset} names interface {index}, which the "
+                "section has not described; its packets are skipped"
+            )
+        return None
+
+
+def open_pcapng(path: Path, options: ReadOptions) -> Capture:
+    """Open a pcapng file: interfaces before the first packet describe the capture."""
+    early: list[str] = []
+    section = _Section(options, early)
+    with path.open("rb") as handle:
+        for block in _blocks(handle, early):
+            if block.type == BLOCK_SHB:
+                section.new_section()
+            elif block.type == BLOCK_IDB:
+                section.add(block)
+            elif block.type in (BLOCK_EPB, BLOCK_SPB, BLOCK_PB):
+                break
+    line = options.line(section.file_line)
+    channels = {iface.channel: iface.label for iface in section.all}
+    info = SourceInfo(path=str(path), format="pcapng", line=line, channels=channels)
+    warnings: list[str] = []
+    return Capture(
+        info=info, _chunks=_pcapng_chunks(path, options, info, warnings), warnings=warnings
+    )
+
+
+def _pcapng_chunks(
+    path: Path, options: ReadOptions, info: SourceInfo, warnings: list[str]
+) -> Iterator[Chunk]:
+    section = _Section(options, warnings)
+    decoder = _PacketDecoder(warnings)
+    with path.open("rb") as handle:
+        for block in _blocks(handle, warnings):
+            if block.type == BLOCK_SHB:
+                major = (
+                    struct.unpack_from(block.order + "H", block.body, 4)[0]
+                    if len(block.body) >= 16
+                    else -1
+                )
+                if major != 1:
+                    warnings.append(
+                        f"pcapng section at byte offset {block.offset} has version {major}, "
+                        "not 1; reading stopped there"
+                    )
+                    return
+                section.new_section()
+                continue
+            if block.type == BLOCK_IDB:
+                iface = section.add(block)
+                info.channels.setdefault(iface.channel, iface.label)
+                continue
+            yield from _packet_block(block, section, decoder, warnings)
+
+
+def _packet_block(
+    block: _Block, section: _Section, decoder: _PacketDecoder, warnings: list[str]
+) -> Iterator[Chunk]:
+    order, body = block.order, block.body
+    if block.type in (BLOCK_EPB, BLOCK_PB):
+        if len(body) < 20:
+            warnings.append(f"corrupt packet block at byte offset {block.offset}; skipped")
+            return
+        if block.type == BLOCK_EPB:
+            index, high, low, caplen = struct.unpack_from(order + "IIII", body)
+        else:
+            index, _drops, high, low, caplen = struct.unpack_from(order + "HHIII", body)
+        if 20 + caplen > len(body):
+            warnings.append(
+                f"corrupt packet block at byte offset {block.offset}: {caplen} bytes "
+                "announced, the block is shorter; skipped"
+            )
+            return
+        iface = section.get(index, block.offset)
+        if iface is None:
+            return
+        opts = _options(body, 20 + caplen + (-caplen % 4), order)
+        ticks = (high << 32) | low
+        t = ticks / iface.ticks_per_second + iface.offset_seconds
+        data = body[20 : 20 + caplen]
+        yield from decoder.chunks(iface, t, data, _flags(opts, order), _comment(opts), block.offset)
+    elif block.type == BLOCK_SPB:
+        if len(body) < 4:
+            warnings.append(f"corrupt simple packet block at byte offset {block.offset}; skipped")
+            return
+        iface = section.get(0, block.offset)
+        if iface is None:
+            return
+        (original,) = struct.unpack_from(order + "I", body)
+        length = min(original, len(body) - 4)
+        if iface.snaplen:
+            length = min(length, iface.snaplen)
+        yield from decoder.chunks(iface, None, body[4 : 4 + length], None, "", block.offset)
