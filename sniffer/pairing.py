@@ -46,14 +46,16 @@ class Pairer:
             j = partner[i]
             if j >= 0:
                 # paired as it was framed (the answer its request predicted)
-                if j > i:
+                if j < i:  # the answer
+                    if op == j:
+                        self.open = -1
+                    if t[i] - t_end[j] > timeout:
+                        s.flags[i] |= Flag.LATE
+                else:  # the request
                     if op >= 0:
                         self._time_out(op)
-                    self.open = -1
                     if self.last_timed_out:
                         self._check_retry(i)
-                    if t[j] - t_end[i] > timeout:
-                        s.flags[j] |= Flag.LATE
                 continue
             if k == 1:  # Kind.REQUEST
                 self._request(i)
@@ -98,6 +100,9 @@ class Pairer:
 
     def _time_out(self, req: int) -> None:
         s = self.store
+        self.open = -1
+        if s.partner[req] != NO_PARTNER:
+            return  # answered after all (paired as it was framed)
         s.status[req] = Status.TIMEOUT
         self.last_timed_out = s.raw(req)
         self.open = -1

@@ -1,0 +1,218 @@
+"""Provides annotation: register names, values and units for units bound to device models.
+
+Most of it happens on demand, when a frame is shown. Two things need every frame in
+order and are kept up to date as frames are indexed: which parameter a device's
+parameter window has selected (a later read of the window's value is named after it),
+and the device's own timing rules (answer time, quiet time after writes).
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dissectors.dictionary import (
+    DeviceDictionary,
+    DictionaryError,
+    RegisterValue,
+    UnitBinding,
+    load_bus,
+    load_dictionary,
+    load_model,
+    parse_unit_binding,
+)
+from dissectors.dictionary.device import Window
+from dissectors.values import Dissection, RegisterData
+from sniffer.framing import Flag, Kind
+from sniffer.store import NO_PARTNER, FrameStore
+
+REGISTER_TABLES = ("holding_registers", "input_registers")
+
+
+@dataclass(frozen=True, slots=True)
+class Binding:
+    """A slave address bound to a device model."""
+
+    address: int
+    label: str
+    dictionary: DeviceDictionary
+
+
+@dataclass
+class _WindowTrack:
+    window: Window
+    rows: list[int] = field(default_factory=list)  # rows that wrote the select register
+    numbers: list[int] = field(default_factory=list)  # the parameter each selected
+
+
+def load_bindings(
+    bus_file: str | Path | None = None,
+    units: Sequence[str] = (),
+    extra_dicts: Sequence[str | Path] = (),
+) -> dict[int, Binding]:
+    """Bindings from a bus file and `--unit 3=rvs-dn[:label]` options (which win)."""
+    extra = [Path(p) for p in extra_dicts]
+    own: dict[str, DeviceDictionary] = {}
+    for path in extra:
+        d = load_dictionary(path)
+        own[d.model] = d
+
+    def model(name: str) -> DeviceDictionary:
+        if name in own:
+            return own[name]
+        return load_model(name, extra)
+
+    found: list[UnitBinding] = []
+    if bus_file is not None:
+        found.extend(load_bus(bus_file).units.values())
+    for text in units:
+        try:
+            found.append(parse_unit_binding(text))
+        except ValueError as exc:
+            raise DictionaryError("--unit", None, str(exc), "write --unit ADDRESS=MODEL") from exc
+    out: dict[int, Binding] = {}
+    for b in found:
+        d = model(b.model)
+        out[b.address] = Binding(b.address, b.label or d.name, d)
+    return out
+
+
+class Annotator:
+    """Names what bound units read and write. `update(store)` follows new frames."""
+
+    def __init__(self, bindings: Mapping[int, Binding]) -> None:
+        self.bindings = dict(bindings)
+        self.next = 0
+        self.tracks: dict[tuple[int, int], _WindowTrack] = {}
+        self.last_write: dict[int, tuple[float, int]] = {}  # unit -> (time, fc) of a write
+        for unit, b in self.bindings.items():
+            for n, window in enumerate(b.dictionary.windows):
+                self.tracks[(unit, n)] = _WindowTrack(window)
+
+    def label(self, unit: int) -> str:
+        b = self.bindings.get(unit)
+        return b.label if b is not None else ""
+
+    # -- following the capture -----------------------------------------------------------
+
+    def update(self, store: FrameStore) -> None:
+        if not self.bindings:
+            self.next = len(store)
+            return
+        store.sync()
+        bound = self.bindings
+        kind, unit = store.kind, store.unit
+        for i in range(self.next, len(store)):
+            u = unit[i]
+            if u not in bound or kind[i] == Kind.NOISE:
+                continue
+            k = kind[i]
+            if k == Kind.REQUEST:
+                self._request(store, i, u)
+            elif k in (Kind.RESPONSE, Kind.EXCEPTION):
+                self._answer(store, i, u)
+        self.next = len(store)
+
+    def _request(self, store: FrameStore, i: int, unit: int) -> None:
+        timing = self.bindings[unit].dictionary.timing
+        if timing is not None and timing.quiet_after_write_ms is not None:
+            last = self.last_write.get(unit)
+            if last is not None and store.t[i] - last[0] < timing.quiet_after_write_ms / 1000:
+                store.flags[i] |= Flag.QUIET_VIOLATED
+        fc = store.fc[i]
+        if fc in (6, 16) and store.flags[i] & Flag.CHECK_BAD == 0:
+            body = store.view(i).body()
+            for (u, _), track in self.tracks.items():
+                if u != unit:
+                    continue
+                number = _written_word(body, fc, track.window.select)
+                if number is not None:
+                    track.rows.append(i)
+                    track.numbers.append(number)
+
+    def _answer(self, store: FrameStore, i: int, unit: int) -> None:
+        timing = self.bindings[unit].dictionary.timing
+        req = store.partner[i]
+        if timing is None or req == NO_PARTNER:
+            return
+        fc = store.fc[req]
+        latency_ms = (store.t[i] - store.t_end[req]) * 1000
+        limit = timing.response_ms
+        if fc in timing.long_response_functions and timing.long_response_ms is not None:
+            limit = timing.long_response_ms
+        if limit is not None and latency_ms > limit:
+            store.flags[i] |= Flag.DEVICE_SLOW
+        if fc in timing.quiet_after_functions and not store.fc[i] & 0x80:
+            self.last_write[unit] = (store.t_end[i], fc)
+
+    def selected(self, unit: int, window_index: int, row: int) -> int | None:
+        """The parameter a window had selected when `row` was sent."""
+        track = self.tracks.get((unit, window_index))
+        if track is None:
+            return None
+        k = bisect.bisect_left(track.rows, row)
+        return track.numbers[k - 1] if k else None
+
+    # -- on demand -----------------------------------------------------------------------
+
+    def registers(self, unit: int, row: int, dissection: Dissection) -> list[RegisterValue]:
+        """Named values a frame carries, for a bound unit (empty for others)."""
+        b = self.bindings.get(unit)
+        if b is None:
+            return []
+        out: list[RegisterValue] = []
+        for data in dissection.data:
+            if data.address is None or not data.values:
+                continue
+            out.extend(self._decode(b, unit, row, data))
+        return out
+
+    def _decode(self, b: Binding, unit: int, row: int, data: RegisterData) -> list[RegisterValue]:
+        d = b.dictionary
+        if data.table in REGISTER_TABLES:
+            assert data.address is not None
+            values = list(data.values)
+            start = data.address
+            out: list[RegisterValue] = []
+            for n, window in enumerate(d.windows):
+                if not _covers(start, len(values), window.value):
+                    continue
+                number = self.selected(unit, n, row)
+                if number is None:
+                    continue
+                tail = values[window.value - start :]
+                out.append(window.decode(number, tail, write=data.write, table=data.table))
+                values = values[: window.value - start]
+                break
+            decoded = d.decode(data.table, start, values, write=data.write) if values else []
+            return decoded + out
+        assert data.address is not None
+        return d.decode_bits(
+            data.table, data.address, [bool(v) for v in data.values], write=data.write
+        )
+
+    def exception_meaning(self, unit: int, code: int) -> str:
+        b = self.bindings.get(unit)
+        return b.dictionary.exceptions.get(code, "") if b is not None else ""
+
+
+def _covers(start: int, count: int, address: int) -> bool:
+    return start <= address < start + count
+
+
+def _written_word(body: bytes, fc: int, address: int) -> int | None:
+    """The value a FC 6 or FC 16 request writes to `address`, if it does."""
+    if fc == 6 and len(body) >= 6:
+        if int.from_bytes(body[2:4], "big") == address:
+            return int.from_bytes(body[4:6], "big")
+        return None
+    if fc == 16 and len(body) >= 7:
+        start = int.from_bytes(body[2:4], "big")
+        count = int.from_bytes(body[4:6], "big")
+        if start <= address < start + count:
+            pos = 7 + 2 * (address - start)
+            if pos + 2 <= len(body):
+                return int.from_bytes(body[pos : pos + 2], "big")
+    return None

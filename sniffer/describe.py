@@ -1,0 +1,146 @@
+"""Provides frame details on demand: dissection, register names, problems, one-line summary.
+
+Only rows somebody looks at (a screen, an export) are dissected; results are cached.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+from dissectors.dictionary import RegisterValue
+from dissectors.dissect import dissect
+from dissectors.functions import function_name
+from dissectors.values import Dissection, Field, Role
+from sniffer.annotate import Annotator
+from sniffer.framing import Flag, Kind
+from sniffer.pairing import latency
+from sniffer.problems import frame_problems
+from sniffer.store import NO_PARTNER, FrameStore, FrameView, Status
+from sniffer.text import plain
+
+DIRECTION = {Kind.REQUEST: "M>S", Kind.RESPONSE: "S>M", Kind.EXCEPTION: "S>M"}
+
+
+@dataclass(frozen=True, slots=True)
+class FrameDetail:
+    """Everything modscope can say about one row."""
+
+    view: FrameView
+    name: str  # function name, "noise", or the event
+    summary: str  # one line, register names included
+    dissection: Dissection | None
+    registers: tuple[RegisterValue, ...]
+    problems: tuple[str, ...]
+    latency_ms: float | None
+    label: str  # the device label from the bus bindings
+
+    @property
+    def direction(self) -> str:
+        return DIRECTION.get(self.view.kind, "?")
+
+    @property
+    def status(self) -> str:
+        return Status.NAMES[self.view.status]
+
+    @property
+    def fields(self) -> tuple[Field, ...]:
+        return self.dissection.fields if self.dissection is not None else ()
+
+
+class Describer:
+    """Details of rows of `store`, dissected when asked for and kept in an LRU cache."""
+
+    def __init__(self, store: FrameStore, annotator: Annotator | None = None, size: int = 4096):
+        self.store = store
+        self.annotator = annotator or Annotator({})
+        self.size = size
+        self._cache: OrderedDict[int, FrameDetail] = OrderedDict()
+
+    def forget(self, i: int) -> None:
+        self._cache.pop(i, None)
+
+    def detail(self, i: int) -> FrameDetail:
+        found = self._cache.get(i)
+        if found is not None:
+            # pairing may have changed since (a live answer arrived): refresh open rows
+            if found.view.status != self.store.status[i]:
+                self._cache.pop(i)
+            else:
+                self._cache.move_to_end(i)
+                return found
+        made = self._make(i)
+        self._cache[i] = made
+        if len(self._cache) > self.size:
+            self._cache.popitem(last=False)
+        return made
+
+    def _make(self, i: int) -> FrameDetail:
+        store = self.store
+        view = store.view(i)
+        note = store.notes.get(i, "")
+        problems = frame_problems(view, note)
+        label = self.annotator.label(view.unit)
+        if view.kind == Kind.EVENT:
+            return FrameDetail(view, "event", plain(note), None, (), tuple(problems), None, "")
+        if view.kind == Kind.NOISE:
+            summary = f"{len(view.raw)} bytes of noise"
+            return FrameDetail(view, "noise", summary, None, (), tuple(problems), None, "")
+        body = view.body()
+        if len(body) < 2:
+            return FrameDetail(
+                view, "?", "frame too short to read", None, (), tuple(problems), None, label
+            )
+        role = Role.RESPONSE if view.kind in (Kind.RESPONSE, Kind.EXCEPTION) else Role.REQUEST
+        request: bytes | None = None
+        if role == Role.RESPONSE and view.partner != NO_PARTNER:
+            request = store.view(view.partner).body()
+        d = dissect(body, role, request=request)
+        registers: list[RegisterValue] = []
+        extra_summary = ""
+        name = d.name
+        binding = self.annotator.bindings.get(view.unit)
+        if binding is not None and view.function in binding.dictionary.functions:
+            vendor = binding.dictionary.functions[view.function]
+            name = vendor.name
+            decoded = (
+                vendor.decode_response(body[2:])
+                if role == Role.RESPONSE
+                else vendor.decode_request(body[2:])
+            )
+            extra_summary = ", ".join(plain(f.text) for f in decoded.fields)
+            problems.extend(decoded.problems)
+        else:
+            registers = self.annotator.registers(view.unit, i, d)
+        for p in d.problems:
+            problems.append(p.text)
+        for r in registers:
+            problems.extend(f"{r.name}: {p}" for p in r.problems)
+            if r.partial:
+                problems.append(f"{r.name}: the read cuts this value in half")
+        if d.exception:
+            code = d.field("exception_code")
+            if code is not None and isinstance(code.value, int):
+                meaning = self.annotator.exception_meaning(view.unit, code.value)
+                if meaning:
+                    extra_summary = f"device says: {meaning}"
+        summary = d.summary
+        if registers:
+            summary += ": " + ", ".join(plain(r.text) for r in registers[:6])
+            if len(registers) > 6:
+                summary += f", ... ({len(registers)} values)"
+        elif extra_summary:
+            summary += ": " + extra_summary
+        lat = latency(store, i)
+        if view.flags & Flag.SILENCE_FRAMED and name.startswith(("Unknown", "User", "Reserved")):
+            name = function_name(view.function)
+        return FrameDetail(
+            view,
+            plain(name),
+            plain(summary),
+            d,
+            tuple(registers),
+            tuple(plain(p) for p in problems),
+            None if lat is None else lat * 1000,
+            label,
+        )

@@ -1,0 +1,134 @@
+"""Provides a capture session: a source's chunks framed, paired, annotated and counted.
+
+The CLI listing, the exports and the TUI all look at a capture through a Session.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+
+from sniffer.annotate import Annotator, Binding
+from sniffer.describe import Describer
+from sniffer.model import Chunk, LineSettings
+from sniffer.pipeline import Pipeline
+from sniffer.sources import Capture, ReadOptions, open_capture
+from sniffer.stats import Stats
+from sniffer.store import FrameStore
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO_CAPTURE = ROOT / "captures" / "demo.pcapng"
+DEMO_BUS = ROOT / "captures" / "demo-bus.toml"
+
+Progress = Callable[[int, int], None]
+"""progress(bytes_done, frames_so_far)."""
+
+
+class Session:
+    """One capture being looked at: store, pipeline, annotation, statistics, details."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        *,
+        bindings: Mapping[int, Binding] | None = None,
+        exact_timing: bool = False,
+        timeout: float | None = None,
+        source: str = "",
+    ) -> None:
+        self.line = line
+        self.source = source
+        self.store = FrameStore()
+        self.pipeline = Pipeline(line, self.store, exact_timing=exact_timing, timeout=timeout)
+        self.annotator = Annotator(bindings or {})
+        self.stats = Stats(self.store)
+        self.describer = Describer(self.store, self.annotator)
+        self.warnings: list[str] = []
+        self.chunks = 0
+
+    @property
+    def mode(self) -> str:
+        return self.pipeline.mode or self.line.mode
+
+    def feed(self, chunk: Chunk) -> None:
+        self.pipeline.feed(chunk)
+        self.chunks += 1
+
+    def refresh(self) -> None:
+        """Bring annotation state and statistics up to date with the store."""
+        self.annotator.update(self.store)
+        self.stats.update()
+
+    def idle(self, now: float) -> None:
+        self.pipeline.idle(now)
+        self.refresh()
+
+    def finish(self) -> None:
+        self.pipeline.finish()
+        self.refresh()
+
+    def ingest(
+        self,
+        chunks: Iterable[Chunk],
+        progress: Progress | None = None,
+        every: float = 0.25,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> None:
+        """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
+        last = time.monotonic()
+        done = 0
+        for chunk in chunks:
+            self.feed(chunk)
+            done += len(chunk.data)
+            now = time.monotonic()
+            if now - last >= every:
+                last = now
+                self.refresh()
+                if progress is not None:
+                    progress(done, len(self.store))
+                if should_stop is not None and should_stop():
+                    return
+        self.finish()
+        if progress is not None:
+            progress(done, len(self.store))
+
+
+def open_session(
+    path: str | Path,
+    options: ReadOptions | None = None,
+    *,
+    bindings: Mapping[int, Binding] | None = None,
+    timeout: float | None = None,
+) -> tuple[Session, Capture]:
+    """A session for a capture file, not yet ingested: feed it `capture.chunks()`."""
+    options = options or ReadOptions()
+    capture = open_capture(path, options)
+    line = options.line(capture.info.line)
+    session = Session(
+        line,
+        bindings=bindings,
+        exact_timing=capture.info.exact_timing,
+        timeout=timeout,
+        source=str(path),
+    )
+    return session, capture
+
+
+def replay_file(
+    path: str | Path,
+    options: ReadOptions | None = None,
+    *,
+    bindings: Mapping[int, Binding] | None = None,
+    timeout: float | None = None,
+    progress: Progress | None = None,
+) -> Session:
+    """Open, frame, pair and annotate a whole capture file."""
+    session, capture = open_session(path, options, bindings=bindings, timeout=timeout)
+    session.ingest(capture.chunks(), progress)
+    session.warnings.extend(capture.warnings)
+    return session
+
+
+def whole(store: FrameStore) -> range:
+    return range(len(store))

@@ -1,0 +1,131 @@
+"""Provides per-unit statistics, kept up to date as frames are indexed."""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+from sniffer.framing import Flag, Kind
+from sniffer.store import NO_PARTNER, FrameStore, Status
+
+
+@dataclass
+class UnitStats:
+    unit: int
+    requests: int = 0
+    responses: int = 0
+    exceptions: Counter[int] = field(default_factory=Counter)
+    timeouts: int = 0
+    check_errors: int = 0
+    latencies: list[float] = field(default_factory=list)  # seconds
+    request_times: list[float] = field(default_factory=list)
+    last_seen: float = 0.0
+
+    @property
+    def exception_count(self) -> int:
+        return sum(self.exceptions.values())
+
+    def latency_ms(self, q: float) -> float | None:
+        """The q-quantile (0..1) of answer latency in ms, nearest rank."""
+        if not self.latencies:
+            return None
+        ordered = sorted(self.latencies)
+        k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
+        return ordered[k] * 1000
+
+    def polling_period(self) -> float | None:
+        """Median seconds between two requests to this unit."""
+        times = self.request_times
+        if len(times) < 2:
+            return None
+        gaps = sorted(b - a for a, b in zip(times, times[1:], strict=False))
+        return gaps[len(gaps) // 2]
+
+
+class Stats:
+    """Per-unit counts over a store; call `update()` as rows arrive."""
+
+    def __init__(self, store: FrameStore) -> None:
+        self.store = store
+        self.units: dict[int, UnitStats] = {}
+        self.next = 0
+        self.noise_bytes = 0
+        self.noise_spans = 0
+        self.events = 0
+        self._timed_out: set[int] = set()
+        self._open: set[int] = set()
+
+    def unit(self, u: int) -> UnitStats:
+        found = self.units.get(u)
+        if found is None:
+            found = self.units[u] = UnitStats(u)
+        return found
+
+    def update(self) -> None:
+        s = self.store
+        s.sync()
+        # requests still open last time may have timed out since
+        for i in list(self._open):
+            if s.status[i] != Status.OPEN:
+                self._open.discard(i)
+                if s.status[i] == Status.TIMEOUT:
+                    self.unit(s.unit[i]).timeouts += 1
+        for i in range(self.next, len(s)):
+            k = s.kind[i]
+            if k == Kind.NOISE:
+                self.noise_spans += 1
+                self.noise_bytes += s.length[i]
+                continue
+            if k == Kind.EVENT:
+                self.events += 1
+                continue
+            st = self.unit(s.unit[i])
+            st.last_seen = s.t_end[i]
+            if s.flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
+                st.check_errors += 1
+                continue
+            if k == Kind.REQUEST:
+                st.requests += 1
+                st.request_times.append(s.t[i])
+                if s.status[i] == Status.TIMEOUT:
+                    st.timeouts += 1
+                elif s.status[i] == Status.OPEN:
+                    self._open.add(i)
+            elif k in (Kind.RESPONSE, Kind.EXCEPTION):
+                st.responses += 1
+                fc = s.fc[i]
+                if fc & 0x80:
+                    body = s.view(i).body()
+                    st.exceptions[body[2] if len(body) > 2 else 0] += 1
+                j = s.partner[i]
+                if j != NO_PARTNER:
+                    st.latencies.append(s.t[i] - s.t_end[j])
+        self.next = len(s)
+
+    def table(self, labels: dict[int, str] | None = None) -> str:
+        """The per-unit table, as `modscope replay --stats` prints it."""
+        labels = labels or {}
+        head = (
+            f"{'unit':>4}  {'device':<16} {'req':>7} {'resp':>7} {'exc':>5} {'t/o':>5} "
+            f"{'chk':>5} {'lat min':>8} {'median':>8} {'p95':>8} {'max':>8} {'period':>8}"
+        )
+        lines = [head, "-" * len(head)]
+
+        def ms(x: float | None) -> str:
+            return "-" if x is None else f"{x:.1f}"
+
+        for u in sorted(self.units):
+            st = self.units[u]
+            period = st.polling_period()
+            lines.append(
+                f"{u:>4}  {labels.get(u, '')[:16]:<16} {st.requests:>7} {st.responses:>7} "
+                f"{st.exception_count:>5} {st.timeouts:>5} {st.check_errors:>5} "
+                f"{ms(st.latency_ms(0)):>8} {ms(st.latency_ms(0.5)):>8} "
+                f"{ms(st.latency_ms(0.95)):>8} {ms(st.latency_ms(1)):>8} "
+                f"{'-' if period is None else f'{period * 1000:.0f}ms':>8}"
+            )
+            if st.exceptions:
+                codes = ", ".join(f"{c:02d} x{n}" for c, n in sorted(st.exceptions.items()))
+                lines.append(f"{'':>4}  exceptions by code: {codes}")
+        lines.append(f"noise: {self.noise_spans} spans, {self.noise_bytes} bytes; events: {self.events}")
+        return "\n".join(lines)
