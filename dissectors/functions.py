@@ -3,16 +3,40 @@
 Each spec says, in one place, what the code is called, its class (public, user-defined,
 reserved), and what a framer needs to predict frame lengths in both directions: the RTU
 length of a request, of a normal response, and the exact response length a given
-request implies. Construct schemas for request and response live on the same spec.
+request implies. Construct schemas for request and response live on the same spec, with
+the family of dissection routine that reads meaning into them, the data table, and the
+legal quantities. The names tables (exception codes, diagnostic sub-functions, MEI types,
+device identification objects, function code classes) live here too.
 
 Lengths are RTU frame lengths: address + function + data + 2 CRC bytes.
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
+
+from construct import (
+    Adapter,
+    Bytes,
+    Construct,
+    ConstructError,
+    Container,
+    GreedyBytes,
+    If,
+    Int8ub,
+    Int16ub,
+    ListContainer,
+    SizeofError,
+    StreamError,
+    Struct,
+    Subconstruct,
+    evaluate,
+    stream_write,
+    this,
+)
 
 Buffer = bytes | bytearray | memoryview
 
@@ -66,6 +90,417 @@ def fixed(n: int) -> LengthRule:
 
 def counted(pos: int, base: int, size: int = 1) -> LengthRule:
     return LengthRule(base=base, count_pos=pos, count_size=size)
+
+
+# --- construct building blocks ------------------------------------------------------------
+# Schemas parse the PDU after the function code from a stream that holds the whole body
+# (unit, function, data), so stream positions are byte offsets within the body. They are
+# interpreted, never compiled: bus data is untrusted, and errors must keep their place.
+
+
+class Record(Struct):  # type: ignore[misc]  # construct is untyped
+    """A Struct that remembers where each named field lies: `obj["_spans"][name]` is the
+    (start, end) stream position of that field. When the data ends inside a field, the
+    ConstructError raised carries `partial` (the fields read so far) and `failed`
+    (the field's name and start), so a truncated frame still shows what it had."""
+
+    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+        obj = Container()
+        spans: dict[str, tuple[int, int]] = {}
+        obj["_spans"] = spans
+        context = Container(
+            _=context,
+            _params=context._params,
+            _root=None,
+            _parsing=context._parsing,
+            _building=context._building,
+            _sizing=context._sizing,
+            _subcons=self._subcons,
+            _io=stream,
+            _index=context.get("_index", None),
+        )
+        context._root = context._.get("_root", context)
+        for sc in self.subcons:
+            start = stream.tell()
+            try:
+                value = sc._parsereport(stream, context, path)
+            except ConstructError as error:
+                partial = getattr(error, "partial", None)
+                if sc.name and partial is not None:
+                    obj[sc.name] = partial
+                    spans[sc.name] = (start, stream.tell())
+                error.partial = obj
+                error.failed = (sc.name or "data", start)
+                raise
+            if sc.name:
+                obj[sc.name] = value
+                context[sc.name] = value
+                spans[sc.name] = (start, stream.tell())
+        return obj
+
+
+class Repeat(Subconstruct):  # type: ignore[misc]  # construct is untyped
+    """`subcon` repeated `count` times, or for as long as it stays within `within` bytes
+    (both may be `this` expressions; negative counts mean none). A truncated item keeps
+    the items before it in the error's `partial`."""
+
+    def __init__(self, subcon: Any, *, count: Any = None, within: Any = None) -> None:
+        super().__init__(subcon)
+        self.count = count
+        self.within = within
+
+    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+        items = ListContainer()
+        start = stream.tell()
+        limit = None if self.within is None else start + evaluate(self.within, context)
+        count = None if self.count is None else evaluate(self.count, context)
+        index = 0
+        while (count is None or index < count) and (limit is None or stream.tell() < limit):
+            context._index = index
+            before = stream.tell()
+            try:
+                items.append(self.subcon._parsereport(stream, context, path))
+            except ConstructError as error:
+                partial = getattr(error, "partial", None)
+                if partial is not None:
+                    items.append(partial)
+                error.partial = items
+                raise
+            if stream.tell() == before:  # an empty item would repeat forever
+                break
+            index += 1
+        return items
+
+    def _build(self, obj: Any, stream: Any, context: Any, path: Any) -> Any:
+        built = ListContainer()
+        for index, item in enumerate(obj):
+            context._index = index
+            built.append(self.subcon._build(item, stream, context, path))
+        return built
+
+    def _sizeof(self, context: Any, path: Any) -> int:
+        raise SizeofError("a repeat has no fixed size", path=path)
+
+
+class Octets(Construct):  # type: ignore[misc]  # construct is untyped
+    """`length` raw bytes (a `this` expression; negative means 0). With `exact`, fewer
+    bytes than that is an error (the frame is truncated); without, it takes what there
+    is, so a byte count that promises more than the frame holds still shows the data."""
+
+    def __init__(self, length: Any, *, exact: bool = False) -> None:
+        super().__init__()
+        self.length = length
+        self.exact = exact
+
+    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+        length = max(0, evaluate(self.length, context))
+        data = stream.read(length)
+        if self.exact and len(data) != length:
+            raise StreamError(f"expected {length} bytes, found {len(data)}", path=path)
+        return data
+
+    def _build(self, obj: Any, stream: Any, context: Any, path: Any) -> Any:
+        data = bytes(obj)
+        stream_write(stream, data, len(data), path)
+        return data
+
+    def _sizeof(self, context: Any, path: Any) -> int:
+        raise SizeofError("octets have no fixed size", path=path)
+
+
+class WordValues(tuple[int, ...]):
+    """16-bit words, big-endian on the wire, as the `Words` adapter decodes them."""
+
+    __slots__ = ()
+
+
+class BitValues(tuple[int, ...]):
+    """Bits (0 or 1) in address order, as the `Bits` adapter decodes them."""
+
+    __slots__ = ()
+
+
+class Words(Adapter):  # type: ignore[misc]  # construct is untyped
+    """Bytes as big-endian 16-bit words (an odd last byte is left out: a problem to report,
+    not an error)."""
+
+    def _decode(self, obj: Any, context: Any, path: Any) -> WordValues:
+        data = bytes(obj)
+        return WordValues(struct.unpack_from(f">{len(data) // 2}H", data))
+
+    def _encode(self, obj: Any, context: Any, path: Any) -> bytes:
+        return struct.pack(f">{len(obj)}H", *obj)
+
+
+class Bits(Adapter):  # type: ignore[misc]  # construct is untyped
+    """Packed coil or input bits: the first bit is the least significant bit of the first
+    byte. Decodes every bit of every byte; the quantity the request asked for says how
+    many of them are real."""
+
+    def _decode(self, obj: Any, context: Any, path: Any) -> BitValues:
+        return BitValues((byte >> bit) & 1 for byte in bytes(obj) for bit in range(8))
+
+    def _encode(self, obj: Any, context: Any, path: Any) -> bytes:
+        bits = list(obj)
+        out = bytearray((len(bits) + 7) // 8)
+        for index, bit in enumerate(bits):
+            if bit:
+                out[index // 8] |= 1 << (index % 8)
+        return bytes(out)
+
+
+# --- schemas, one per distinct layout ------------------------------------------------------
+
+_ADDRESS_QUANTITY = Record("address" / Int16ub, "quantity" / Int16ub)
+_EMPTY = Record()
+_BITS_RESPONSE = Record(
+    "byte_count" / Int8ub,
+    "values" / Bits(Octets(this.byte_count)),
+)
+_REGISTERS_RESPONSE = Record(
+    "byte_count" / Int8ub,
+    "values" / Words(Octets(this.byte_count)),
+)
+_ADDRESS_VALUE = Record("address" / Int16ub, "value" / Int16ub)
+_EXCEPTION_STATUS_RESPONSE = Record("status" / Int8ub)
+_DIAGNOSTICS = Record("sub_function" / Int16ub, "data" / Words(GreedyBytes))
+_EVENT_COUNTER_RESPONSE = Record("status" / Int16ub, "event_count" / Int16ub)
+_EVENT_LOG_RESPONSE = Record(
+    "byte_count" / Int8ub,
+    "status" / Int16ub,
+    "event_count" / Int16ub,
+    "message_count" / Int16ub,
+    "events" / Octets(this.byte_count - 6),
+)
+_WRITE_COILS_REQUEST = Record(
+    "address" / Int16ub,
+    "quantity" / Int16ub,
+    "byte_count" / Int8ub,
+    "values" / Bits(Octets(this.byte_count)),
+)
+_WRITE_REGISTERS_REQUEST = Record(
+    "address" / Int16ub,
+    "quantity" / Int16ub,
+    "byte_count" / Int8ub,
+    "values" / Words(Octets(this.byte_count)),
+)
+_SERVER_ID_RESPONSE = Record(
+    "byte_count" / Int8ub,
+    "server_id" / Bytes(1),  # device specific; one byte is what devices and pymodbus send
+    "run_indicator" / Int8ub,
+    "additional" / Octets(this.byte_count - 2),
+)
+FILE_REFERENCE_TYPE = 6
+"""The only reference type the spec defines for file record sub-requests (FC 20, 21)."""
+
+LAST_FILE_RECORD = 9999
+"""Record numbers in a file run from 0 to 9999 (0x270F)."""
+
+_FILE_READ_ITEM = Record(
+    "reference_type" / Int8ub,
+    "file_number" / Int16ub,
+    "record_number" / Int16ub,
+    "record_length" / Int16ub,
+)
+_FILE_READ_REQUEST = Record(
+    "byte_count" / Int8ub,
+    "sub_requests" / Repeat(_FILE_READ_ITEM, count=this.byte_count // 7),
+)
+_FILE_READ_RESPONSE = Record(
+    "byte_count" / Int8ub,
+    "sub_responses"
+    / Repeat(
+        Record(
+            "length" / Int8ub,
+            "reference_type" / Int8ub,
+            "record_data" / Words(Octets(this.length - 1, exact=True)),
+        ),
+        within=this.byte_count,
+    ),
+)
+_FILE_WRITE = Record(
+    "byte_count" / Int8ub,
+    "sub_requests"
+    / Repeat(
+        Record(
+            "reference_type" / Int8ub,
+            "file_number" / Int16ub,
+            "record_number" / Int16ub,
+            "record_length" / Int16ub,
+            "record_data" / Words(Octets(this.record_length * 2, exact=True)),
+        ),
+        within=this.byte_count,
+    ),
+)
+_MASK_WRITE = Record("address" / Int16ub, "and_mask" / Int16ub, "or_mask" / Int16ub)
+_READ_WRITE_REQUEST = Record(
+    "read_address" / Int16ub,
+    "read_quantity" / Int16ub,
+    "write_address" / Int16ub,
+    "write_quantity" / Int16ub,
+    "byte_count" / Int8ub,
+    "values" / Words(Octets(this.byte_count)),
+)
+_FIFO_REQUEST = Record("fifo_address" / Int16ub)
+_FIFO_RESPONSE = Record(
+    "byte_count" / Int16ub,
+    "fifo_count" / Int16ub,
+    "values" / Words(Octets(this.fifo_count * 2)),
+)
+MEI_DEVICE_ID = 0x0E
+MEI_CANOPEN = 0x0D
+_IS_DEVICE_ID = this.mei_type == MEI_DEVICE_ID
+_NOT_DEVICE_ID = this.mei_type != MEI_DEVICE_ID
+_MEI_REQUEST = Record(
+    "mei_type" / Int8ub,
+    "read_device_id_code" / If(_IS_DEVICE_ID, Int8ub),
+    "object_id" / If(_IS_DEVICE_ID, Int8ub),
+    "data" / If(_NOT_DEVICE_ID, GreedyBytes),  # MEI 13 CANopen and others: raw
+)
+_MEI_RESPONSE = Record(
+    "mei_type" / Int8ub,
+    "read_device_id_code" / If(_IS_DEVICE_ID, Int8ub),
+    "conformity_level" / If(_IS_DEVICE_ID, Int8ub),
+    "more_follows" / If(_IS_DEVICE_ID, Int8ub),
+    "next_object_id" / If(_IS_DEVICE_ID, Int8ub),
+    "number_of_objects" / If(_IS_DEVICE_ID, Int8ub),
+    "objects"
+    / If(
+        _IS_DEVICE_ID,
+        Repeat(
+            Record(
+                "object_id" / Int8ub,
+                "length" / Int8ub,
+                "value" / Octets(this.length, exact=True),
+            ),
+            count=this.number_of_objects,
+        ),
+    ),
+    "data" / If(_NOT_DEVICE_ID, GreedyBytes),
+)
+
+EXCEPTION_SCHEMA: Any = Record("exception_code" / Int8ub)
+"""An exception response (function | 0x80): one exception code byte."""
+
+RAW_SCHEMA: Any = Record("data" / GreedyBytes)
+"""Any function code modscope has no layout for: the data as it is."""
+
+
+# --- names ----------------------------------------------------------------------------------
+
+FUNCTION_CLASSES: dict[str, str] = {
+    "public": "public",
+    "user": "user-defined",
+    "reserved": "reserved",
+    "unknown": "unknown",
+}
+"""What each function code class is called in plain text."""
+
+EXCEPTION_CODES: dict[int, str] = {
+    0x01: "illegal function",
+    0x02: "illegal data address",
+    0x03: "illegal data value",
+    0x04: "server device failure",
+    0x05: "acknowledge",
+    0x06: "server device busy",
+    0x08: "memory parity error",
+    0x0A: "gateway path unavailable",
+    0x0B: "gateway target device failed to respond",
+}
+"""The standard exception codes."""
+
+
+def exception_name(code: int) -> str:
+    """The standard name of an exception code, or "unknown exception"."""
+    return EXCEPTION_CODES.get(code, "unknown exception")
+
+
+@dataclass(frozen=True, slots=True)
+class SubFunction:
+    """One FC 8 diagnostics sub-function: its name, the request data the spec allows
+    (None: any), and what the response carries: `echo` (the request again), `count`
+    (a counter), `register` (the diagnostic register) or `none` (no response)."""
+
+    code: int
+    name: str
+    request_data: tuple[int, ...] | None = (0x0000,)
+    answer: str = "echo"
+
+
+DIAGNOSTIC_SUB_FUNCTIONS: dict[int, SubFunction] = {
+    sub.code: sub
+    for sub in (
+        SubFunction(0x00, "return query data", request_data=None),
+        SubFunction(0x01, "restart communications option", request_data=(0x0000, 0xFF00)),
+        SubFunction(0x02, "return diagnostic register", answer="register"),
+        SubFunction(0x03, "change ASCII input delimiter", request_data=None),
+        SubFunction(0x04, "force listen only mode", answer="none"),
+        SubFunction(0x0A, "clear counters and diagnostic register"),
+        SubFunction(0x0B, "return bus message count", answer="count"),
+        SubFunction(0x0C, "return bus communication error count", answer="count"),
+        SubFunction(0x0D, "return bus exception error count", answer="count"),
+        SubFunction(0x0E, "return server message count", answer="count"),
+        SubFunction(0x0F, "return server no response count", answer="count"),
+        SubFunction(0x10, "return server NAK count", answer="count"),
+        SubFunction(0x11, "return server busy count", answer="count"),
+        SubFunction(0x12, "return bus character overrun count", answer="count"),
+        SubFunction(0x14, "clear overrun counter and flag"),
+    )
+}
+"""The FC 8 sub-functions the spec defines; every other sub-function code is reserved."""
+
+MEI_TYPES: dict[int, str] = {
+    MEI_CANOPEN: "CANopen general reference",
+    MEI_DEVICE_ID: "read device identification",
+}
+"""FC 43 MEI types."""
+
+READ_DEVICE_ID_CODES: dict[int, str] = {
+    0x01: "basic",
+    0x02: "regular",
+    0x03: "extended",
+    0x04: "one object",
+}
+"""FC 43 / MEI 14 read device id codes: which stream, or one specific object."""
+
+CONFORMITY_LEVELS: dict[int, str] = {
+    0x01: "basic, stream only",
+    0x02: "regular, stream only",
+    0x03: "extended, stream only",
+    0x81: "basic, stream and individual",
+    0x82: "regular, stream and individual",
+    0x83: "extended, stream and individual",
+}
+"""FC 43 / MEI 14 conformity levels."""
+
+DEVICE_ID_OBJECTS: dict[int, str] = {
+    0x00: "VendorName",
+    0x01: "ProductCode",
+    0x02: "MajorMinorRevision",
+    0x03: "VendorUrl",
+    0x04: "ProductName",
+    0x05: "ModelName",
+    0x06: "UserApplicationName",
+}
+"""FC 43 / MEI 14 standard object names; 0x07-0x7F are reserved, 0x80-0xFF private."""
+
+
+def device_object_name(object_id: int) -> str:
+    """The name of a device identification object: standard, `private 0x80`, or
+    `reserved 0x07`."""
+    name = DEVICE_ID_OBJECTS.get(object_id)
+    if name is not None:
+        return name
+    return f"{'private' if object_id >= 0x80 else 'reserved'} 0x{object_id:02X}"
+
+
+@dataclass(frozen=True, slots=True)
+class Limit:
+    """The legal range of a quantity field, wherever it appears in the code's frames."""
+
+    field: str
+    low: int
+    high: int
 
 
 def _u16(frame: Buffer, pos: int) -> int:
@@ -138,7 +573,13 @@ def _walk_device_id_request(buf: Buffer, start: int, end: int) -> int:
 
 @dataclass(frozen=True, slots=True)
 class FunctionSpec:
-    """Everything modscope knows about one function code."""
+    """Everything modscope knows about one function code.
+
+    `request_schema` and `response_schema` are interpreted construct schemas for the
+    data after the function code (the same object when both directions share a layout).
+    `family` names the dissection routine that gives the parsed fields their meaning,
+    `table` the data table the code reads or writes, `limits` the legal quantities.
+    """
 
     code: int
     name: str
@@ -149,48 +590,222 @@ class FunctionSpec:
     echo: bool = False  # the normal response repeats the request byte for byte
     request_schema: Any = None
     response_schema: Any = None
+    family: str = "raw"
+    table: str | None = None  # coils | discrete_inputs | input_registers | holding_registers
+    limits: tuple[Limit, ...] = ()
 
 
 _SPECS: tuple[FunctionSpec, ...] = (
-    FunctionSpec(1, "Read Coils", request_length=fixed(8),
-                 response_length=counted(2, 5), response_for=_bits_response),
-    FunctionSpec(2, "Read Discrete Inputs", request_length=fixed(8),
-                 response_length=counted(2, 5), response_for=_bits_response),
-    FunctionSpec(3, "Read Holding Registers", request_length=fixed(8),
-                 response_length=counted(2, 5), response_for=_registers_response),
-    FunctionSpec(4, "Read Input Registers", request_length=fixed(8),
-                 response_length=counted(2, 5), response_for=_registers_response),
-    FunctionSpec(5, "Write Single Coil", request_length=fixed(8),
-                 response_length=fixed(8), response_for=_same_length, echo=True),
-    FunctionSpec(6, "Write Single Register", request_length=fixed(8),
-                 response_length=fixed(8), response_for=_same_length, echo=True),
-    FunctionSpec(7, "Read Exception Status", request_length=fixed(4),
-                 response_length=fixed(5), response_for=lambda req: 5),
-    FunctionSpec(8, "Diagnostics", request_length=fixed(8),
-                 response_length=fixed(8), response_for=_same_length, echo=True),
-    FunctionSpec(11, "Get Comm Event Counter", request_length=fixed(4),
-                 response_length=fixed(8), response_for=lambda req: 8),
-    FunctionSpec(12, "Get Comm Event Log", request_length=fixed(4),
-                 response_length=counted(2, 5)),
-    FunctionSpec(15, "Write Multiple Coils", request_length=counted(6, 9),
-                 response_length=fixed(8), response_for=lambda req: 8),
-    FunctionSpec(16, "Write Multiple Registers", request_length=counted(6, 9),
-                 response_length=fixed(8), response_for=lambda req: 8),
-    FunctionSpec(17, "Report Server ID", request_length=fixed(4),
-                 response_length=counted(2, 5)),
-    FunctionSpec(20, "Read File Record", request_length=counted(2, 5),
-                 response_length=counted(2, 5), response_for=_file_read_response),
-    FunctionSpec(21, "Write File Record", request_length=counted(2, 5),
-                 response_length=counted(2, 5), response_for=_same_length, echo=True),
-    FunctionSpec(22, "Mask Write Register", request_length=fixed(10),
-                 response_length=fixed(10), response_for=_same_length, echo=True),
-    FunctionSpec(23, "Read/Write Multiple Registers", request_length=counted(10, 13),
-                 response_length=counted(2, 5), response_for=_read_write_response),
-    FunctionSpec(24, "Read FIFO Queue", request_length=fixed(6),
-                 response_length=counted(2, 6, size=2)),
-    FunctionSpec(43, "Encapsulated Interface Transport",
-                 request_length=LengthRule(base=0, walker=_walk_device_id_request),
-                 response_length=LengthRule(base=0, walker=_walk_device_id)),
+    FunctionSpec(
+        1,
+        "Read Coils",
+        request_length=fixed(8),
+        response_length=counted(2, 5),
+        response_for=_bits_response,
+        request_schema=_ADDRESS_QUANTITY,
+        response_schema=_BITS_RESPONSE,
+        family="read",
+        table="coils",
+        limits=(Limit("quantity", 1, 2000),),
+    ),
+    FunctionSpec(
+        2,
+        "Read Discrete Inputs",
+        request_length=fixed(8),
+        response_length=counted(2, 5),
+        response_for=_bits_response,
+        request_schema=_ADDRESS_QUANTITY,
+        response_schema=_BITS_RESPONSE,
+        family="read",
+        table="discrete_inputs",
+        limits=(Limit("quantity", 1, 2000),),
+    ),
+    FunctionSpec(
+        3,
+        "Read Holding Registers",
+        request_length=fixed(8),
+        response_length=counted(2, 5),
+        response_for=_registers_response,
+        request_schema=_ADDRESS_QUANTITY,
+        response_schema=_REGISTERS_RESPONSE,
+        family="read",
+        table="holding_registers",
+        limits=(Limit("quantity", 1, 125),),
+    ),
+    FunctionSpec(
+        4,
+        "Read Input Registers",
+        request_length=fixed(8),
+        response_length=counted(2, 5),
+        response_for=_registers_response,
+        request_schema=_ADDRESS_QUANTITY,
+        response_schema=_REGISTERS_RESPONSE,
+        family="read",
+        table="input_registers",
+        limits=(Limit("quantity", 1, 125),),
+    ),
+    FunctionSpec(
+        5,
+        "Write Single Coil",
+        request_length=fixed(8),
+        response_length=fixed(8),
+        response_for=_same_length,
+        echo=True,
+        request_schema=_ADDRESS_VALUE,
+        response_schema=_ADDRESS_VALUE,
+        family="write_single",
+        table="coils",
+    ),
+    FunctionSpec(
+        6,
+        "Write Single Register",
+        request_length=fixed(8),
+        response_length=fixed(8),
+        response_for=_same_length,
+        echo=True,
+        request_schema=_ADDRESS_VALUE,
+        response_schema=_ADDRESS_VALUE,
+        family="write_single",
+        table="holding_registers",
+    ),
+    FunctionSpec(
+        7,
+        "Read Exception Status",
+        request_length=fixed(4),
+        response_length=fixed(5),
+        response_for=lambda req: 5,
+        request_schema=_EMPTY,
+        response_schema=_EXCEPTION_STATUS_RESPONSE,
+        family="exception_status",
+    ),
+    FunctionSpec(
+        8,
+        "Diagnostics",
+        request_length=fixed(8),
+        response_length=fixed(8),
+        response_for=_same_length,
+        echo=True,
+        request_schema=_DIAGNOSTICS,
+        response_schema=_DIAGNOSTICS,
+        family="diagnostics",
+    ),
+    FunctionSpec(
+        11,
+        "Get Comm Event Counter",
+        request_length=fixed(4),
+        response_length=fixed(8),
+        response_for=lambda req: 8,
+        request_schema=_EMPTY,
+        response_schema=_EVENT_COUNTER_RESPONSE,
+        family="event_counter",
+    ),
+    FunctionSpec(
+        12,
+        "Get Comm Event Log",
+        request_length=fixed(4),
+        response_length=counted(2, 5),
+        request_schema=_EMPTY,
+        response_schema=_EVENT_LOG_RESPONSE,
+        family="event_log",
+    ),
+    FunctionSpec(
+        15,
+        "Write Multiple Coils",
+        request_length=counted(6, 9),
+        response_length=fixed(8),
+        response_for=lambda req: 8,
+        request_schema=_WRITE_COILS_REQUEST,
+        response_schema=_ADDRESS_QUANTITY,
+        family="write_multiple",
+        table="coils",
+        limits=(Limit("quantity", 1, 1968),),
+    ),
+    FunctionSpec(
+        16,
+        "Write Multiple Registers",
+        request_length=counted(6, 9),
+        response_length=fixed(8),
+        response_for=lambda req: 8,
+        request_schema=_WRITE_REGISTERS_REQUEST,
+        response_schema=_ADDRESS_QUANTITY,
+        family="write_multiple",
+        table="holding_registers",
+        limits=(Limit("quantity", 1, 123),),
+    ),
+    FunctionSpec(
+        17,
+        "Report Server ID",
+        request_length=fixed(4),
+        response_length=counted(2, 5),
+        request_schema=_EMPTY,
+        response_schema=_SERVER_ID_RESPONSE,
+        family="server_id",
+    ),
+    FunctionSpec(
+        20,
+        "Read File Record",
+        request_length=counted(2, 5),
+        response_length=counted(2, 5),
+        response_for=_file_read_response,
+        request_schema=_FILE_READ_REQUEST,
+        response_schema=_FILE_READ_RESPONSE,
+        family="file_read",
+    ),
+    FunctionSpec(
+        21,
+        "Write File Record",
+        request_length=counted(2, 5),
+        response_length=counted(2, 5),
+        response_for=_same_length,
+        echo=True,
+        request_schema=_FILE_WRITE,
+        response_schema=_FILE_WRITE,
+        family="file_write",
+    ),
+    FunctionSpec(
+        22,
+        "Mask Write Register",
+        request_length=fixed(10),
+        response_length=fixed(10),
+        response_for=_same_length,
+        echo=True,
+        request_schema=_MASK_WRITE,
+        response_schema=_MASK_WRITE,
+        family="mask_write",
+        table="holding_registers",
+    ),
+    FunctionSpec(
+        23,
+        "Read/Write Multiple Registers",
+        request_length=counted(10, 13),
+        response_length=counted(2, 5),
+        response_for=_read_write_response,
+        request_schema=_READ_WRITE_REQUEST,
+        response_schema=_REGISTERS_RESPONSE,
+        family="read_write",
+        table="holding_registers",
+        limits=(Limit("read_quantity", 1, 125), Limit("write_quantity", 1, 121)),
+    ),
+    FunctionSpec(
+        24,
+        "Read FIFO Queue",
+        request_length=fixed(6),
+        response_length=counted(2, 6, size=2),
+        request_schema=_FIFO_REQUEST,
+        response_schema=_FIFO_RESPONSE,
+        family="fifo",
+        table="holding_registers",
+        limits=(Limit("fifo_count", 0, 31),),
+    ),
+    FunctionSpec(
+        43,
+        "Encapsulated Interface Transport",
+        request_length=LengthRule(base=0, walker=_walk_device_id_request),
+        response_length=LengthRule(base=0, walker=_walk_device_id),
+        request_schema=_MEI_REQUEST,
+        response_schema=_MEI_RESPONSE,
+        family="mei",
+    ),
 )
 
 FUNCTIONS: dict[int, FunctionSpec] = {spec.code: spec for spec in _SPECS}

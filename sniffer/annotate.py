@@ -139,10 +139,7 @@ class Annotator:
             return
         fc = store.fc[req]
         latency_ms = (store.t[i] - store.t_end[req]) * 1000
-        limit = timing.response_ms
-        if fc in timing.long_response_functions and timing.long_response_ms is not None:
-            limit = timing.long_response_ms
-        if limit is not None and latency_ms > limit:
+        if timing.response_ms is not None and latency_ms > timing.response_ms:
             store.flags[i] |= Flag.DEVICE_SLOW
         if fc in timing.quiet_after_functions and not store.fc[i] & 0x80:
             self.last_write[unit] = (store.t_end[i], fc)

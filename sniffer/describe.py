@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass
 
-from dissectors.dictionary import RegisterValue
+from dissectors.dictionary import RegisterValue, Timing
 from dissectors.dissect import dissect
 from dissectors.functions import function_name
 from dissectors.values import Dissection, Field, Role
@@ -46,6 +46,20 @@ class FrameDetail:
     @property
     def fields(self) -> tuple[Field, ...]:
         return self.dissection.fields if self.dissection is not None else ()
+
+
+def _slow_text(ms: float, timing: Timing | None) -> str:
+    if timing is None or timing.response_ms is None:
+        return f"answer after {ms:.0f} ms, slower than the device's documented response time"
+    text = f"answer after {ms:.0f} ms; the device normally answers within {timing.response_ms:g} ms"
+    if timing.long_response_ms is not None:
+        if ms > timing.long_response_ms:
+            return (
+                f"answer after {ms:.0f} ms, beyond the longest response time the device "
+                f"documents ({timing.long_response_ms:g} ms)"
+            )
+        text += f" (long answers up to {timing.long_response_ms:g} ms)"
+    return text
 
 
 class Describer:
@@ -124,6 +138,14 @@ class Describer:
                 meaning = self.annotator.exception_meaning(view.unit, code.value)
                 if meaning:
                     extra_summary = f"device says: {meaning}"
+                if view.partner != NO_PARTNER:
+                    # an answer refusing a write the dictionary says is out of range
+                    asked = self.detail(view.partner)
+                    reasons = [p for r in asked.registers for p in r.problems]
+                    if reasons:
+                        extra_summary = "; ".join(
+                            x for x in (extra_summary, "explained by the request: " + reasons[0]) if x
+                        )
         summary = d.summary
         if registers:
             summary += ": " + ", ".join(plain(r.text) for r in registers[:6])
@@ -132,6 +154,8 @@ class Describer:
         elif extra_summary:
             summary += ": " + extra_summary
         lat = latency(store, i)
+        if view.flags & Flag.DEVICE_SLOW and lat is not None and binding is not None:
+            problems.append(_slow_text(lat * 1000, binding.dictionary.timing))
         if view.flags & Flag.SILENCE_FRAMED and name.startswith(("Unknown", "User", "Reserved")):
             name = function_name(view.function)
         return FrameDetail(

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import enum
 from bisect import bisect_left, bisect_right
-from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -108,7 +107,8 @@ class _Timeline:
         self.t35 = line.t35
         self.t15 = line.t15
         self.exact = exact
-        self.spans: deque[_Span] = deque()
+        self.spans: list[_Span] = []  # chunks not yet forgotten, in stream order
+        self.starts: list[int] = []  # their first offsets, for bisect
         self.boundaries: list[int] = []  # stream offsets preceded by silence >= t3.5
         self.line_errors: set[int] = set()
         self.last_end: float | None = None
@@ -131,6 +131,7 @@ class _Timeline:
         if t_start > chunk.t_end:
             t_start = chunk.t_end
         self.spans.append(_Span(start, start + n, t_start, chunk.t_end, gap))
+        self.starts.append(start)
         self.cur_start = start
         self.cur_t0 = t_start
         self.cur_rate = (chunk.t_end - t_start) / n if n else 0.0
@@ -142,13 +143,8 @@ class _Timeline:
         self.last_end = chunk.t_end
 
     def _span(self, pos: int) -> _Span:
-        spans = self.spans
-        while len(spans) > 1 and spans[0].end <= pos:
-            spans.popleft()
-        for span in spans:
-            if pos < span.end:
-                return span
-        return spans[-1]
+        k = bisect_right(self.starts, pos) - 1
+        return self.spans[k if k >= 0 else 0]
 
     def start_time(self, pos: int) -> float:
         s = self._span(pos)
@@ -182,9 +178,10 @@ class _Timeline:
         i = bisect_left(b, pos)
         if i:
             del b[:i]
-        spans = self.spans
-        while len(spans) > 1 and spans[0].end <= pos:
-            spans.popleft()
+        k = bisect_right(self.starts, pos) - 1  # keep the chunk holding `pos`
+        if k > 0:
+            del self.spans[:k]
+            del self.starts[:k]
         if self.line_errors:
             self.line_errors.difference_update([p for p in self.line_errors if p < pos])
 
@@ -231,8 +228,12 @@ class RtuFramer:
         self.timeline.offset = self.pos
         self.noise_start = -1  # offset where the current noise span began
         self.rules = _compile_rules(direction)
+        # the exact answer length a request implies (none on a channel of requests only)
         self.predict = [
-            FUNCTIONS[code].response_for if code in FUNCTIONS else None for code in range(128)
+            FUNCTIONS[code].response_for
+            if code in FUNCTIONS and direction != Direction.MASTER
+            else None
+            for code in range(256)
         ]
         # request lengths for the fast path: base, plus the byte at count_pos if not 0
         self.request_base = [0] * 256
@@ -339,18 +340,11 @@ class RtuFramer:
                 pu = -1
                 if kind == 1 and unit:
                     pr = row
-                    if fc == 3 or fc == 4:
-                        pu, pf, pl = unit, fc, 5 + 2 * (buf[pos + 4] << 8 | buf[pos + 5])
-                    elif fc == 1 or fc == 2:
-                        pu, pf, pl = unit, fc, 5 + ((buf[pos + 4] << 8 | buf[pos + 5]) + 7) // 8
-                    else:
-                        rule = predict[fc & 0x7F]
-                        if rule is not None:
-                            predicted = rule(buf[pos : pos + found])
-                            if predicted is not None:
-                                pu, pf, pl = unit, fc, predicted
-                    if pl > MAX_RTU:
-                        pu = -1
+                    rule = predict[fc]
+                    if rule is not None:
+                        predicted = rule(buf[pos : pos + found])
+                        if predicted is not None and predicted <= MAX_RTU:
+                            pu, pf, pl = unit, fc, predicted
                 row += 1
                 pos += found
                 continue

@@ -91,7 +91,12 @@ class Pairer:
         s = self.store
         s.partner[req] = resp
         s.partner[resp] = req
-        status = Status.EXCEPTION if s.fc[resp] & 0x80 else Status.OK
+        if s.flags[resp] & (Flag.CHECK_BAD | Flag.NON_HEX):
+            status = Status.BAD_ANSWER
+        elif s.fc[resp] & 0x80:
+            status = Status.EXCEPTION
+        else:
+            status = Status.OK
         s.status[req] = status
         s.status[resp] = status
         if s.t[resp] - s.t_end[req] > self.timeout:

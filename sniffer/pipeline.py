@@ -47,6 +47,7 @@ class Pipeline:
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}
         self._sample = bytearray()
+        self._bus_end: float | None = None  # end of the last frame merged, any channel
 
     @property
     def multi(self) -> bool:
@@ -60,7 +61,7 @@ class Pipeline:
             ch = self._add_channel(chunk.channel, chunk.direction)
         if chunk.event and not chunk.data:
             text = chunk.event + (f": {chunk.note}" if chunk.note else "")
-            (ch.staging or self.store).add_event(chunk.t_end, text, chunk.channel)
+            (ch.staging if ch.staging is not None else self.store).add_event(chunk.t_end, text, chunk.channel)
             ch.last_t = max(ch.last_t, chunk.t_end)
             self._release(final=False)
             return
@@ -130,7 +131,7 @@ class Pipeline:
         cls = AsciiFramer if self.mode == "ascii" else RtuFramer
         ch.framer = cls(
             self.line,
-            ch.staging or self.store,
+            ch.staging if ch.staging is not None else self.store,
             channel=ch.number,
             direction=ch.direction,
             exact_timing=self.exact_timing,
@@ -172,6 +173,8 @@ class Pipeline:
             assert best.staging is not None
             store.copy_row(best.staging, best.read)
             best.read += 1
+            if self.exact_timing:
+                self._bus_silence(len(store) - 1)
         for c in staged:
             st = c.staging
             assert st is not None
@@ -180,6 +183,20 @@ class Pipeline:
                 if c.framer is not None:
                     c.framer.out = c.staging
                 c.read = 0
+
+
+    def _bus_silence(self, row: int) -> None:
+        """With one channel per direction, the silence that matters is the bus's: the
+        time since the last frame on any channel (a slave answering inside t3.5)."""
+        store = self.store
+        kind = store.kind[row]
+        if kind == Kind.NOISE or kind == Kind.EVENT:
+            return
+        flags = store.flags[row] & ~Flag.SHORT_SILENCE
+        if self._bus_end is not None and store.t[row] - self._bus_end < self.line.t35:
+            flags |= Flag.SHORT_SILENCE
+        store.flags[row] = flags
+        self._bus_end = store.t_end[row]
 
 
 def frame_capture(

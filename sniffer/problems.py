@@ -19,7 +19,6 @@ _FLAG_TEXT: tuple[tuple[Flag, str], ...] = (
     (Flag.RETRY, "retry of a request that got no answer"),
     (Flag.LATE, "answer came after the response timeout"),
     (Flag.ANSWERED_BROADCAST, "answer to a broadcast, which must get none"),
-    (Flag.DEVICE_SLOW, "slower than the device's documented response time"),
     (Flag.QUIET_VIOLATED, "sent during the device's quiet time after a write"),
 )
 

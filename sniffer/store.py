@@ -25,8 +25,9 @@ class Status:
     ORPHAN = 4  # an answer with no request
     BROADCAST = 5  # a request to address 0: no answer expected
     OPEN = 6  # a request still waiting (live), or the capture ended first
+    BAD_ANSWER = 7  # the answer came with a wrong CRC or LRC (the master drops it)
 
-    NAMES = ("", "ok", "exception", "timeout", "orphan", "broadcast", "open")
+    NAMES = ("", "ok", "exception", "timeout", "orphan", "broadcast", "open", "bad answer")
 
 
 @dataclass(frozen=True, slots=True)

@@ -216,7 +216,7 @@ def parse_interface_description(text: str) -> InterfaceNote:
     role = Direction.UNKNOWN
     for word in words[1:]:
         lower = word.lower()
-        if word.isdigit() and baud is None:
+        if word.isascii() and word.isdigit() and baud is None:
             baud = int(word)
         elif (match := _FORMAT.match(word)) and char is None:
             char = (int(match[1]), match[2].upper(), int(match[3]))

@@ -78,6 +78,7 @@ LINKTYPE_NAMES = {
     LINKTYPE_RTAC_SERIAL: "RTAC serial",
     LINKTYPE_WIRESHARK_UPPER_PDU: "exported PDU",
 }
+SEPARATION_MARGIN = 1e-6  # beyond t3.5, so float rounding of Unix times cannot undo it
 RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
 
 
@@ -226,7 +227,7 @@ class _PacketDecoder:
         line = iface.line
         t_start = t - len(record.pdu) * line.char_time
         if iface.last_end is not None:
-            t_start = max(t_start, iface.last_end + line.t35)
+            t_start = max(t_start, iface.last_end + line.t35 + SEPARATION_MARGIN)
         t_end = max(t, t_start)
         iface.last_end = t_end
         direction = packet_direction(iface.linktype, iface.note.role, flags)

@@ -24,29 +24,18 @@ from __future__ import annotations
 import configparser
 import math
 import re
-import zipfile
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
 from sniffer.sources.base import Capture, CaptureError, ReadOptions
+from sniffer.sources.zipscan import Archive, ArchiveError
 
 READ_BLOCK = 1 << 22  # sample bytes decoded per step
 MIN_SAMPLES_PER_BIT = 3.0
 _RATE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgG]?)(?:[hH][zZ])?\s*$")
 _RATE_UNITS = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
-_ZIP_ERRORS = (
-    zipfile.BadZipFile,
-    zlib.error,
-    EOFError,
-    OSError,
-    ValueError,
-    NotImplementedError,
-    RuntimeError,
-    KeyError,
-)
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,6 +48,10 @@ class SigrokMetadata:
     members: tuple[str, ...]  # logic data members in order
 
 
+def _decimal(text: str) -> bool:
+    return text.isascii() and text.isdigit()
+
+
 def parse_samplerate(text: str) -> float | None:
     """`1 MHz`, `200 kHz`, `4000000`: samples per second, or None."""
     match = _RATE.match(text)
@@ -68,7 +61,7 @@ def parse_samplerate(text: str) -> float | None:
     return rate if rate > 0 else None
 
 
-def _read_metadata(path: Path, archive: zipfile.ZipFile) -> SigrokMetadata:
+def _read_metadata(path: Path, archive: Archive) -> SigrokMetadata:
     text = archive.read("metadata").decode("utf-8", errors="replace")
     parser = configparser.ConfigParser(interpolation=None, strict=False)
     try:
@@ -87,7 +80,7 @@ def _read_metadata(path: Path, archive: zipfile.ZipFile) -> SigrokMetadata:
             f"{path}: sigrok metadata has no usable samplerate ({device.get('samplerate')!r})"
         )
     unitsize_text = device.get("unitsize", "1").strip()
-    unitsize = int(unitsize_text) if unitsize_text.isdigit() else 0
+    unitsize = int(unitsize_text) if _decimal(unitsize_text) else 0
     if not 1 <= unitsize <= 8:
         raise CaptureError(f"{path}: sigrok metadata has unitsize {unitsize_text!r}; expected 1-8")
     probes: dict[int, str] = {}
@@ -97,10 +90,10 @@ def _read_metadata(path: Path, archive: zipfile.ZipFile) -> SigrokMetadata:
             probes[int(match[1])] = value.strip()
     capturefile = device.get("capturefile", "").strip()
     members = []
-    for name in archive.namelist():
+    for name in archive.names():
         if name == capturefile:
             members.append((0, name))
-        elif name.startswith(capturefile + "-") and name[len(capturefile) + 1 :].isdigit():
+        elif name.startswith(capturefile + "-") and _decimal(name[len(capturefile) + 1 :]):
             members.append((int(name[len(capturefile) + 1 :]), name))
     if not members:
         raise CaptureError(f"{path}: sigrok session has no logic data ({capturefile!r} chunks)")
@@ -108,22 +101,39 @@ def _read_metadata(path: Path, archive: zipfile.ZipFile) -> SigrokMetadata:
 
 
 def _probe_list(probes: dict[int, str]) -> str:
-    return ", ".join(f"{number}={name!r}" for number, name in sorted(probes.items()))
+    return ", ".join(f"probe{number}={name!r}" for number, name in sorted(probes.items()))
 
 
 def resolve_probe(token: str, probes: dict[int, str], path: Path) -> int:
-    """The 1-based probe number `token` names: a probe name first, then a number."""
-    for number, name in sorted(probes.items()):
-        if name == token:
-            return number
-    for number, name in sorted(probes.items()):
-        if name.lower() == token.strip().lower():
-            return number
-    if token.strip().isdigit() and int(token) in probes:
-        return int(token)
+    """The 1-based probe number `token` names: `probeN` or `#N` is number N; otherwise a
+    probe name (exact, then ignoring case), then a bare number."""
+    text = token.strip()
+    numbered = re.fullmatch(r"(?:probe|#)(\d+)", text, re.IGNORECASE)
+    if numbered and int(numbered[1]) in probes:
+        return int(numbered[1])
+    if not numbered:
+        for number, name in sorted(probes.items()):
+            if name == text:
+                return number
+        for number, name in sorted(probes.items()):
+            if name.lower() == text.lower():
+                return number
+        if _decimal(text) and int(text) in probes:
+            return int(text)
     raise CaptureError(
         f"{path}: no probe {token!r} in this capture; its probes are {_probe_list(probes)}"
     )
+
+
+def ambiguity(token: str, number: int, probes: dict[int, str]) -> str:
+    """A warning when a bare number picked a probe by name that is not that number."""
+    text = token.strip()
+    if _decimal(text) and int(text) != number and int(text) in probes:
+        return (
+            f"--probe {text} is the probe named {text!r} (probe{number}); "
+            f"write probe{text} for probe number {text} ({probes[int(text)]!r})"
+        )
+    return ""
 
 
 class UartDecoder:
@@ -156,12 +166,17 @@ class UartDecoder:
         self.pos = 0  # where the next edge search starts in buf
         self.samples = 0
         self.low_samples = 0
+        self.first_level = self.last_level = 1
         self.characters = 0
         self.framing_errors = 0
         self.truncated = False
 
     def feed(self, levels: bytes, final: bool = False) -> list[Chunk]:
         """Chunks for every character complete in what has been fed; `final` flushes."""
+        if levels:
+            if not self.samples:
+                self.first_level = levels[0]
+            self.last_level = levels[-1]
         self.samples += len(levels)
         self.low_samples += levels.count(0)
         buf = self.buf[self.pos :] + levels
@@ -246,7 +261,8 @@ class UartDecoder:
         found = []
         if self.truncated:
             found.append(f"{self.label}: the capture ends inside a character; it is dropped")
-        if self.samples and self.low_samples > self.samples // 2:
+        idle_low = self.first_level == 0 and self.last_level == 0
+        if idle_low and self.low_samples > self.samples // 2:
             percent = 100 * self.low_samples // self.samples
             hint = "is --invert right?" if inverted else "an idle-low line? try --invert"
             found.append(f"{self.label}: the line is low {percent}% of the time; {hint}")
@@ -273,17 +289,16 @@ class _Probe:
 def open_sigrok(path: Path, options: ReadOptions) -> Capture:
     """Open a sigrok session and set up UART decoding on the chosen probes."""
     try:
-        with zipfile.ZipFile(path) as archive:
-            if "metadata" not in archive.namelist():
+        with Archive(path) as archive:
+            if "metadata" not in archive.names():
                 raise CaptureError(
                     f"{path}: a ZIP archive without sigrok metadata; expected a sigrok "
                     "session (.sr) or a capture in another supported format"
                 )
             meta = _read_metadata(path, archive)
-    except _ZIP_ERRORS as exc:
-        raise CaptureError(
-            f"{path}: a ZIP archive that cannot be read ({exc}); expected a sigrok session"
-        ) from None
+            early = [archive.warning] if archive.warning else []
+    except ArchiveError as exc:
+        raise CaptureError(f"{path}: {exc}; expected a sigrok session (.sr)") from None
     line = options.line(None)
     if meta.samplerate / line.baud < MIN_SAMPLES_PER_BIT:
         raise CaptureError(
@@ -291,6 +306,9 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
             f"(needs {MIN_SAMPLES_PER_BIT:g} samples per bit)"
         )
     numbers = _choose_probes(path, meta, options)
+    for token, number in zip(options.probes, numbers, strict=False):
+        if text := ambiguity(token, number, meta.probes):
+            early.append(text)
     directions = [Direction.UNKNOWN] if len(numbers) == 1 else [Direction.MASTER, Direction.SLAVE]
     roles = {
         Direction.UNKNOWN: "",
@@ -307,9 +325,14 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         )
         probes.append(_Probe(number, decoder, _bit_table((number - 1) % 8, options.invert)))
     info = SourceInfo(
-        path=str(path), format="sigrok", line=line, exact_timing=True, channels=channels
+        path=str(path),
+        format="sigrok",
+        line=line,
+        exact_timing=True,
+        channels=channels,
+        warnings=tuple(early),
     )
-    warnings: list[str] = []
+    warnings: list[str] = list(early)
     chunks = _chunks(path, meta, probes, options.invert, warnings)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
@@ -349,28 +372,21 @@ def _chunks(
     carry = b""
     samples = 0
     try:
-        archive = zipfile.ZipFile(path)
-    except _ZIP_ERRORS as exc:
-        warnings.append(f"{path}: the ZIP archive cannot be read any more ({exc})")
+        archive = Archive(path)
+    except ArchiveError as exc:
+        warnings.append(f"{path}: {exc}")
         return
     with archive:
         for name in meta.members:
             try:
-                info = archive.getinfo(name)
-                with archive.open(info) as member:
-                    while block := member.read(READ_BLOCK):
-                        data = carry + block
-                        usable = len(data) - len(data) % meta.unitsize
-                        carry = data[usable:]
-                        samples += usable // meta.unitsize
-                        yield from _decode(probes, meta.unitsize, data[:usable], False)
-            except _ZIP_ERRORS as exc:
-                where = archive.NameToInfo.get(name)
-                offset = where.header_offset if where is not None else "?"
-                warnings.append(
-                    f"corrupt ZIP member {name!r} at byte offset {offset} ({exc}); "
-                    f"decoding stopped after {samples} samples"
-                )
+                for block in archive.blocks(name, READ_BLOCK):
+                    data = carry + block
+                    usable = len(data) - len(data) % meta.unitsize
+                    carry = data[usable:]
+                    samples += usable // meta.unitsize
+                    yield from _decode(probes, meta.unitsize, data[:usable], False)
+            except ArchiveError as exc:
+                warnings.append(f"{exc}; decoding stopped after {samples} samples")
                 break
     yield from _decode(probes, meta.unitsize, b"", True)
     for probe in probes:
