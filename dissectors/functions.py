@@ -16,7 +16,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from construct import (
     Adapter,
@@ -507,27 +507,47 @@ def _u16(frame: Buffer, pos: int) -> int:
     return int(frame[pos]) << 8 | int(frame[pos + 1])
 
 
-def _bits_response(req: Buffer) -> int | None:
-    if len(req) < 8:
-        return None
-    quantity = _u16(req, 4)
-    return 5 + (quantity + 7) // 8
+@dataclass(frozen=True, slots=True)
+class AnswerRule:
+    """The exact length of the normal answer to a given request.
+
+    `base + (quantity * per_item + round_up) // per_byte`, where quantity is the 16-bit
+    value at `quantity_pos` of the request; `quantity_pos` = FIXED gives `base` alone,
+    ECHO the request's own length; `walker` reads requests no formula describes.
+    """
+
+    base: int
+    quantity_pos: int = -1
+    per_item: int = 1
+    round_up: int = 0
+    per_byte: int = 1
+    walker: Callable[[Buffer], int | None] | None = None
+
+    FIXED: ClassVar[int] = -1
+    ECHO: ClassVar[int] = -2
+
+    def length(self, req: Buffer) -> int | None:
+        """Answer length for request frame `req` (CRC included), None if unknown."""
+        if self.walker is not None:
+            return self.walker(req)
+        if self.quantity_pos == AnswerRule.FIXED:
+            return self.base
+        if self.quantity_pos == AnswerRule.ECHO:
+            return len(req)
+        pos = self.quantity_pos
+        if len(req) < pos + 2:
+            return None
+        quantity = int(req[pos]) << 8 | int(req[pos + 1])
+        return self.base + (quantity * self.per_item + self.round_up) // self.per_byte
 
 
-def _registers_response(req: Buffer) -> int | None:
-    if len(req) < 8:
-        return None
-    return 5 + 2 * _u16(req, 4)
+def _u16(frame: Buffer, pos: int) -> int:
+    return int(frame[pos]) << 8 | int(frame[pos + 1])
 
 
-def _same_length(req: Buffer) -> int | None:
-    return len(req)
-
-
-def _read_write_response(req: Buffer) -> int | None:
-    if len(req) < 13:
-        return None
-    return 5 + 2 * _u16(req, 4)
+BITS_ANSWER = AnswerRule(5, quantity_pos=4, round_up=7, per_byte=8)
+REGISTERS_ANSWER = AnswerRule(5, quantity_pos=4, per_item=2)
+ECHO_ANSWER = AnswerRule(0, quantity_pos=AnswerRule.ECHO)
 
 
 def _file_read_response(req: Buffer) -> int | None:
@@ -586,7 +606,7 @@ class FunctionSpec:
     klass: str = "public"  # public | user | reserved | unknown
     request_length: LengthRule | None = None
     response_length: LengthRule | None = None
-    response_for: Callable[[Buffer], int | None] | None = None
+    answer: AnswerRule | None = None  # the normal answer's length, from the request
     echo: bool = False  # the normal response repeats the request byte for byte
     request_schema: Any = None
     response_schema: Any = None
@@ -601,7 +621,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read Coils",
         request_length=fixed(8),
         response_length=counted(2, 5),
-        response_for=_bits_response,
+        answer=BITS_ANSWER,
         request_schema=_ADDRESS_QUANTITY,
         response_schema=_BITS_RESPONSE,
         family="read",
@@ -613,7 +633,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read Discrete Inputs",
         request_length=fixed(8),
         response_length=counted(2, 5),
-        response_for=_bits_response,
+        answer=BITS_ANSWER,
         request_schema=_ADDRESS_QUANTITY,
         response_schema=_BITS_RESPONSE,
         family="read",
@@ -625,7 +645,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read Holding Registers",
         request_length=fixed(8),
         response_length=counted(2, 5),
-        response_for=_registers_response,
+        answer=REGISTERS_ANSWER,
         request_schema=_ADDRESS_QUANTITY,
         response_schema=_REGISTERS_RESPONSE,
         family="read",
@@ -637,7 +657,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read Input Registers",
         request_length=fixed(8),
         response_length=counted(2, 5),
-        response_for=_registers_response,
+        answer=REGISTERS_ANSWER,
         request_schema=_ADDRESS_QUANTITY,
         response_schema=_REGISTERS_RESPONSE,
         family="read",
@@ -649,7 +669,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Write Single Coil",
         request_length=fixed(8),
         response_length=fixed(8),
-        response_for=_same_length,
+        answer=ECHO_ANSWER,
         echo=True,
         request_schema=_ADDRESS_VALUE,
         response_schema=_ADDRESS_VALUE,
@@ -661,7 +681,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Write Single Register",
         request_length=fixed(8),
         response_length=fixed(8),
-        response_for=_same_length,
+        answer=ECHO_ANSWER,
         echo=True,
         request_schema=_ADDRESS_VALUE,
         response_schema=_ADDRESS_VALUE,
@@ -673,7 +693,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read Exception Status",
         request_length=fixed(4),
         response_length=fixed(5),
-        response_for=lambda req: 5,
+        answer=AnswerRule(5),
         request_schema=_EMPTY,
         response_schema=_EXCEPTION_STATUS_RESPONSE,
         family="exception_status",
@@ -683,7 +703,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Diagnostics",
         request_length=fixed(8),
         response_length=fixed(8),
-        response_for=_same_length,
+        answer=ECHO_ANSWER,
         echo=True,
         request_schema=_DIAGNOSTICS,
         response_schema=_DIAGNOSTICS,
@@ -694,7 +714,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Get Comm Event Counter",
         request_length=fixed(4),
         response_length=fixed(8),
-        response_for=lambda req: 8,
+        answer=AnswerRule(8),
         request_schema=_EMPTY,
         response_schema=_EVENT_COUNTER_RESPONSE,
         family="event_counter",
@@ -713,7 +733,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Write Multiple Coils",
         request_length=counted(6, 9),
         response_length=fixed(8),
-        response_for=lambda req: 8,
+        answer=AnswerRule(8),
         request_schema=_WRITE_COILS_REQUEST,
         response_schema=_ADDRESS_QUANTITY,
         family="write_multiple",
@@ -725,7 +745,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Write Multiple Registers",
         request_length=counted(6, 9),
         response_length=fixed(8),
-        response_for=lambda req: 8,
+        answer=AnswerRule(8),
         request_schema=_WRITE_REGISTERS_REQUEST,
         response_schema=_ADDRESS_QUANTITY,
         family="write_multiple",
@@ -746,7 +766,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read File Record",
         request_length=counted(2, 5),
         response_length=counted(2, 5),
-        response_for=_file_read_response,
+        answer=AnswerRule(0, walker=_file_read_response),
         request_schema=_FILE_READ_REQUEST,
         response_schema=_FILE_READ_RESPONSE,
         family="file_read",
@@ -756,7 +776,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Write File Record",
         request_length=counted(2, 5),
         response_length=counted(2, 5),
-        response_for=_same_length,
+        answer=ECHO_ANSWER,
         echo=True,
         request_schema=_FILE_WRITE,
         response_schema=_FILE_WRITE,
@@ -767,7 +787,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Mask Write Register",
         request_length=fixed(10),
         response_length=fixed(10),
-        response_for=_same_length,
+        answer=ECHO_ANSWER,
         echo=True,
         request_schema=_MASK_WRITE,
         response_schema=_MASK_WRITE,
@@ -779,7 +799,7 @@ _SPECS: tuple[FunctionSpec, ...] = (
         "Read/Write Multiple Registers",
         request_length=counted(10, 13),
         response_length=counted(2, 5),
-        response_for=_read_write_response,
+        answer=REGISTERS_ANSWER,
         request_schema=_READ_WRITE_REQUEST,
         response_schema=_REGISTERS_RESPONSE,
         family="read_write",

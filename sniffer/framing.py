@@ -19,13 +19,24 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from dissectors.checks import crc16, lrc
-from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, IMPOSSIBLE, NEED_MORE, Walker
+from dissectors.functions import (
+    EXCEPTION_LENGTH,
+    FUNCTIONS,
+    IMPOSSIBLE,
+    NEED_MORE,
+    AnswerRule,
+    Walker,
+)
 from sniffer.model import Chunk, Direction, LineSettings
 
 if TYPE_CHECKING:
     from sniffer.store import FrameStore
 
 MAX_RTU = 256
+FIXED = AnswerRule.FIXED
+ECHO = AnswerRule.ECHO
+WALKED = -3  # the answer's length needs the rule's walker
+NO_ANSWER = -4  # the code has no answer rule
 MAX_ASCII = 513
 MIN_RTU = 4
 
@@ -228,13 +239,24 @@ class RtuFramer:
         self.timeline.offset = self.pos
         self.noise_start = -1  # offset where the current noise span began
         self.rules = _compile_rules(direction)
-        # the exact answer length a request implies (none on a channel of requests only)
-        self.predict = [
-            FUNCTIONS[code].response_for
-            if code in FUNCTIONS and direction != Direction.MASTER
-            else None
-            for code in range(256)
-        ]
+        # the exact answer length a request implies (none on a channel of requests only):
+        # the registry's AnswerRule spread over lists the fast path indexes by code
+        self.answer: list[AnswerRule | None] = [None] * 256
+        self.answer_pos = [NO_ANSWER] * 256
+        self.answer_base = [0] * 256
+        self.answer_item = [1] * 256
+        self.answer_up = [0] * 256
+        self.answer_byte = [1] * 256
+        for code, spec in FUNCTIONS.items():
+            rule = spec.answer
+            if rule is None or direction == Direction.MASTER:
+                continue
+            self.answer[code] = rule
+            self.answer_pos[code] = WALKED if rule.walker is not None else rule.quantity_pos
+            self.answer_base[code] = rule.base
+            self.answer_item[code] = rule.per_item
+            self.answer_up[code] = rule.round_up
+            self.answer_byte[code] = rule.per_byte
         # request lengths for the fast path: base, plus the byte at count_pos if not 0
         self.request_base = [0] * 256
         self.request_count = [0] * 256
@@ -249,6 +271,7 @@ class RtuFramer:
         self.pending_len = 0
         self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
         self.pair_inline = True  # off while `out` is a staging store (several channels)
+        self.pairs: list[int] = []  # rows the fast path paired, flat: request, answer, ...
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
 
@@ -272,7 +295,8 @@ class RtuFramer:
 
     def _scan(self, final: bool) -> None:
         self._scan_bytes(self.stream, final)
-        self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+        if len(self.timeline.spans) > 64:
+            self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
 
     def _scan_bytes(self, buf: bytearray, final: bool) -> None:
         end = len(buf)
@@ -280,7 +304,8 @@ class RtuFramer:
         rules = self.rules
         request_base = self.request_base
         request_count = self.request_count
-        predict = self.predict
+        answer_pos, answer_base = self.answer_pos, self.answer_base
+        answer_item, answer_up, answer_byte = self.answer_item, self.answer_up, self.answer_byte
         check = crc16
         tl = self.timeline
         out = self.out
@@ -290,9 +315,7 @@ class RtuFramer:
         # row columns, appended inline on the fast paths
         a_off, a_len, a_t, a_te = out.offset.append, out.length.append, out.t.append, out.t_end.append
         a_kind, a_unit, a_fc = out.kind.append, out.unit.append, out.fc.append
-        # rows the fast path pairs, flat: request row, answer row, ...
-        pairs: list[int] = []
-        pairs_append = pairs.append
+        pairs_append = self.pairs.append
         row = len(out.t)
         pr = self.pending_row if self.pair_inline else -1
         noise_free = self.noise_start < 0
@@ -340,17 +363,28 @@ class RtuFramer:
                 pu = -1
                 if kind == 1 and unit:
                     pr = row
-                    rule = predict[fc]
-                    if rule is not None:
-                        predicted = rule(buf[pos : pos + found])
-                        if predicted is not None and predicted <= MAX_RTU:
-                            pu, pf, pl = unit, fc, predicted
+                    ap = answer_pos[fc]
+                    if ap >= 0:
+                        pl = answer_base[fc] + (
+                            (buf[pos + ap] << 8 | buf[pos + ap + 1]) * answer_item[fc]
+                            + answer_up[fc]
+                        ) // answer_byte[fc]
+                        pu, pf = unit, fc
+                    elif ap == FIXED:
+                        pu, pf, pl = unit, fc, answer_base[fc]
+                    elif ap == ECHO:
+                        pu, pf, pl = unit, fc, found
+                    elif ap == WALKED:
+                        walked = self._predict(buf, pos, found, fc)
+                        if walked is not None:
+                            pu, pf, pl = unit, fc, walked
+                    if pl > MAX_RTU:
+                        pu = -1
                 row += 1
                 pos += found
                 continue
             self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
             self.pending_row = pr
-            self._flush_rows(pairs, row)
             found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
             if not found and waiting:
                 break
@@ -375,7 +409,6 @@ class RtuFramer:
             pos += found
         self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
         self.pending_row = pr
-        self._flush_rows(pairs, row)
         if final:
             if end > pos and self.noise_start < 0:
                 self.noise_start = pos
@@ -385,15 +418,21 @@ class RtuFramer:
             pos = end
         self.pos = pos
 
-    def _flush_rows(self, pairs: list[int], row: int) -> None:
-        """Complete the columns the fast path leaves out, and record its pairs."""
+    def _predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
+        rule = self.answer[fc]
+        return None if rule is None else rule.length(buf[pos : pos + length])
+
+    def flush(self) -> None:
+        """Complete the rows the fast path appended and record the pairs it found."""
         out = self.out
-        if len(out.flags) < row:
-            self.units_seen.update(out.unit[len(out.flags) : row])
-            out.pad(self.channel)
-        if pairs and self.pair_inline:
-            out.pair_rows(pairs)
-        pairs.clear()
+        out.fill_channel = self.channel
+        if len(out.flags) < len(out.t):
+            self.units_seen.update(out.unit[len(out.flags) :])
+        out.sync()
+        if self.pairs:
+            if self.pair_inline:
+                out.pair_rows(self.pairs)
+            self.pairs.clear()
 
     def _candidates(
         self,
@@ -504,11 +543,9 @@ class RtuFramer:
             self.pending_row = -1  # pairing of slow-path rows is left to the Pairer
         if kind == Kind.REQUEST:
             self.pending_unit = -1
-            rule = self.predict[fc]
-            if unit != 0 and rule is not None:
-                predicted = rule(buf[pos : pos + length])
-                if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
-                    self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
+            predicted = self._predict(buf, pos, length, fc) if unit != 0 else None
+            if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
+                self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
             self.pending_unit = -1
         self.units_seen.add(unit)
@@ -582,6 +619,7 @@ class RtuFramer:
             flags |= Flag.LINE_ERROR
         if kind != Kind.NOISE:
             self.last_frame_end = t1
+        self.flush()
         self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
 
 
@@ -638,6 +676,9 @@ class AsciiFramer:
 
     def idle(self) -> None:
         """ASCII allows 1 s between characters: idleness alone does not close a frame."""
+
+    def flush(self) -> None:
+        """Rows are complete as they are written: nothing to do."""
 
     def finish(self) -> None:
         self._scan(final=True)

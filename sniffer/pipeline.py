@@ -70,11 +70,18 @@ class Pipeline:
         assert ch.framer is not None
         ch.framer.feed(chunk)
         ch.last_t = chunk.t_end
-        self._release(final=False)
+        if self.multi:
+            self._release(final=False)
 
     def feed_all(self, chunks: Iterable[Chunk]) -> None:
         for chunk in chunks:
             self.feed(chunk)
+
+    def sync(self) -> None:
+        """Bring the store up to date: complete the framers' rows, merge channels, pair.
+        Readers of the store call this (Session.refresh does) before they look."""
+        self._release(final=False)
+        self.pairer.update()
 
     def idle(self, now: float) -> None:
         """Live sources call this when the line has been quiet: bytes buffered in the
@@ -147,6 +154,11 @@ class Pipeline:
                 self._start_framer(other)
 
     def _release(self, final: bool, now: float | None = None) -> None:
+        """Complete framed rows and, with several channels, merge those whose time has
+        come. Pairing waits for sync(), idle() or finish()."""
+        for ch in self.channels.values():
+            if ch.framer is not None:
+                ch.framer.flush()
         if self.multi:
             if final:
                 watermark = float("inf")
@@ -155,7 +167,6 @@ class Pipeline:
                 if now is not None:
                     watermark = max(watermark, now - MERGE_SLACK)
             self._merge(watermark)
-        self.pairer.update()
 
     def _merge(self, watermark: float) -> None:
         store = self.store

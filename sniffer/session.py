@@ -56,7 +56,8 @@ class Session:
         self.chunks += 1
 
     def refresh(self) -> None:
-        """Bring annotation state and statistics up to date with the store."""
+        """Bring pairing, annotation state and statistics up to date with the store."""
+        self.pipeline.sync()
         self.annotator.update(self.store)
         self.stats.update()
 

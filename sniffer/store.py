@@ -87,6 +87,7 @@ class FrameStore:
         self.partner = array("q")
         self.status = array("B")
         self.notes: dict[int, str] = {}  # event texts and other per-row notes
+        self.fill_channel = 0  # the channel of rows appended without one (see sync)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -102,14 +103,19 @@ class FrameStore:
     def bytes_total(self) -> int:
         return sum(len(s) for s in self.streams.values())
 
-    def pad(self, channel: int) -> None:
-        """Complete rows a framer's fast path appended without flags, channel and pairing
-        (all zero, `channel`, unpaired): appending four columns in bulk is cheaper."""
-        missing = len(self.t) - len(self.flags)
+    def sync(self) -> None:
+        """Complete rows a framer's fast path appended with seven columns only: flags
+        (none), channel (`fill_channel`), partner (none) and status (none) are added in
+        bulk, which is cheaper than four appends a row."""
+        n = len(self.t)
+        missing = n - len(self.flags)
         if missing > 0:
             self.flags.frombytes(bytes(4 * missing))
-            self.channel.frombytes(bytes([channel]) * missing)
-        self.sync()
+            self.channel.frombytes(bytes([self.fill_channel]) * missing)
+        missing = n - len(self.status)
+        if missing > 0:
+            self.status.frombytes(bytes(missing))
+            self.partner.extend(_MINUS_ONES[:missing] if missing <= 4096 else [-1] * missing)
 
     def pair_rows(self, pairs: list[int]) -> None:
         """Record answered requests: `pairs` is flat, request row then answer row."""
@@ -124,7 +130,7 @@ class FrameStore:
     def add_row(
         self, channel: int, offset: int, length: int, t0: float, t1: float, kind: int, flags: int
     ) -> None:
-        self.pad(channel)
+        self.sync()
         stream = self.streams[channel]
         unit = fc = 0
         if kind != Kind.NOISE and kind != Kind.EVENT:
@@ -168,13 +174,6 @@ class FrameStore:
         self.notes[len(self)] = text
         offset = len(self.streams[channel])
         self.add_row(channel, offset, 0, t, t, int(Kind.EVENT), int(Flag.LINE_EVENT))
-
-    def sync(self) -> None:
-        """Grow the pairing columns to the length of the others."""
-        missing = len(self.t) - len(self.status)
-        if missing > 0:
-            self.status.frombytes(bytes(missing))
-            self.partner.extend(_MINUS_ONES[:missing] if missing <= 4096 else [-1] * missing)
 
     def raw(self, i: int) -> bytes:
         start = self.offset[i]

@@ -11,6 +11,8 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dissectors.dictionary import (
     DictionaryError,
@@ -20,7 +22,9 @@ from dissectors.dictionary import (
     load_dictionary,
     load_model,
 )
-from dissectors.dictionary.tomlpos import scan_toml
+from dissectors.dictionary.build import Builder
+from dissectors.dictionary.reader import Source
+from dissectors.dictionary.tomlpos import LineMap, scan_toml
 
 FIXTURES = Path(__file__).parent / "fixtures" / "dictionaries"
 MAIN = Path(__file__).resolve().parent.parent
@@ -430,7 +434,7 @@ CASES = [
         length = 2
         scale = 0.1   # HERE
         """,
-        "scale does not apply to a str",
+        "'scale' does not apply to a str",
         "remove scale",
     ),
     (
@@ -954,3 +958,46 @@ def test_dictionary_package_stays_pure() -> None:
         env={"PYTHONPATH": str(MAIN)},
     )
     assert result.stdout.strip() == ""
+
+
+# -- whatever a file holds, checking it gives a dictionary or a DictionaryError --------------
+
+_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-70000, 70000),
+    st.floats(allow_nan=True),
+    st.sampled_from(["u16", "u32", "f32", "str", "bool", "u8", "s8", "high", "low", "40001",
+                     "40001.3", "hr", "rw", "r", "CDAB", "holding", "coils", "{n}", ""]),
+    st.lists(st.integers(0, 300), max_size=3),
+    st.dictionaries(st.sampled_from(["0", "1", "0x10", "-1", "x", "31", "30"]),
+                    st.one_of(st.text(max_size=5), st.dictionaries(st.sampled_from(["set", "clear", "on"]),
+                                                                   st.text(max_size=3)))),
+)  # fmt: skip
+_ENTRY = st.dictionaries(
+    st.sampled_from(
+        ["ref", "address", "pdu", "table", "space", "name", "type", "byte", "bit", "width",
+         "length", "word_order", "scale", "offset", "precision", "sign_bit", "flag_bits", "enum",
+         "bits", "min", "max", "default", "access", "repeat", "stride", "n_first", "unit"]
+    ),
+    _VALUES,
+    max_size=8,
+)  # fmt: skip
+
+
+@settings(max_examples=400, deadline=None)
+@given(entries=st.lists(_ENTRY, max_size=4))
+def test_builder_only_raises_dictionary_errors(entries: list[dict[str, object]]) -> None:
+    data: dict[str, object] = {
+        "format": 1,
+        "device": {"model": "fuzz", "default_space": "hr"},
+        "spaces": {"hr": {"table": "holding", "prefix": "4", "width": 4, "first": 1}},
+        "entry": [{k: v for k, v in e.items() if v is not None} for e in entries],
+    }
+    try:
+        d = Builder(Source("fuzz.toml", LineMap())).build(data)
+    except DictionaryError as error:
+        assert error.message and error.fix
+        return
+    for entry in d.entries:
+        d.decode(entry.table, entry.address, [0xFFFF] * entry.size, write=True)

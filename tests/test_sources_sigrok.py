@@ -139,9 +139,9 @@ def test_idle_low_capture_without_invert_warns() -> None:
     assert any("--invert" in warning for warning in capture.warnings)
 
 
-@pytest.mark.slow
 def test_decode_speed() -> None:
-    """All seven captures (about 43 million samples) decode in well under a few seconds."""
+    """All seven captures (65 million samples) decode in well under a few seconds
+    (about 0.4 s measured on a 2-core machine)."""
     started = time.perf_counter()
     for path, options, _ in REAL_CAPTURES:
         for _ in open_capture(path, options).chunks():

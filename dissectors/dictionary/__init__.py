@@ -10,7 +10,8 @@ from .bus import Bus, UnitBinding, load_bus, parse_unit_binding
 from .describe import describe
 from .device import DeviceDictionary, Window
 from .errors import DictionaryError
-from .imports import import_csv, import_home_assistant
+from .imports_csv import import_csv
+from .imports_ha import import_home_assistant
 from .loader import builtin_models, check_dictionary, load_dictionary, load_model
 from .model import (
     TABLES,

@@ -24,7 +24,9 @@ after the data chunk when the record carries bytes too.
 
 Link type 252: each packet is one frame. `t_end` is the packet time and `t_start` one
 frame length earlier, moved later where needed so that every frame starts at least t3.5
-after the previous one on its channel ends: the framer then never joins two frames.
+after the previous one on its channel ends (and `t_end` no earlier than `t_start`): the
+framer then never joins two frames. Times move only where frames are closer than t3.5
+(a fast slave's answer), by at most that much.
 
 A modscope `if_description` (see `linktypes`) gives the interface's line settings; the
 first one found is the capture's. SPBs carry no time: their bytes are placed one
@@ -349,6 +351,12 @@ def _blocks(handle: BinaryIO, warnings: list[str]) -> Iterator[_Block]:
         prefix = b""
         if header[:4] == b"\x0a\x0d\x0d\x0a":
             prefix = handle.read(4)
+            if len(prefix) < 4:
+                warnings.append(
+                    f"truncated pcapng section header at byte offset {offset}; "
+                    "reading stopped there"
+                )
+                return
             if prefix == b"\x4d\x3c\x2b\x1a":
                 order = "<"
             elif prefix == b"\x1a\x2b\x3c\x4d":

@@ -4,8 +4,10 @@ A `.sr` file is a ZIP archive: `version`, an INI `metadata` (`[device 1]` with
 `samplerate`, `unitsize`, `capturefile`, `probeN = name` for 1-based probe N = bit N-1 of
 each little-endian sample word) and the samples in `logic-1-1`, `logic-1-2`, ...
 
-Probes are chosen with `ReadOptions.probes`, by name or by 1-based number (a name wins:
-a probe named "1" is picked before probe number 1). One probe gives channel 0 with no
+Probes are chosen with `ReadOptions.probes`: `probe3` or `#3` is probe number 3; any
+other text is a probe name (exact, then ignoring case) and, failing that, a bare number.
+sigrok often names probes "0", "1", ... after their bit, so a bare "1" that names probe2
+picks probe2 and the capture says so in a warning. One probe gives channel 0 with no
 direction; two give channel 0 for the first (the master's requests, Direction.MASTER)
 and channel 1 for the second (the slaves' responses, Direction.SLAVE). With no probe
 given, a capture with exactly one probe uses it; otherwise the reader lists the names.
@@ -34,6 +36,7 @@ from sniffer.sources.zipscan import Archive, ArchiveError
 
 READ_BLOCK = 1 << 22  # sample bytes decoded per step
 MIN_SAMPLES_PER_BIT = 3.0
+MAX_SAMPLERATE = 1e12
 _RATE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgG]?)(?:[hH][zZ])?\s*$")
 _RATE_UNITS = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
 
@@ -58,7 +61,7 @@ def parse_samplerate(text: str) -> float | None:
     if not match:
         return None
     rate = float(match[1]) * _RATE_UNITS[match[2].lower()]
-    return rate if rate > 0 else None
+    return rate if 0 < rate <= MAX_SAMPLERATE else None
 
 
 def _read_metadata(path: Path, archive: Archive) -> SigrokMetadata:

@@ -1,0 +1,1 @@
+"""Provides modscope's benchmarks: speed and memory against independent peers."""

@@ -1,0 +1,173 @@
+"""Provides the CSV import: a plain register list to a device dictionary.
+
+Rows become the data a TOML dictionary holds and are checked by the same builder, so
+errors name the file and row line too.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+from .build import FORMAT, Builder
+from .device import DeviceDictionary
+from .errors import DictionaryError, nearest
+from .loader import read_text
+from .reader import Source
+from .tomlpos import LineMap
+
+CSV_REQUIRED = ("table", "address", "name")
+CSV_COLUMNS = (
+    *CSV_REQUIRED,
+    "type",
+    "unit",
+    "scale",
+    "offset",
+    "word_order",
+    "access",
+    "description",
+    "length",
+    "bit",
+    "width",
+    "byte",
+    "min",
+    "max",
+    "default",
+    "enum",
+    "precision",
+)
+_CSV_INTEGERS = ("length", "bit", "width", "precision")
+_CSV_NUMBERS = ("scale", "offset", "min", "max")
+
+
+def _csv_number(text: str, decimal_comma: bool = False) -> int | float | None:
+    text = text.strip()
+    if decimal_comma and re.fullmatch(r"[+-]?[0-9]+,[0-9]+", text):
+        text = text.replace(",", ".")
+    try:
+        return (
+            int(text, 0) if re.fullmatch(r"[+-]?(0[xX][0-9a-fA-F]+|[0-9]+)", text) else float(text)
+        )
+    except ValueError:
+        return None
+
+
+def _csv_enum(path: str, line: int, text: str) -> dict[str, str]:
+    names: dict[str, str] = {}
+    for part in re.split(r"[;|]", text):
+        if not part.strip():
+            continue
+        key, eq, name = part.partition("=")
+        if not eq or not key.strip() or not name.strip():
+            raise DictionaryError(
+                path,
+                line,
+                f"enum part '{part.strip()}' is not NUMBER=NAME",
+                'write the enum cell as "0=Stop; 1=Run"',
+            )
+        names[key.strip()] = name.strip()
+    return names
+
+
+def import_csv(path: str | Path) -> DeviceDictionary:
+    """A dictionary from a CSV register list (columns in docs/dictionaries.md).
+
+    The model is the file name; `address` is the PDU address as on the wire.
+    """
+    name = str(path)
+    text = read_text(Path(path))
+    rows = [
+        (number, line)
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not rows:
+        raise DictionaryError(
+            name, None, "the CSV file is empty", "add a header row: table,address,name"
+        )
+    header_line, header_text = rows[0]
+    try:
+        dialect: type[csv.Dialect] | csv.Dialect = csv.Sniffer().sniff(
+            header_text, delimiters=",;\t"
+        )
+    except csv.Error:
+        dialect = csv.excel
+    decimal_comma = dialect.delimiter != ","
+    header = [cell.strip().lower() for cell in next(csv.reader([header_text], dialect))]
+    for index, column in enumerate(header):
+        if column in header[:index]:
+            raise DictionaryError(
+                name, header_line, f"the header has '{column}' twice", "keep one of the columns"
+            )
+        if column not in CSV_COLUMNS:
+            close = nearest(column, CSV_COLUMNS)
+            fix = f"rename it '{close}'" if close else f"use columns from {', '.join(CSV_COLUMNS)}"
+            raise DictionaryError(name, header_line, f"unknown CSV column '{column}'", fix)
+    for column in CSV_REQUIRED:
+        if column not in header:
+            raise DictionaryError(
+                name,
+                header_line,
+                f"the header has no '{column}' column",
+                "the header needs table,address,name",
+            )
+    entries: list[dict[str, object]] = []
+    lines = LineMap({(): 1, ("device",): header_line})
+    for line, row_text in rows[1:]:
+        cells = next(csv.reader([row_text], dialect), [])
+        if not any(cell.strip() for cell in cells):
+            continue
+        if len(cells) > len(header):
+            raise DictionaryError(
+                name,
+                line,
+                f"{len(cells)} cells for {len(header)} columns",
+                "quote cells that hold the delimiter",
+            )
+        entry: dict[str, object] = {}
+        for column, cell in zip(header, cells, strict=False):
+            cell = cell.strip()
+            if not cell:
+                continue
+            if column == "address":
+                number = _csv_number(cell)
+                if not isinstance(number, int):
+                    raise DictionaryError(
+                        name,
+                        line,
+                        f"address '{cell}' is not an integer",
+                        "write the PDU address, e.g. 12 or 0x0C",
+                    )
+                entry["pdu"] = number
+            elif column in _CSV_INTEGERS or column in _CSV_NUMBERS:
+                number = _csv_number(cell, decimal_comma)
+                if number is None or (column in _CSV_INTEGERS and not isinstance(number, int)):
+                    wanted = "an integer" if column in _CSV_INTEGERS else "a number"
+                    raise DictionaryError(
+                        name,
+                        line,
+                        f"{column} '{cell}' is not {wanted}",
+                        f"write {column} as {wanted}",
+                    )
+                entry[column] = number
+            elif column == "enum":
+                entry["enum"] = _csv_enum(name, line, cell)
+            elif column == "default":
+                number = _csv_number(cell, decimal_comma)
+                entry["default"] = cell if number is None else number
+            else:
+                entry[column] = cell
+        lines.set(("entry", len(entries)), line)
+        entries.append(entry)
+    model = re.sub(r"[^A-Za-z0-9._+-]+", "-", Path(path).stem).strip("-") or "csv"
+    data: dict[str, object] = {
+        "format": FORMAT,
+        "device": {
+            "model": model,
+            "name": Path(path).stem,
+            "manual": f"CSV register list {Path(path).name}",
+        },
+        "entry": entries,
+    }
+    return Builder(Source(name, lines)).build(data)
