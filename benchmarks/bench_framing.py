@@ -35,7 +35,7 @@ def pymodbus_frames(frames: list) -> int:  # type: ignore[type-arg]
     n = 0
     for f in frames:
         framer = to_server if f.role == "request" else to_client
-        used, pdu = framer.handleFrame(f.raw, 0, 0)
+        _, pdu = framer.handleFrame(f.raw, 0, 0)
         n += pdu is not None
     return n
 
@@ -48,14 +48,23 @@ def main() -> None:
     size = sum(len(c.data) for c in reads)
     store, t_file = timed("modscope index, 64 KiB file reads", n, lambda: index(reads))
     rows = len(store)
-    good = sum(1 for i in range(rows) if store.kind[i] != Kind.NOISE and not store.flags[i] & Flag.CHECK_BAD)
+    good = sum(
+        1
+        for i in range(rows)
+        if store.kind[i] != Kind.NOISE and not store.flags[i] & Flag.CHECK_BAD
+    )
     paired = sum(1 for i in range(rows) if store.partner[i] >= 0)
-    print(f"  rows {rows:,}, good frames {good:,} of {n:,}, paired {paired:,}; {size / t_file / 1e6:.1f} MB/s")
+    rate = size / t_file / 1e6
+    print(f"  rows {rows:,}, good frames {good:,} of {n:,}, paired {paired:,}; {rate:.1f} MB/s")
     usb = usb_reads(frames)
     _, t_usb = timed(f"modscope index, 16 ms USB reads ({len(usb):,} reads)", n, lambda: index(usb))
-    decoded, t_pm = timed("pymodbus FramerRTU, one frame per call, told direction", n, lambda: pymodbus_frames(frames))
+    decoded, t_pm = timed(
+        "pymodbus FramerRTU, one frame per call, told direction", n, lambda: pymodbus_frames(frames)
+    )
     print(f"  pymodbus decoded {decoded:,} of {n:,}")
-    print(f"ratio modscope/pymodbus: file reads {t_pm / t_file:.1f}x, USB reads {t_pm / t_usb:.1f}x")
+    print(
+        f"ratio modscope/pymodbus: file reads {t_pm / t_file:.1f}x, USB reads {t_pm / t_usb:.1f}x"
+    )
     print(f"store: {store.memory_bytes() / n:.1f} bytes per frame; peak RSS {peak_rss_mb():.0f} MB")
 
 

@@ -27,18 +27,18 @@ def crc16_py(data: bytes | bytearray | memoryview) -> int:
     return crc
 
 
-def _pick_fast() -> Callable[[bytes], int]:
+def _pick_fast() -> Callable[[bytes | bytearray], int]:
     try:
         from fastcrc import crc16  # Rust implementation, about 25x the pure-Python table
     except ImportError:  # pragma: no cover - fastcrc has wheels for the usual platforms
         return crc16_py
-    fast: Callable[[bytes], int] = crc16.modbus
+    fast: Callable[[bytes | bytearray], int] = crc16.modbus
     if fast(b"123456789") != 0x4B37:  # pragma: no cover - guards against a wrong variant
         return crc16_py
     return fast
 
 
-crc16: Callable[[bytes], int] = _pick_fast()
+crc16: Callable[[bytes | bytearray], int] = _pick_fast()
 """CRC-16/MODBUS of `bytes`; the frame carries it low byte first."""
 
 

@@ -541,10 +541,6 @@ class AnswerRule:
         return self.base + (quantity * self.per_item + self.round_up) // self.per_byte
 
 
-def _u16(frame: Buffer, pos: int) -> int:
-    return int(frame[pos]) << 8 | int(frame[pos + 1])
-
-
 BITS_ANSWER = AnswerRule(5, quantity_pos=4, round_up=7, per_byte=8)
 REGISTERS_ANSWER = AnswerRule(5, quantity_pos=4, per_item=2)
 ECHO_ANSWER = AnswerRule(0, quantity_pos=AnswerRule.ECHO)

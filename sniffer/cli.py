@@ -106,7 +106,9 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if not args.file and not DEMO_CAPTURE.exists():
         raise UsageError(f"the demo capture {DEMO_CAPTURE} is missing; give a capture FILE")
     use_tui = args.format is None and not args.stats and out.isatty() and sys.stdin.isatty()
-    session, capture = open_session(path, read_options(args), bindings=bindings, timeout=args.timeout)
+    session, capture = open_session(
+        path, read_options(args), bindings=bindings, timeout=args.timeout
+    )
     if use_tui:
         from sniffer.tui.app import run_tui
 
@@ -232,7 +234,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _extra_commands() -> list[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]]:
+def _extra_commands() -> list[
+    Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]
+]:
     """Commands that live in their own modules (live capture, export, the TUI)."""
     found = []
     for module in ("sniffer.live", "sniffer.export", "sniffer.tui.commands"):
@@ -251,11 +255,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     out, err = sys.stdout, sys.stderr
     if args.command is None:
-        if sys.stdout.isatty() and sys.stdin.isatty():
-            args = parser.parse_args(["replay"])
-        else:
-            parser.print_help()
-            return 0
+        # the bundled demo: in the TUI on a terminal, as a listing when piped
+        args = parser.parse_args(["replay"])
     func: Command = args.func
     try:
         return func(args, out, err)

@@ -144,7 +144,9 @@ class Describer:
                     reasons = [p for r in asked.registers for p in r.problems]
                     if reasons:
                         extra_summary = "; ".join(
-                            x for x in (extra_summary, "explained by the request: " + reasons[0]) if x
+                            x
+                            for x in (extra_summary, "explained by the request: " + reasons[0])
+                            if x
                         )
         summary = d.summary
         if registers:

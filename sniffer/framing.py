@@ -301,7 +301,6 @@ class RtuFramer:
     def _scan_bytes(self, buf: bytearray, final: bool) -> None:
         end = len(buf)
         pos = self.pos
-        rules = self.rules
         request_base = self.request_base
         request_count = self.request_count
         answer_pos, answer_base = self.answer_pos, self.answer_base
@@ -313,7 +312,12 @@ class RtuFramer:
         # the newest chunk's timing, for the inline time estimate of frames inside it
         cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
         # row columns, appended inline on the fast paths
-        a_off, a_len, a_t, a_te = out.offset.append, out.length.append, out.t.append, out.t_end.append
+        a_off, a_len, a_t, a_te = (
+            out.offset.append,
+            out.length.append,
+            out.t.append,
+            out.t_end.append,
+        )
         a_kind, a_unit, a_fc = out.kind.append, out.unit.append, out.fc.append
         pairs_append = self.pairs.append
         row = len(out.t)
@@ -365,10 +369,14 @@ class RtuFramer:
                     pr = row
                     ap = answer_pos[fc]
                     if ap >= 0:
-                        pl = answer_base[fc] + (
-                            (buf[pos + ap] << 8 | buf[pos + ap + 1]) * answer_item[fc]
-                            + answer_up[fc]
-                        ) // answer_byte[fc]
+                        pl = (
+                            answer_base[fc]
+                            + (
+                                (buf[pos + ap] << 8 | buf[pos + ap + 1]) * answer_item[fc]
+                                + answer_up[fc]
+                            )
+                            // answer_byte[fc]
+                        )
                         pu, pf = unit, fc
                     elif ap == FIXED:
                         pu, pf, pl = unit, fc, answer_base[fc]
@@ -484,7 +492,9 @@ class RtuFramer:
                     # to the last zero, and a frame whose CRC ends in 0x00 passes one
                     # byte short: a longer candidate that also passes is told apart by
                     # preference, never by length.
-                    return self._zero_trap(buf, pos, end, cands[n + 1 :], length, prio, ckind, final)
+                    return self._zero_trap(
+                        buf, pos, end, cands[n + 1 :], length, prio, ckind, final
+                    )
                 return length, ckind, False
         return 0, 0, waiting
 
@@ -555,6 +565,7 @@ class RtuFramer:
         """Bytes no frame claimed. A stretch that has the exact length of a known frame
         from a known unit is a frame whose CRC is wrong; with exact timing, silence splits
         the rest into frames with bad checks and noise."""
+        self.flush()  # units the fast path saw count as known
         tl = self.timeline
         while start < end:
             stop = min(end, start + MAX_RTU)
@@ -579,9 +590,9 @@ class RtuFramer:
         if self.timeline.exact and self.timeline.gap_before(start) >= self.line.t35:
             return True
         fc = buf[start + 1]
-        if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
-            if length == (EXCEPTION_LENGTH if fc & 0x80 else self.pending_len):
-                return True
+        predicted = EXCEPTION_LENGTH if fc & 0x80 else self.pending_len
+        if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc and length == predicted:
+            return True
         for base, cpos, csize, walker, _ in self.rules[fc]:
             if walker is None and csize == 0 and base == length:
                 return True

@@ -6,7 +6,7 @@ import csv
 import io
 import json
 from collections.abc import Iterable
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from sniffer.describe import Describer, FrameDetail
@@ -23,8 +23,21 @@ KIND_NAMES = {
     Kind.EVENT: "event",
 }
 CSV_COLUMNS = (
-    "index", "t", "t_end", "direction", "kind", "unit", "function", "name", "length",
-    "check_ok", "status", "latency_ms", "summary", "problems", "raw",
+    "index",
+    "t",
+    "t_end",
+    "direction",
+    "kind",
+    "unit",
+    "function",
+    "name",
+    "length",
+    "check_ok",
+    "status",
+    "latency_ms",
+    "summary",
+    "problems",
+    "raw",
 )
 
 
@@ -90,7 +103,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
     if absolute:
-        stamp = datetime.fromtimestamp(t, tz=timezone.utc).astimezone()
+        stamp = datetime.fromtimestamp(t, tz=UTC).astimezone()
         return stamp.strftime("%H:%M:%S.%f")
     return f"{t - origin:12.6f}"
 
@@ -147,10 +160,21 @@ class Lister:
                 v = d.view
                 self._csv.writerow(
                     (
-                        v.index, f"{v.t:.6f}", f"{v.t_end:.6f}", d.direction, KIND_NAMES[v.kind],
-                        v.unit, v.function, d.name, len(v.raw), v.check_ok, d.status,
-                        "" if d.latency_ms is None else f"{d.latency_ms:.3f}", d.summary,
-                        "; ".join(d.problems), v.raw.hex(),
+                        v.index,
+                        f"{v.t:.6f}",
+                        f"{v.t_end:.6f}",
+                        d.direction,
+                        KIND_NAMES[v.kind],
+                        v.unit,
+                        v.function,
+                        d.name,
+                        len(v.raw),
+                        v.check_ok,
+                        d.status,
+                        "" if d.latency_ms is None else f"{d.latency_ms:.3f}",
+                        d.summary,
+                        "; ".join(d.problems),
+                        v.raw.hex(),
                     )
                 )
             n += 1

@@ -61,7 +61,9 @@ class Pipeline:
             ch = self._add_channel(chunk.channel, chunk.direction)
         if chunk.event and not chunk.data:
             text = chunk.event + (f": {chunk.note}" if chunk.note else "")
-            (ch.staging if ch.staging is not None else self.store).add_event(chunk.t_end, text, chunk.channel)
+            (ch.staging if ch.staging is not None else self.store).add_event(
+                chunk.t_end, text, chunk.channel
+            )
             ch.last_t = max(ch.last_t, chunk.t_end)
             self._release(final=False)
             return
@@ -194,7 +196,6 @@ class Pipeline:
                 if c.framer is not None:
                     c.framer.out = c.staging
                 c.read = 0
-
 
     def _bus_silence(self, row: int) -> None:
         """With one channel per direction, the silence that matters is the bus's: the

@@ -119,7 +119,9 @@ def _rvs_dn(t: float, cycle: int) -> list[Step]:
     return steps
 
 
-def traffic(cycles: int = 240, period: float = 0.25, seed: int = 7) -> Iterator[tuple[float, bytes]]:
+def traffic(
+    cycles: int = 240, period: float = 0.25, seed: int = 7
+) -> Iterator[tuple[float, bytes]]:
     """(time, bytes on the wire) in time order: the whole demo bus."""
     rng = random.Random(seed)
     char = LINE.char_time

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections import Counter
+from itertools import pairwise
 from dataclasses import dataclass, field
 
 from sniffer.framing import Flag, Kind
@@ -38,7 +39,7 @@ class UnitStats:
         times = self.request_times
         if len(times) < 2:
             return None
-        gaps = sorted(b - a for a, b in zip(times, times[1:], strict=False))
+        gaps = sorted(b - a for a, b in pairwise(times))
         return gaps[len(gaps) // 2]
 
 
@@ -127,5 +128,7 @@ class Stats:
             if st.exceptions:
                 codes = ", ".join(f"{c:02d} x{n}" for c, n in sorted(st.exceptions.items()))
                 lines.append(f"{'':>4}  exceptions by code: {codes}")
-        lines.append(f"noise: {self.noise_spans} spans, {self.noise_bytes} bytes; events: {self.events}")
+        lines.append(
+            f"noise: {self.noise_spans} spans, {self.noise_bytes} bytes; events: {self.events}"
+        )
         return "\n".join(lines)

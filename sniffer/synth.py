@@ -39,10 +39,10 @@ def _request(rng: random.Random, unit: int) -> tuple[bytes, bytes | None]:
         qty = rng.randrange(1, 64)
         req = bytes([unit, fc]) + addr.to_bytes(2, "big") + qty.to_bytes(2, "big")
         nbytes = (qty + 7) // 8
-        data = bytearray(rng.getrandbits(8) for _ in range(nbytes))
+        bits = bytearray(rng.getrandbits(8) for _ in range(nbytes))
         if qty % 8:
-            data[-1] &= (1 << (qty % 8)) - 1
-        return req, bytes([unit, fc, nbytes]) + bytes(data)
+            bits[-1] &= (1 << (qty % 8)) - 1
+        return req, bytes([unit, fc, nbytes]) + bytes(bits)
     if pick < 0.85:
         value = rng.randrange(0, 65536)
         req = bytes([unit, 6]) + addr.to_bytes(2, "big") + value.to_bytes(2, "big")

@@ -5,6 +5,7 @@ The folder is globbed at test time, so new device files are checked as they appe
 
 from __future__ import annotations
 
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from dissectors.dictionary import (
     load_dictionary,
     load_model,
 )
+from dissectors.dictionary.tomlpos import scan_toml
 
 DEVICES = Path(__file__).resolve().parent.parent / "dissectors" / "devices"
 FILES = sorted(DEVICES.glob("*.toml"))
@@ -138,3 +140,20 @@ def test_vendor_fields_decode(path: Path) -> None:
     if d.report_server_id is not None:
         for data in (b"", bytes(8), bytes([0xFF]) * 40):
             assert isinstance(d.report_server_id.decode(data).fields, tuple)
+
+
+@pytest.mark.parametrize("path", FILES, ids=[p.name for p in FILES])
+def test_line_scanner_finds_every_entry_and_key(path: Path) -> None:
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    data = tomllib.loads(text)
+    found = scan_toml(text)
+    for index, entry in enumerate(data.get("entry", [])):
+        header = found.exact(("entry", index))
+        assert header is not None
+        assert lines[header - 1].strip().startswith("[[entry]]")
+        for key in entry:
+            line = found.exact(("entry", index, key))
+            assert line is not None, (index, key)
+            source = lines[line - 1]
+            assert key in source or source.lstrip().startswith("[entry."), (index, key, source)

@@ -962,27 +962,32 @@ def test_dictionary_package_stays_pure() -> None:
 
 # -- whatever a file holds, checking it gives a dictionary or a DictionaryError --------------
 
+_WORDS = ["u16", "u32", "f32", "str", "bool", "u8", "s8", "high", "low", "40001", "40001.3"]
+_WORDS += ["hr", "rw", "r", "CDAB", "holding", "coils", "{n}", ""]
+_FLAG = st.dictionaries(st.sampled_from(["set", "clear", "on"]), st.text(max_size=3))
+_NAMES = st.dictionaries(
+    st.sampled_from(["0", "1", "0x10", "-1", "x", "31", "30"]),
+    st.one_of(st.text(max_size=5), _FLAG),
+)
 _VALUES = st.one_of(
     st.none(),
     st.booleans(),
     st.integers(-70000, 70000),
     st.floats(allow_nan=True),
-    st.sampled_from(["u16", "u32", "f32", "str", "bool", "u8", "s8", "high", "low", "40001",
-                     "40001.3", "hr", "rw", "r", "CDAB", "holding", "coils", "{n}", ""]),
+    st.sampled_from(_WORDS),
     st.lists(st.integers(0, 300), max_size=3),
-    st.dictionaries(st.sampled_from(["0", "1", "0x10", "-1", "x", "31", "30"]),
-                    st.one_of(st.text(max_size=5), st.dictionaries(st.sampled_from(["set", "clear", "on"]),
-                                                                   st.text(max_size=3)))),
-)  # fmt: skip
-_ENTRY = st.dictionaries(
-    st.sampled_from(
-        ["ref", "address", "pdu", "table", "space", "name", "type", "byte", "bit", "width",
-         "length", "word_order", "scale", "offset", "precision", "sign_bit", "flag_bits", "enum",
-         "bits", "min", "max", "default", "access", "repeat", "stride", "n_first", "unit"]
-    ),
-    _VALUES,
-    max_size=8,
-)  # fmt: skip
+    _NAMES,
+)
+_KEYS = ["ref", "address", "pdu", "table", "space", "name", "type", "byte", "bit", "width"]
+_KEYS += ["length", "word_order", "scale", "offset", "precision", "sign_bit", "flag_bits"]
+_KEYS += ["enum", "bits", "min", "max", "default", "access", "repeat", "stride", "n_first", "unit"]
+_RANDOM_ENTRY = st.dictionaries(st.sampled_from(_KEYS), _VALUES, max_size=8)
+_NEAR_VALID_ENTRY = st.builds(
+    lambda place, extra: {"name": "Value {n}", "repeat": 2, **place, **extra},
+    st.sampled_from([{"ref": "40001"}, {"pdu": 5, "table": "input"}, {"address": 9}]),
+    st.dictionaries(st.sampled_from(_KEYS[6:]), _VALUES, max_size=3),
+)
+_ENTRY = st.one_of(_RANDOM_ENTRY, _NEAR_VALID_ENTRY, _NEAR_VALID_ENTRY)
 
 
 @settings(max_examples=400, deadline=None)
@@ -1001,3 +1006,23 @@ def test_builder_only_raises_dictionary_errors(entries: list[dict[str, object]])
         return
     for entry in d.entries:
         d.decode(entry.table, entry.address, [0xFFFF] * entry.size, write=True)
+
+
+def test_names_must_be_one_printable_line(tmp_path: Path) -> None:
+    body = """
+    [[entry]]
+    ref = "40001"
+    name = "Evil\\u001b[2J"   # HERE
+    """
+    error, line = fails(tmp_path, body)
+    assert error.line == line
+    assert "control character" in error.message
+    body = """
+    [[entry]]
+    ref = "40001"
+    name = "A"
+    enum = { "0" = "two\\nlines" }   # HERE
+    """
+    error, line = fails(tmp_path, body)
+    assert error.line == line
+    assert "on one line" in error.message

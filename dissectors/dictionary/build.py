@@ -183,7 +183,7 @@ class Builder:
                 f"model '{model}' has characters bus files cannot name",
                 "use letters, digits and . _ + - only, starting with a letter or digit",
             )
-        name = table.text("name") or model
+        name = table.label("name") or model
         manual = table.text("manual")
         order = table.opt_text("word_order")
         if order is not None:
@@ -351,8 +351,8 @@ class Builder:
                     DictionaryError(
                         self.src.path,
                         entry.line,
-                        f"entry '{entry.name}' (line {entry.line}) overlaps entry "
-                        f"'{other.name}' (line {other.line}) at {where}",
+                        f"entry '{entry.name}'{_line(entry.line)} overlaps entry "
+                        f"'{other.name}'{_line(other.line)} at {where}",
                         OVERLAP_FIX,
                     )
                 )
@@ -380,9 +380,9 @@ class Builder:
                 if before is not None:
                     raise self.src.error(
                         (*at, "parameter", number, "number"),
-                        f"window '{name}': parameter {parameter.number} '{parameter.name}' "
-                        f"(line {parameter.line}) repeats parameter '{before.name}' "
-                        f"(line {before.line})",
+                        f"window '{name}': parameter {parameter.number} '{parameter.name}'"
+                        f"{_line(parameter.line)} repeats parameter '{before.name}'"
+                        f"{_line(before.line)}",
                         "give each parameter its own number",
                     )
                 parameters[parameter.number] = parameter
@@ -487,7 +487,7 @@ class Builder:
             if code in out:
                 raise table.error(
                     "code",
-                    f"{what}: code {code} is already '{out[code].name}' (line {out[code].line})",
+                    f"{what}: code {code} is already '{out[code].name}'{_line(out[code].line)}",
                     "give each function code one [[function]]",
                 )
             table.texts("notes")
@@ -533,6 +533,10 @@ class Builder:
             self.fields(table, "fields", "[report_server_id]"),
             self.src.lines.line(("report_server_id",)),
         )
+
+
+def _line(line: int | None) -> str:
+    return "" if line is None else f" (line {line})"
 
 
 def _mask(entry: Entry) -> int:

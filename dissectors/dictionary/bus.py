@@ -124,5 +124,5 @@ def load_bus(path: str | Path) -> Bus:
                 f"'{before.model}' (line {before.line})",
                 "give each address one [[unit]]",
             )
-        units[address] = UnitBinding(address, model, table.text("label"), line)
+        units[address] = UnitBinding(address, model, table.label("label") or "", line)
     return Bus(MappingProxyType(units), MappingProxyType(settings), name)

@@ -10,6 +10,7 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from decimal import Decimal
+from typing import NamedTuple
 
 from .model import TYPES, Entry, RegisterValue, ValueSpec
 
@@ -87,18 +88,25 @@ def decimals_of(value: int | float) -> int:
     return min(max(0, -exponent), 10) if isinstance(exponent, int) else 0
 
 
-def float_text(value: float, digits: int) -> tuple[float, str]:
+class Shown(NamedTuple):
+    """A number as decoded and as text (without unit)."""
+
+    value: int | float
+    text: str
+
+
+def float_text(value: float, digits: int) -> Shown:
     """A float rounded to `digits` significant digits, and its text (400.0, 0.95, NaN)."""
     if math.isnan(value):
-        return value, "NaN"
+        return Shown(value, "NaN")
     if math.isinf(value):
-        return value, "inf" if value > 0 else "-inf"
+        return Shown(value, "inf" if value > 0 else "-inf")
     rounded = float(f"{value:.{digits}g}")
     if rounded == 0:
         rounded = 0.0
     if rounded.is_integer() and abs(rounded) < 1e15:
-        return rounded, f"{int(rounded)}.0"
-    return rounded, repr(rounded)
+        return Shown(rounded, f"{int(rounded)}.0")
+    return Shown(rounded, repr(rounded))
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,31 +119,28 @@ class Decoded:
     undocumented: int | None = None  # a raw value the entry's enum does not name
 
 
-def _scaled(spec: ValueSpec, number: int | float, is_float: bool) -> tuple[int | float, str]:
-    """Apply scale, offset and precision; the value and its text without unit."""
+def scaled(spec: ValueSpec, number: int | float, is_float: bool) -> Shown:
+    """Apply scale, offset and precision to a raw number."""
     if spec.scaled:
         result: int | float = number * spec.scale + spec.offset
     else:
         result = number
-    if spec.precision is not None:
-        places = spec.precision
-        if places == 0:
-            whole = round(result) if math.isfinite(result) else result
-            return whole, number_text(whole) if isinstance(whole, float) else str(whole)
-        if math.isfinite(result):
-            rounded = round(float(result), places) + 0.0
-            return rounded, f"{rounded:.{places}f}"
+    if not math.isfinite(result):
         return float_text(float(result), 7)
+    if spec.precision is not None:
+        if spec.precision == 0:
+            return Shown(round(result), str(round(result)))
+        rounded = round(float(result), spec.precision) + 0.0
+        return Shown(rounded, f"{rounded:.{spec.precision}f}")
     if is_float:
-        digits = 7 if spec.type == "f32" else 15
-        return float_text(float(result), digits)
+        return float_text(float(result), 7 if spec.type == "f32" else 15)
     if isinstance(result, int):
-        return result, str(result)
+        return Shown(result, str(result))
     places = max(decimals_of(spec.scale), decimals_of(spec.offset))
     rounded = round(result, places) + 0.0
     if places == 0:
-        return rounded, f"{int(rounded)}.0" if rounded.is_integer() else repr(rounded)
-    return rounded, f"{rounded:.{places}f}"
+        return Shown(rounded, f"{int(rounded)}.0" if rounded.is_integer() else repr(rounded))
+    return Shown(rounded, f"{rounded:.{places}f}")
 
 
 def raw_integer(spec: ValueSpec, words: Sequence[int]) -> int:
@@ -162,7 +167,7 @@ def decode_spec(spec: ValueSpec, words: Sequence[int]) -> Decoded:
     if info.kind == "float":
         packed = raw.to_bytes(info.bits // 8, "big")
         real = struct.unpack(">f" if info.bits == 32 else ">d", packed)[0]
-        value, text = _scaled(spec, real, is_float=True)
+        value, text = scaled(spec, real, is_float=True)
         return Decoded(value, f"{text}{unit}", value)
     qualifiers: list[str] = []
     if spec.sign_bit is not None or spec.flag_bits:
@@ -195,7 +200,7 @@ def decode_spec(spec: ValueSpec, words: Sequence[int]) -> Decoded:
         if spec.enum:
             return Decoded(bool(number), f"{state} (undocumented)", None, undocumented=number)
         return Decoded(bool(number), state, None)
-    value, text = _scaled(spec, number, is_float=False)
+    value, text = scaled(spec, number, is_float=False)
     name = spec.enum.get(number)
     if name is not None:
         return Decoded(name, f"{name}{tail}", value)
@@ -228,15 +233,15 @@ def range_problems(spec: ValueSpec, decoded: Decoded, write: bool) -> list[str]:
     return problems
 
 
-def partial_text(spec: ValueSpec, present: Sequence[int], first: int) -> tuple[str | None, str]:
-    """What can be shown of a value the frame holds only part of: value and text."""
-    if spec.type == "str":
-        data = b"".join(word.to_bytes(2, "big") for word in ordered_words(present, spec.word_order))
-        chars = plain(data.split(b"\x00", 1)[0].decode("latin-1"))
-        before = "…" if first > 0 else ""
-        after = "…" if first + len(present) < spec.size else ""
-        return f"{before}{chars}{after}", f"{before}{chars}{after}"
-    return None, "?"
+def partial_string(spec: ValueSpec, present: Sequence[int], first: int) -> str | None:
+    """The characters a frame holds of a `str` it holds only part of (None for others)."""
+    if spec.type != "str":
+        return None
+    data = b"".join(word.to_bytes(2, "big") for word in ordered_words(present, spec.word_order))
+    chars = plain(data.split(b"\x00", 1)[0].decode("latin-1"))
+    before = "…" if first > 0 else ""
+    after = "…" if first + len(present) < spec.size else ""
+    return f"{before}{chars}{after}"
 
 
 def decode_entry(entry: Entry, words: Sequence[int], first: int, write: bool) -> RegisterValue:
@@ -258,7 +263,8 @@ def decode_entry(entry: Entry, words: Sequence[int], first: int, write: bool) ->
             False,
             problems,
         )
-    value, shown = partial_text(spec, words, first)
+    value = partial_string(spec, words, first)
+    shown = "?" if value is None else value
     noun = "register" if spec.size == 1 else "registers"
     text = f"{entry.name} = {shown} (only {len(words)} of {spec.size} {noun} in this frame)"
     return RegisterValue(entry.table, entry.address, entry.name, value, spec.unit, text, raw, True)

@@ -70,6 +70,11 @@ def describe(d: DeviceDictionary) -> str:
             codes = ", ".join(map(str, t.quiet_after_functions)) or "writes"
             parts.append(f"quiet {number_text(t.quiet_after_write_ms)} ms after FC {codes}")
         lines.append("timing: " + "; ".join(parts))
+    for space in d.spaces.values():
+        default = " (default)" if space.name == d.default_space else ""
+        lines.append(
+            f"space {space.name}{default}: {space.table}, {space.example()} is PDU {space.pdu}"
+        )
     lines.append(f"entries: {len(d.entries)}")
     if d.entries:
         rows = [

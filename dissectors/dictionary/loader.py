@@ -65,7 +65,8 @@ def _build(path: Path) -> DeviceDictionary:
 
 
 @lru_cache(maxsize=64)
-def _load_cached(path: str, stamp: tuple[int, int]) -> DeviceDictionary:
+def _load_cached(path: str, stamp: tuple[int, ...]) -> DeviceDictionary:
+    """One load per file version (`stamp`: its mtime, ctime, size and inode)."""
     return _build(Path(path))
 
 
@@ -76,7 +77,8 @@ def load_dictionary(path: str | Path) -> DeviceDictionary:
         stat = file.stat()
     except OSError:
         return _build(file)  # read_text reports why
-    return _load_cached(str(file), (stat.st_mtime_ns, stat.st_size))
+    stamp = (stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size, stat.st_ino)
+    return _load_cached(str(file), stamp)
 
 
 def check_dictionary(path: str | Path) -> list[DictionaryError]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from .errors import DictionaryError, nearest
@@ -82,11 +83,22 @@ class Table:
         return default if found is None else found
 
     def need_text(self, key: str, example: str) -> str:
-        found = self.opt_text(key)
+        found = self.label(key)
         if found is None:
             raise self.missing(key, example)
         if not found.strip():
             raise self.error(key, f"{self.what}: '{key}' is empty", f"write {example}")
+        return found
+
+    def label(self, key: str) -> str | None:
+        """A string shown on one line (a name, a unit): no control characters."""
+        found = self.opt_text(key)
+        if found is not None and not found.isprintable():
+            raise self.error(
+                key,
+                f"{self.what}: '{key}' holds a control character or line break",
+                "keep it to one line of printable text",
+            )
         return found
 
     def opt_text(self, key: str) -> str | None:
@@ -122,6 +134,8 @@ class Table:
             return None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.wrong(key, "a number", f"{key} = 0.1 (no quotes)")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.wrong(key, "a finite number", f"{key} = 0.1")
         return value
 
     def flag(self, key: str) -> bool | None:

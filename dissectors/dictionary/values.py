@@ -6,7 +6,7 @@ import re
 from collections.abc import Mapping
 from types import MappingProxyType
 
-from .errors import nearest
+from .errors import DictionaryError, nearest
 from .model import (
     ACCESS,
     BIT_TABLES,
@@ -164,10 +164,10 @@ def names(table: Table, key: str, low: int, high: int, what: str) -> dict[int, s
                 f"{table.what}: {key} keys '{written[number]}' and '{text}' are the same number",
                 "keep one of them",
             )
-        if not isinstance(name, str) or not name.strip():
+        if not isinstance(name, str) or not name.strip() or not name.isprintable():
             raise table.src.error(
                 at,
-                f"{table.what}: {key} '{text}' must name something, not {kind(name)}",
+                f"{table.what}: {key} '{text}' must name something on one line, not {kind(name)}",
                 f'write "{text}" = "a name"',
             )
         written[number] = text
@@ -192,7 +192,7 @@ class ValueReader:
         self.info: TypeInfo = TYPES[self.type]
         self.width = 1
 
-    def fail(self, key: str | None, message: str, fix: str) -> Exception:
+    def fail(self, key: str | None, message: str, fix: str) -> DictionaryError:
         return self.table.error(key, f"{self.what}: {message}", fix)
 
     def refuse(self, keys: tuple[str, ...], why: str) -> None:
@@ -224,7 +224,7 @@ class ValueReader:
             scale=1 if scale is None else scale,
             offset=0 if offset is None else offset,
             precision=precision,
-            unit=table.text("unit"),
+            unit=table.label("unit") or "",
             sign_bit=sign_bit,
             flag_bits=MappingProxyType(flag_bits),
             enum=MappingProxyType(enum),
@@ -423,7 +423,7 @@ class ValueReader:
                     at, f"{self.what}: flag bit {number} is given twice", "keep one of them"
                 )
             flag = Table(table.src, at, body, f"{self.what}: flag bit {number}", ("clear", "set"))
-            clear, set_ = flag.text("clear"), flag.text("set")
+            clear, set_ = flag.label("clear") or "", flag.label("set") or ""
             if not clear and not set_:
                 raise flag.error(
                     None,

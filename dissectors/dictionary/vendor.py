@@ -9,6 +9,7 @@ from .decode import plain
 from .model import no_names
 
 FIELD_SIZES: Mapping[str, int] = {"u8": 1, "u16": 2, "u32": 4, "bytes": 0}
+MAX_BYTES_SHOWN = 32
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,13 +47,10 @@ def decode_fields(layout: Sequence[VendorField], data: bytes) -> FieldsDecoded:
     out: list[FieldValue] = []
     problems: list[str] = []
     pos = 0
-    for index, spec in enumerate(layout):
-        last = index == len(layout) - 1
+    for spec in layout:
         size = FIELD_SIZES.get(spec.type, 0)
-        if spec.type == "bytes":
+        if spec.type == "bytes":  # without length: the rest (only the last field may)
             size = spec.length if spec.length is not None else max(0, len(data) - pos)
-            if spec.length is None and not last:
-                size = max(0, len(data) - pos)
         chunk = data[pos : pos + size]
         if len(chunk) < size:
             problems.append(f"'{spec.name}' needs {size} bytes, only {len(chunk)} present")
@@ -62,7 +60,9 @@ def decode_fields(layout: Sequence[VendorField], data: bytes) -> FieldsDecoded:
             pos += len(chunk)
             break
         if spec.type == "bytes":
-            shown = chunk.hex(" ").upper() if chunk else "(none)"
+            shown = chunk[:MAX_BYTES_SHOWN].hex(" ").upper() if chunk else "(none)"
+            if len(chunk) > MAX_BYTES_SHOWN:
+                shown += f" … ({len(chunk)} bytes)"
             out.append(
                 FieldValue(spec.name, bytes(chunk), f"{spec.name} = {shown}", pos, pos + size)
             )
