@@ -54,11 +54,13 @@ def main() -> None:
             best = min(best, time.perf_counter() - started)
         total_samples += n
         total_time += best
+        rate = n / best / 1e6
         print(
-            f"{name:<48} {n / 1e6:6.1f} M samples {chars:5d} chars {best * 1000:7.1f} ms  {n / best / 1e6:6.0f} M samples/s"
+            f"{name:<46} {n / 1e6:5.1f} M samples {chars:5d} chars {best * 1e3:6.1f} ms {rate:4.0f} M/s"
         )
+    rate = total_samples / total_time / 1e6
     print(
-        f"all: {total_samples / 1e6:.1f} M samples in {total_time:.2f} s ({total_samples / total_time / 1e6:.0f} M samples/s)"
+        f"all: {total_samples / 1e6:.1f} M samples in {total_time:.2f} s ({rate:.0f} M samples/s)"
     )
 
 
