@@ -55,9 +55,8 @@ def main() -> None:
         total_samples += n
         total_time += best
         rate = n / best / 1e6
-        print(
-            f"{name:<46} {n / 1e6:5.1f} M samples {chars:5d} chars {best * 1e3:6.1f} ms {rate:4.0f} M/s"
-        )
+        size = f"{n / 1e6:5.1f} M samples {chars:5d} chars"
+        print(f"{name:<46} {size} {best * 1e3:6.1f} ms {rate:4.0f} M/s")
     rate = total_samples / total_time / 1e6
     print(
         f"all: {total_samples / 1e6:.1f} M samples in {total_time:.2f} s ({rate:.0f} M samples/s)"
