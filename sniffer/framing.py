@@ -38,6 +38,7 @@ ECHO = AnswerRule.ECHO
 WALKED = -3  # the answer's length needs the rule's walker
 NO_ANSWER = -4  # the code has no answer rule
 MAX_ASCII = 513
+MAX_NOISE = 256  # bytes in one noise row; longer noise is shown in pieces
 MIN_RTU = 4
 
 
@@ -322,16 +323,19 @@ class RtuFramer:
         pairs_append = self.pairs.append
         row = len(out.t)
         pr = self.pending_row if self.pair_inline else -1
-        noise_free = self.noise_start < 0
+        # rows go straight into the columns while no noise is pending and timing is
+        # estimated per read (exact timing needs the slow path's checks)
+        inline = self.noise_start < 0 and not exact
         # the open request, as locals: written back before every slow-path call
         pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+        pfx = pf | 0x80
         while end - pos >= MIN_RTU:
             unit = buf[pos]
             fc = buf[pos + 1]
             found = 0
             kind = 0
             # fast path 1: the answer the open request predicts, or its exception
-            if unit == pu and (fc == pf or fc == pf | 0x80):
+            if unit == pu and (fc == pf or fc == pfx):
                 length = pl if fc == pf else EXCEPTION_LENGTH
                 if pos + length > end and not final:
                     break  # wait for the rest of it
@@ -339,7 +343,7 @@ class RtuFramer:
                     found = length
                     kind = 2 if fc == pf else 3  # Kind.RESPONSE, Kind.EXCEPTION
             # fast path 2: a request, when no answer is predicted for it
-            elif noise_free and not exact:
+            elif inline:
                 length = request_base[fc]
                 if length:
                     cpos = request_count[fc]
@@ -352,7 +356,7 @@ class RtuFramer:
                     if pos + length <= end and check(buf[pos : pos + length]) == 0:
                         found = length
                         kind = 1  # Kind.REQUEST
-            if found and not exact and noise_free and pos >= cur_start:
+            if found and inline and pos >= cur_start:
                 a_off(pos)
                 a_len(found)
                 a_t(cur_t0 + (pos - cur_start) * cur_rate)
@@ -377,15 +381,15 @@ class RtuFramer:
                             )
                             // answer_byte[fc]
                         )
-                        pu, pf = unit, fc
+                        pu, pf, pfx = unit, fc, fc | 0x80
                     elif ap == FIXED:
-                        pu, pf, pl = unit, fc, answer_base[fc]
+                        pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
                     elif ap == ECHO:
-                        pu, pf, pl = unit, fc, found
+                        pu, pf, pfx, pl = unit, fc, fc | 0x80, found
                     elif ap == WALKED:
                         walked = self._predict(buf, pos, found, fc)
                         if walked is not None:
-                            pu, pf, pl = unit, fc, walked
+                            pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
                     if pl > MAX_RTU:
                         pu = -1
                 row += 1
@@ -403,7 +407,7 @@ class RtuFramer:
             if not found:
                 if self.noise_start < 0:
                     self.noise_start = pos
-                    noise_free = False
+                    inline = False
                 pos += 1
                 continue
             if self.noise_start >= 0:
@@ -411,9 +415,10 @@ class RtuFramer:
                 self.noise_start = -1
             self._emit_frame(buf, pos, found, kind)
             pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+            pfx = pf | 0x80
             pr = self.pending_row
             row = len(out.t)
-            noise_free = True
+            inline = not exact
             pos += found
         self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
         self.pending_row = pr
@@ -568,7 +573,7 @@ class RtuFramer:
         self.flush()  # units the fast path saw count as known
         tl = self.timeline
         while start < end:
-            stop = min(end, start + MAX_RTU)
+            stop = min(end, start + MAX_NOISE)
             if tl.exact:
                 nxt = tl.next_boundary(start)
                 if nxt is not None and start < nxt < stop:
@@ -702,8 +707,8 @@ class AsciiFramer:
             if self.open < 0:
                 colon = buf.find(b":", pos)
                 stop = end if colon < 0 else colon
-                if stop > pos:
-                    self._row(pos, stop, int(Kind.NOISE), int(Flag.ASCII))
+                for piece in range(pos, stop, MAX_NOISE):
+                    self._row(piece, min(stop, piece + MAX_NOISE), int(Kind.NOISE), int(Flag.ASCII))
                 if colon < 0:
                     pos = end
                     break

@@ -76,7 +76,7 @@ class FrameStore:
     def __init__(self, streams: dict[int, bytearray] | None = None) -> None:
         self.streams: dict[int, bytearray] = streams if streams is not None else {}
         self.offset = array("Q")
-        self.length = array("I")
+        self.length = array("H")  # frames are at most 513 bytes, noise spans 256
         self.t = array("d")
         self.t_end = array("d")
         self.kind = array("B")
@@ -84,7 +84,7 @@ class FrameStore:
         self.fc = array("B")  # the function byte as sent (exception bit included)
         self.flags = array("I")
         self.channel = array("B")
-        self.partner = array("q")
+        self.partner = array("i")
         self.status = array("B")
         self.notes: dict[int, str] = {}  # event texts and other per-row notes
         self.fill_channel = 0  # the channel of rows appended without one (see sync)
@@ -205,4 +205,4 @@ class FrameStore:
         return self.bytes_total + sum(c.itemsize * len(c) for c in (*cols, *more))
 
 
-_MINUS_ONES = array("q", [-1] * 4096)
+_MINUS_ONES = array("i", [-1] * 4096)

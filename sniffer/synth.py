@@ -28,13 +28,13 @@ def _request(rng: random.Random, unit: int) -> tuple[bytes, bytes | None]:
     """One request and its normal answer (None for a broadcast)."""
     pick = rng.random()
     addr = rng.randrange(0, 2000)
-    if pick < 0.55:
+    if pick < 0.70:
         fc = 3 if rng.random() < 0.7 else 4
-        qty = rng.choice((1, 2, 2, 4, 6, 8, 10, 10, 12, 16, 20, 32))
+        qty = rng.choice((2, 4, 8, 12, 16, 20, 25, 30, 40, 50, 60, 64))
         req = bytes([unit, fc]) + addr.to_bytes(2, "big") + qty.to_bytes(2, "big")
         data = bytes(rng.getrandbits(8) for _ in range(2 * qty))
         return req, bytes([unit, fc, 2 * qty]) + data
-    if pick < 0.70:
+    if pick < 0.80:
         fc = rng.choice((1, 2))
         qty = rng.randrange(1, 64)
         req = bytes([unit, fc]) + addr.to_bytes(2, "big") + qty.to_bytes(2, "big")
@@ -43,16 +43,16 @@ def _request(rng: random.Random, unit: int) -> tuple[bytes, bytes | None]:
         if qty % 8:
             bits[-1] &= (1 << (qty % 8)) - 1
         return req, bytes([unit, fc, nbytes]) + bytes(bits)
-    if pick < 0.85:
+    if pick < 0.90:
         value = rng.randrange(0, 65536)
         req = bytes([unit, 6]) + addr.to_bytes(2, "big") + value.to_bytes(2, "big")
         return req, req
-    if pick < 0.93:
+    if pick < 0.95:
         qty = rng.randrange(1, 12)
         values = bytes(rng.getrandbits(8) for _ in range(2 * qty))
         head = bytes([unit, 16]) + addr.to_bytes(2, "big") + qty.to_bytes(2, "big")
         return head + bytes([2 * qty]) + values, head
-    if pick < 0.97:
+    if pick < 0.98:
         value = rng.choice((0xFF00, 0x0000))
         req = bytes([unit, 5]) + addr.to_bytes(2, "big") + value.to_bytes(2, "big")
         return req, req
