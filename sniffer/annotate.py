@@ -24,6 +24,8 @@ from dissectors.dictionary import (
     parse_unit_binding,
 )
 from dissectors.dictionary.device import Window
+from dissectors.dictionary.vendor import FIELD_SIZES, VendorField
+from dissectors.functions import AnswerRule, FunctionSpec, fixed
 from dissectors.values import Dissection, RegisterData
 from sniffer.framing import Flag, Kind
 from sniffer.store import NO_PARTNER, FrameStore
@@ -193,6 +195,45 @@ class Annotator:
     def exception_meaning(self, unit: int, code: int) -> str:
         b = self.bindings.get(unit)
         return b.dictionary.exceptions.get(code, "") if b is not None else ""
+
+
+def _layout_length(layout: Sequence[VendorField]) -> int | None:
+    """RTU length of a vendor frame with this layout, None if it varies."""
+    size = 0
+    for f in layout:
+        if f.type == "bytes":
+            if f.length is None:
+                return None
+            size += f.length
+        else:
+            size += FIELD_SIZES.get(f.type, 0)
+    return 2 + size + 2
+
+
+def vendor_functions(
+    bindings: Mapping[int, Binding],
+) -> tuple[dict[int, FunctionSpec], frozenset[int]]:
+    """Framing specs for the vendor function codes of the bound devices (fixed-size
+    layouts frame like public codes), and the codes whose broadcasts get an answer."""
+    specs: dict[int, FunctionSpec] = {}
+    answered: set[int] = set()
+    for b in bindings.values():
+        for code, vendor in b.dictionary.functions.items():
+            if code in specs:
+                continue  # another bound device defined it first
+            req = _layout_length(vendor.request)
+            resp = _layout_length(vendor.response)
+            specs[code] = FunctionSpec(
+                code,
+                vendor.name,
+                klass="user",
+                request_length=fixed(req) if req is not None else None,
+                response_length=fixed(resp) if resp is not None else None,
+                answer=AnswerRule(resp) if resp is not None else None,
+            )
+            if vendor.broadcast:
+                answered.add(code)
+    return specs, frozenset(answered)
 
 
 def _covers(start: int, count: int, address: int) -> bool:

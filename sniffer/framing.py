@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import enum
 from bisect import bisect_left, bisect_right
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -25,6 +26,7 @@ from dissectors.functions import (
     IMPOSSIBLE,
     NEED_MORE,
     AnswerRule,
+    FunctionSpec,
     Walker,
 )
 from sniffer.model import Chunk, Direction, LineSettings
@@ -83,9 +85,11 @@ PROBLEM_MASK = (1 << 24) - 1 - Flag.SILENCE_FRAMED
 _Rule = tuple[int, int, int, Walker | None, int]
 
 
-def _compile_rules(direction: Direction) -> list[tuple[_Rule, ...]]:
+def _compile_rules(
+    direction: Direction, functions: Mapping[int, FunctionSpec]
+) -> list[tuple[_Rule, ...]]:
     table: list[tuple[_Rule, ...]] = [() for _ in range(256)]
-    for code, spec in FUNCTIONS.items():
+    for code, spec in functions.items():
         rules: list[_Rule] = []
         if spec.request_length is not None and direction != Direction.SLAVE:
             r = spec.request_length
@@ -229,6 +233,7 @@ class RtuFramer:
         channel: int = 0,
         direction: Direction = Direction.UNKNOWN,
         exact_timing: bool = False,
+        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
     ) -> None:
         self.line = line
         self.out = out
@@ -239,7 +244,7 @@ class RtuFramer:
         self.pos = len(self.stream)  # offset of the next undecided byte
         self.timeline.offset = self.pos
         self.noise_start = -1  # offset where the current noise span began
-        self.rules = _compile_rules(direction)
+        self.rules = _compile_rules(direction, functions)
         # the exact answer length a request implies (none on a channel of requests only):
         # the registry's AnswerRule spread over lists the fast path indexes by code
         self.answer: list[AnswerRule | None] = [None] * 256
@@ -248,7 +253,7 @@ class RtuFramer:
         self.answer_item = [1] * 256
         self.answer_up = [0] * 256
         self.answer_byte = [1] * 256
-        for code, spec in FUNCTIONS.items():
+        for code, spec in functions.items():
             rule = spec.answer
             if rule is None or direction == Direction.MASTER:
                 continue
@@ -261,7 +266,7 @@ class RtuFramer:
         # request lengths for the fast path: base, plus the byte at count_pos if not 0
         self.request_base = [0] * 256
         self.request_count = [0] * 256
-        for code, spec in FUNCTIONS.items():
+        for code, spec in functions.items():
             r = spec.request_length
             if r is None or direction == Direction.SLAVE or r.walker or r.count_size > 1:
                 continue
@@ -335,7 +340,7 @@ class RtuFramer:
             found = 0
             kind = 0
             # fast path 1: the answer the open request predicts, or its exception
-            if unit == pu and (fc == pf or fc == pfx):
+            if unit == pu and fc in (pf, pfx):
                 length = pl if fc == pf else EXCEPTION_LENGTH
                 if pos + length > end and not final:
                     break  # wait for the rest of it
@@ -668,6 +673,7 @@ class AsciiFramer:
         channel: int = 0,
         direction: Direction = Direction.UNKNOWN,
         exact_timing: bool = False,
+        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
     ) -> None:
         self.line = line
         self.out = out
@@ -681,7 +687,7 @@ class AsciiFramer:
         self.pair_inline = False  # rows are paired by the Pairer only
         self.pending_unit = -1
         self.pending_fc = -1
-        self.rules = _compile_rules(direction)
+        self.rules = _compile_rules(direction, functions)
 
     def feed(self, chunk: Chunk) -> None:
         if not chunk.data:

@@ -22,9 +22,13 @@ class Pairer:
     """Pairs the frames of a store incrementally: call `update()` after frames arrive,
     `tick(now)` while live so that silent slaves time out, `finish()` at the end."""
 
-    def __init__(self, store: FrameStore, timeout: float) -> None:
+    def __init__(
+        self, store: FrameStore, timeout: float, answered_broadcasts: frozenset[int] = frozenset()
+    ) -> None:
         self.store = store
         self.timeout = timeout
+        # vendor function codes whose broadcasts do get an answer (VED903B 0x41)
+        self.answered_broadcasts = answered_broadcasts
         self.next = 0
         self.open = -1  # index of the request waiting for its answer
         self.last_timed_out = b""  # raw bytes of the last request that got no answer
@@ -61,7 +65,7 @@ class Pairer:
                 self._request(i)
                 continue
             u = unit[i]
-            if op >= 0 and unit[op] == u and fc[op] == fc[i] & 0x7F:
+            if op >= 0 and unit[op] in (u, 0) and fc[op] == fc[i] & 0x7F:
                 self._pair(op, i)
             elif k != Kind.UNKNOWN:
                 s.status[i] = Status.ORPHAN
@@ -78,7 +82,7 @@ class Pairer:
         s = self.store
         if self.open >= 0:
             self._time_out(self.open)
-        if s.unit[i] == 0:
+        if s.unit[i] == 0 and s.fc[i] not in self.answered_broadcasts:
             s.status[i] = Status.BROADCAST
             self.open = -1
         else:

@@ -7,9 +7,10 @@ serves replay and live capture, so a recording frames exactly as the line did.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
+from dissectors.functions import FUNCTIONS, FunctionSpec
 from sniffer.framing import AsciiFramer, Flag, Framer, Kind, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pairing import Pairer, default_timeout
@@ -39,11 +40,19 @@ class Pipeline:
         *,
         exact_timing: bool = False,
         timeout: float | None = None,
+        vendor: Mapping[int, FunctionSpec] | None = None,
+        answered_broadcasts: frozenset[int] = frozenset(),
     ) -> None:
         self.line = line
         self.store = store if store is not None else FrameStore()
         self.exact_timing = exact_timing
-        self.pairer = Pairer(self.store, timeout if timeout is not None else default_timeout(line))
+        # the public registry, plus the vendor codes of the devices on this bus
+        self.functions: Mapping[int, FunctionSpec] = {**FUNCTIONS, **(vendor or {})}
+        self.pairer = Pairer(
+            self.store,
+            timeout if timeout is not None else default_timeout(line),
+            answered_broadcasts,
+        )
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}
         self._sample = bytearray()
@@ -144,6 +153,7 @@ class Pipeline:
             channel=ch.number,
             direction=ch.direction,
             exact_timing=self.exact_timing,
+            functions=self.functions,
         )
         if isinstance(ch.framer, RtuFramer):
             ch.framer.pair_inline = ch.staging is None

@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
-from sniffer.annotate import Annotator, Binding
+from sniffer.annotate import Annotator, Binding, vendor_functions
 from sniffer.describe import Describer
 from sniffer.model import Chunk, LineSettings
 from sniffer.pipeline import Pipeline
@@ -40,7 +40,15 @@ class Session:
         self.line = line
         self.source = source
         self.store = FrameStore()
-        self.pipeline = Pipeline(line, self.store, exact_timing=exact_timing, timeout=timeout)
+        vendor, answered = vendor_functions(bindings or {})
+        self.pipeline = Pipeline(
+            line,
+            self.store,
+            exact_timing=exact_timing,
+            timeout=timeout,
+            vendor=vendor,
+            answered_broadcasts=answered,
+        )
         self.annotator = Annotator(bindings or {})
         self.stats = Stats(self.store)
         self.describer = Describer(self.store, self.annotator)

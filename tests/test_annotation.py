@@ -183,3 +183,29 @@ def test_unbound_units_show_raw_values(demo: Session) -> None:
     row = next(i for i in range(len(store)) if store.unit[i] == 4)
     detail = demo.describer.detail(row)
     assert detail.registers == () and detail.label == ""
+
+
+def test_vendor_function_is_framed_from_its_layout_and_its_answered_broadcast_paired() -> None:
+    """VED903B 0x41 Get Slave Address: sent to address 0, answered by the unit. Its
+    layout in the dictionary frames it even with no silence to go by."""
+    ved = load_model("ved903b")
+    req = wire_bytes(BY_ID["ved903b-fc41-req"])
+    resp = wire_bytes(BY_ID["ved903b-fc41-resp"])
+    poll = bytes.fromhex("01030000000a")
+    from dissectors.checks import with_crc
+
+    session = Session(LineSettings(mode="rtu"), bindings={1: Binding(1, "Exciter", ved)})
+    session.feed(Chunk(req + resp + with_crc(poll), t_end=1.0))
+    session.finish()
+    store = session.store
+    assert [store.raw(i) for i in range(len(store))] == [req, resp, with_crc(poll)]
+    assert store.status[0] == store.status[1] == Status.OK and store.partner[1] == 0
+    assert not store.flags[1] & Flag.ANSWERED_BROADCAST
+    detail = session.describer.detail(1)
+    assert detail.name == "Get Slave Address"
+    assert "Slave address = 1" in detail.summary
+    # without the dictionary the same bytes are an unknown code: noise, not a guess
+    bare = Session(LineSettings(mode="rtu"))
+    bare.feed(Chunk(req + resp + with_crc(poll), t_end=1.0))
+    bare.finish()
+    assert Kind.NOISE in {Kind(k) for k in bare.store.kind}
