@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from collections import Counter
-from itertools import pairwise
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 from sniffer.framing import Flag, Kind
 from sniffer.store import NO_PARTNER, FrameStore, Status
