@@ -219,10 +219,11 @@ class _Timeline:
         return hit
 
 
-class RtuFramer:
-    """Frames one channel of RTU bytes into `out`. Feed chunks in order; finish() at the end.
+class _Framer:
+    """What both framers share: where their bytes go, their timing, their length rules.
 
     The bytes are kept in `out`'s stream for the channel; rows refer to them by offset.
+    Feed chunks in order; call finish() at the end.
     """
 
     def __init__(
@@ -243,8 +244,47 @@ class RtuFramer:
         self.timeline = _Timeline(line, exact_timing)
         self.pos = len(self.stream)  # offset of the next undecided byte
         self.timeline.offset = self.pos
-        self.noise_start = -1  # offset where the current noise span began
         self.rules = _compile_rules(direction, functions)
+        self.pair_inline = False  # rows are paired as they are framed (RTU fast path)
+        self.pending_unit = -1  # the last request, awaiting its answer
+        self.pending_fc = -1
+
+    def feed(self, chunk: Chunk) -> None:
+        if not chunk.data:
+            return
+        self.timeline.add(chunk)
+        self.stream += chunk.data
+        self._scan(final=False)
+
+    def finish(self) -> None:
+        self._scan(final=True)
+
+    def _scan(self, final: bool) -> None:
+        raise NotImplementedError
+
+
+class RtuFramer(_Framer):
+    """Frames one channel of RTU bytes into `out`."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        out: FrameStore,
+        *,
+        channel: int = 0,
+        direction: Direction = Direction.UNKNOWN,
+        exact_timing: bool = False,
+        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
+    ) -> None:
+        super().__init__(
+            line,
+            out,
+            channel=channel,
+            direction=direction,
+            exact_timing=exact_timing,
+            functions=functions,
+        )
+        self.noise_start = -1  # offset where the current noise span began
         # the exact answer length a request implies (none on a channel of requests only):
         # the registry's AnswerRule spread over lists the fast path indexes by code
         self.answer: list[AnswerRule | None] = [None] * 256
@@ -272,8 +312,6 @@ class RtuFramer:
                 continue
             self.request_base[code] = r.base
             self.request_count[code] = r.count_pos if r.count_size else 0
-        self.pending_unit = -1  # the last request, awaiting its answer
-        self.pending_fc = -1
         self.pending_len = 0
         self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
         self.pair_inline = True  # off while `out` is a staging store (several channels)
@@ -281,20 +319,8 @@ class RtuFramer:
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
 
-    # -- input ---------------------------------------------------------------------------
-
-    def feed(self, chunk: Chunk) -> None:
-        if not chunk.data:
-            return
-        self.timeline.add(chunk)
-        self.stream += chunk.data
-        self._scan(final=False)
-
     def idle(self) -> None:
         """The line has been silent for at least t3.5: decide everything buffered."""
-        self._scan(final=True)
-
-    def finish(self) -> None:
         self._scan(final=True)
 
     # -- the scanner ---------------------------------------------------------------------
@@ -661,7 +687,7 @@ def ascii_body(raw: bytes) -> bytes | None:
         return None
 
 
-class AsciiFramer:
+class AsciiFramer(_Framer):
     """Frames one channel of Modbus ASCII: ':' opens a frame (and aborts an open one),
     CR LF closes it, the LRC is checked. Everything outside frames is noise."""
 
@@ -675,35 +701,21 @@ class AsciiFramer:
         exact_timing: bool = False,
         functions: Mapping[int, FunctionSpec] = FUNCTIONS,
     ) -> None:
-        self.line = line
-        self.out = out
-        self.stream = out.stream(channel)
-        self.channel = channel
-        self.direction = direction
-        self.timeline = _Timeline(line, exact_timing)
-        self.pos = len(self.stream)
-        self.timeline.offset = self.pos
+        super().__init__(
+            line,
+            out,
+            channel=channel,
+            direction=direction,
+            exact_timing=exact_timing,
+            functions=functions,
+        )
         self.open = -1  # offset of the ':' of an open frame
-        self.pair_inline = False  # rows are paired by the Pairer only
-        self.pending_unit = -1
-        self.pending_fc = -1
-        self.rules = _compile_rules(direction, functions)
-
-    def feed(self, chunk: Chunk) -> None:
-        if not chunk.data:
-            return
-        self.timeline.add(chunk)
-        self.stream += chunk.data
-        self._scan(final=False)
 
     def idle(self) -> None:
         """ASCII allows 1 s between characters: idleness alone does not close a frame."""
 
     def flush(self) -> None:
         """Rows are complete as they are written: nothing to do."""
-
-    def finish(self) -> None:
-        self._scan(final=True)
 
     def _scan(self, final: bool) -> None:
         buf = self.stream

@@ -8,7 +8,6 @@ so for those only unit and function are checked.
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -16,28 +15,7 @@ import pytest
 
 from dissectors.dissect import Role, dissect
 from dissectors.functions import function_class
-
-VECTORS = Path(__file__).parent / "vectors"
-
-
-def load_examples(folder: Path) -> list[dict[str, Any]]:
-    examples: list[dict[str, Any]] = []
-    for path in sorted(folder.glob("*.toml")):
-        with path.open("rb") as handle:
-            document = tomllib.load(handle)
-        for example in document.get("example", []):
-            examples.append({**example, "_file": path.name})
-    return examples
-
-
-def frame_body(example: dict[str, Any]) -> bytes:
-    """The unit byte and PDU of an example: RTU without its 2 CRC bytes, ASCII decoded
-    from the hex between ':' and the LRC."""
-    frame = str(example["frame"])
-    if example.get("mode") == "ascii":
-        text = frame.strip().removeprefix(":").replace(" ", "")
-        return bytes.fromhex(text)[:-1]
-    return bytes.fromhex(frame)[:-2]
+from tests.seedvectors import VECTORS, frame_body, load_examples
 
 
 def same_value(got: Any, expected: Any) -> bool:
