@@ -5,10 +5,16 @@ on a half-duplex RS-485 line. Each end is reached through a stable symbolic link
 `/dev/serial/by-id/...`), so an end can be unplugged (its pty destroyed) and plugged in
 again as a new pty behind the same path. The relay keeps what every end transmitted,
 so a test can prove that an end never sent a byte.
+
+Also here: `Tripwire`, a serial port double that fails on anything that could drive a
+line; `ModbusServer` and `modbus_client`, pymodbus's serial server (units 1 and 2, known
+register values) and client for a bus; `wait_ready`, which waits for a modscope
+subprocess to say it listens.
 """
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import os
 import select
@@ -19,6 +25,9 @@ import tty
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
+from typing import Any
+
+import serial
 
 
 @dataclass
@@ -38,15 +47,6 @@ def open_pty(raw: bool = True) -> tuple[int, int, str]:
         tty.setraw(slave)
     os.set_blocking(master, False)
     return master, slave, os.ttyname(slave)
-
-
-def echo_enabled(path: str | Path) -> bool:
-    """Whether the terminal at `path` still echoes what it receives (cooked mode)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-    try:
-        return bool(termios.tcgetattr(fd)[3] & termios.ECHO)
-    finally:
-        os.close(fd)
 
 
 class VirtualBus:
@@ -101,6 +101,13 @@ class VirtualBus:
         end.link.symlink_to(path)
         with self._lock:
             end.master, end.slave = master, slave
+
+    def echoes(self, name: str) -> bool:
+        """Whether the end's terminal still echoes what it receives (cooked mode). Read
+        through the relay's own descriptor: a program may hold the port exclusively."""
+        with self._lock:
+            fd = self.ends[name].slave
+        return bool(termios.tcgetattr(fd)[3] & termios.ECHO)
 
     def sent_by(self, name: str) -> bytes:
         """Every byte the end has transmitted onto the bus so far."""
@@ -182,3 +189,247 @@ class VirtualBus:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+# -- a serial port double ------------------------------------------------------------------
+
+
+class ForbiddenError(AssertionError):
+    """The code under test did something that could drive the line."""
+
+
+class Tripwire(serial.Serial):
+    """A serial port double. Reads come from a pipe the test writes into; anything that
+    could put a signal on the line raises (and is remembered, in case it was caught)."""
+
+    def __init__(self, name: str = "") -> None:
+        self.calls: list[str] = []
+        self.violations: list[str] = []
+        self.feed_fd = -1
+        super().__init__()  # no port given: pyserial does not open
+
+    def _forbid(self, what: str) -> None:
+        self.violations.append(what)
+        raise ForbiddenError(what)
+
+    # -- what a passive reader may do ------------------------------------------------------
+
+    def open(self) -> None:
+        self.calls.append("open")
+        if self.rts or self.dtr:
+            self._forbid(f"opened with RTS={self.rts} DTR={self.dtr}")
+        if self.xonxoff or self.rtscts or self.dsrdtr:
+            self._forbid("opened with flow control (the driver would send XON/XOFF or RTS)")
+        read_end, self.feed_fd = os.pipe()
+        self.fd = read_end
+        self.is_open = True
+
+    def close(self) -> None:
+        self.calls.append("close")
+        if self.is_open and self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+        self.is_open = False
+
+    def set_low_latency_mode(self, low_latency_settings: bool) -> None:
+        self.calls.append(f"low_latency={low_latency_settings}")
+
+    def unplug(self) -> None:
+        """The far end goes away: reads hit end of file."""
+        if self.feed_fd >= 0:
+            os.close(self.feed_fd)
+            self.feed_fd = -1
+
+    def push(self, data: bytes) -> None:
+        os.write(self.feed_fd, data)
+
+    # -- everything that could drive the line ------------------------------------------------
+
+    def write(self, b: Any, /) -> int:
+        self._forbid("write")
+        return 0
+
+    def writelines(self, lines: Any, /) -> None:
+        self._forbid("writelines")
+
+    def send_break(self, duration: float = 0.25) -> None:
+        self._forbid("send_break")
+
+    def flush(self) -> None:
+        self._forbid("flush (drains output)")
+
+    def reset_output_buffer(self) -> None:
+        self._forbid("reset_output_buffer")
+
+    def set_output_flow_control(self, enable: bool = True) -> None:
+        self._forbid("set_output_flow_control")
+
+    def set_input_flow_control(self, enable: bool = True) -> None:
+        self._forbid("set_input_flow_control (XON/XOFF are transmitted)")
+
+    def _update_break_state(self) -> None:
+        self._forbid("break_condition")
+
+    def _update_rts_state(self) -> None:
+        if self.rts:
+            self._forbid("RTS asserted")
+        if self.is_open:
+            self._forbid("RTS changed on an open port")
+
+    def _update_dtr_state(self) -> None:
+        if self.dtr:
+            self._forbid("DTR asserted")
+        if self.is_open:
+            self._forbid("DTR changed on an open port")
+
+    def _reconfigure_port(self, force_update: bool = False) -> None:
+        if self.is_open:
+            self._forbid("line settings changed on an open port")
+
+    @property
+    def rs485_mode(self) -> Any:
+        return None
+
+    @rs485_mode.setter
+    def rs485_mode(self, settings: Any) -> None:
+        self._forbid("rs485_mode (drives RTS around transmissions)")
+
+
+class Made:
+    """A factory handing out tripwires and keeping them for the test to inspect."""
+
+    def __init__(self) -> None:
+        self.ports: list[Tripwire] = []
+
+    def __call__(self, name: str) -> serial.Serial:
+        port = Tripwire(name)
+        self.ports.append(port)
+        return port
+
+    def violations(self) -> list[str]:
+        return [v for p in self.ports for v in p.violations]
+
+
+# -- a real Modbus peer ------------------------------------------------------------------------
+
+
+def holding(unit: int) -> list[int]:
+    """The holding registers the test server gives `unit`: 100*unit + address."""
+    return [100 * unit + k for k in range(32)]
+
+
+def inputs(unit: int) -> list[int]:
+    """The input registers the test server gives `unit`: 1000*unit + address."""
+    return [1000 * unit + k for k in range(32)]
+
+
+def coils(unit: int) -> list[bool]:
+    """The coils (and discrete inputs) of `unit`: every address divisible by 3 or by `unit` + 3."""
+    return [k % 3 == 0 or k % (unit + 3) == 0 for k in range(32)]
+
+
+class ModbusServer:
+    """pymodbus's serial server in a thread, serving `units` on `port` (RTU, 8N2)."""
+
+    def __init__(self, port: Path, units: tuple[int, ...] = (1, 2), baud: int = 19200) -> None:
+        self.port = port
+        self.units = units
+        self.baud = baud
+        self._loop = asyncio.new_event_loop()
+        self._server: Any = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="pymodbus-server", daemon=True)
+
+    def start(self) -> ModbusServer:
+        self._thread.start()
+        if not self._ready.wait(5):
+            raise RuntimeError("the pymodbus server did not start")
+        if self._error is not None:
+            raise RuntimeError(f"the pymodbus server failed: {self._error}")
+        return self
+
+    def _run(self) -> None:
+        from pymodbus import FramerType
+        from pymodbus.server import ModbusSerialServer
+        from pymodbus.simulator import DataType, SimData, SimDevice
+
+        def device(unit: int) -> Any:
+            bits = DataType.BITS
+            words = DataType.REGISTERS
+            return SimDevice(
+                id=unit,
+                simdata=(
+                    [SimData(0, values=coils(unit), datatype=bits)],
+                    [SimData(0, values=coils(unit), datatype=bits)],
+                    [SimData(0, values=holding(unit), datatype=words)],
+                    [SimData(0, values=inputs(unit), datatype=words)],
+                ),
+            )
+
+        async def serve() -> None:
+            self._server = ModbusSerialServer(
+                [device(u) for u in self.units],
+                framer=FramerType.RTU,
+                port=str(self.port),
+                baudrate=self.baud,
+                parity="N",
+                stopbits=2,
+                trace_packet=self._silence_absent_units,
+            )
+            await self._server.serve_forever(background=True)
+            self._ready.set()
+            await self._server.serving
+
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._loop.run_until_complete(serve())
+        except BaseException as exc:  # reported by start()
+            self._error = exc
+            self._ready.set()
+
+    def _silence_absent_units(self, sending: bool, packet: bytes) -> bytes:
+        """pymodbus 3.16 answers a unit it does not serve with an exception; a real
+        bus stays silent, so such answers are dropped."""
+        if sending and packet and packet[0] not in self.units:
+            return b""
+        return packet
+
+    def stop(self) -> None:
+        if self._server is not None and self._loop.is_running():
+            future = asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop)
+            with contextlib.suppress(Exception):
+                future.result(3)
+        self._thread.join(3)
+
+
+def modbus_client(port: Path, baud: int = 19200, timeout: float = 0.5) -> Any:
+    """A connected pymodbus serial client (RTU, 8N2) on `port`."""
+    from pymodbus import FramerType
+    from pymodbus.client import ModbusSerialClient
+
+    client = ModbusSerialClient(
+        str(port),
+        framer=FramerType.RTU,
+        baudrate=baud,
+        parity="N",
+        stopbits=2,
+        timeout=timeout,
+        retries=0,
+    )
+    if not client.connect():
+        raise RuntimeError(f"the pymodbus client could not open {port}")
+    return client
+
+
+def wait_ready(stderr: Any, limit: int = 20) -> list[str]:
+    """Read a modscope's stderr until it says it listens or records; returns the lines."""
+    lines: list[str] = []
+    while len(lines) < limit:
+        line = stderr.readline()
+        if not line:
+            raise RuntimeError("modscope ended before it was ready: " + "".join(lines))
+        lines.append(line)
+        if "listening on" in line or "modscope: recording" in line:
+            return lines
+    raise RuntimeError("modscope did not say it was ready: " + "".join(lines))

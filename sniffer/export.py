@@ -1,0 +1,382 @@
+"""Provides `modscope export`: frames for Wireshark (pcapng, link type 252), or CSV/JSONL tables.
+
+Wireshark export: one packet per frame, link type 252 (exported PDU) naming the `mbrtu`
+dissector, so Wireshark and tshark decode it with no configuration. The packet flags
+carry the direction as seen from the master: requests outbound (2), answers and
+exceptions inbound (1), frames whose direction is unknown neither. A frame whose CRC
+or LRC is wrong has the CRC-error bit (bit 24) set; every problem modscope found is in
+the packet comment. Noise spans and source events (reconnect, data lost) go out as
+packets for the `data` dissector, with a comment. Wireshark has no Modbus ASCII
+dissector: an ASCII frame is exported as the equivalent RTU frame (its unit and PDU
+with a computed CRC), and the comment says it was carried as ASCII with its LRC.
+
+Tables: `frames` (the listing: text, JSONL or CSV), `transactions` (one row per request
+with its answer, latency and status; answers without a request get a row too) and
+`registers` (one row per register value: named by the device dictionary for bound
+units, raw 16-bit words or bits for the others).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any, BinaryIO, TextIO
+
+from dissectors.checks import crc_bytes, lrc
+from sniffer import __version__
+from sniffer.cli import UsageError, add_device_options, add_line_options, bindings_for, read_options
+from sniffer.describe import Describer, FrameDetail
+from sniffer.framing import Flag, Kind, ascii_body
+from sniffer.listing import FORMATS, KIND_NAMES, Lister
+from sniffer.model import LineSettings
+from sniffer.sources.pcapng_writer import (
+    EPB_FLAG_CRC_ERROR,
+    EPB_FLAG_INBOUND,
+    EPB_FLAG_OUTBOUND,
+    LINKTYPE_WIRESHARK_UPPER_PDU,
+    PcapngWriter,
+    describe_interface,
+    upper_pdu_record,
+)
+from sniffer.store import NO_PARTNER, Status
+from sniffer.text import plain
+
+WHATS = ("frames", "transactions", "registers")
+EXPORT_FORMATS = (*FORMATS, "pcapng")
+EXTENSIONS = {
+    ".pcapng": "pcapng",
+    ".csv": "csv",
+    ".jsonl": "jsonl",
+    ".ndjson": "jsonl",
+    ".json": "jsonl",
+    ".txt": "text",
+    ".log": "text",
+}
+TRANSACTION_COLUMNS = (
+    "request", "t", "unit", "device", "function", "name", "request_summary",
+    "response", "t_response", "latency_ms", "status", "exception_code", "response_summary",
+    "problems", "request_raw", "response_raw",
+)  # fmt: skip
+REGISTER_COLUMNS = (
+    "index", "t", "unit", "device", "access", "table", "address", "name", "value",
+    "value_unit", "text", "raw", "partial", "check_ok",
+)  # fmt: skip
+
+
+# -- Wireshark ---------------------------------------------------------------------------
+
+
+def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
+    """(link type 252 packet, EPB flags, comment) for one row."""
+    v = d.view
+    problems = list(d.problems)
+    if v.kind == Kind.EVENT:
+        return upper_pdu_record(b"", "data"), 0, d.summary or "event"
+    if v.kind == Kind.NOISE:
+        return upper_pdu_record(v.raw, "data"), 0, "; ".join(problems)
+    flags = 0
+    if v.kind == Kind.REQUEST:
+        flags |= EPB_FLAG_OUTBOUND
+    elif v.kind in (Kind.RESPONSE, Kind.EXCEPTION):
+        flags |= EPB_FLAG_INBOUND
+    if v.flags & Flag.CHECK_BAD:
+        flags |= EPB_FLAG_CRC_ERROR
+    if v.ascii:
+        decoded = ascii_body(v.raw)
+        if decoded is None or len(decoded) < 3:
+            problems.insert(0, "Modbus ASCII frame that is not hex; exported as bytes")
+            return upper_pdu_record(v.raw, "data"), flags, "; ".join(problems)
+        body, sent = decoded[:-1], decoded[-1]
+        want = lrc(body)
+        verdict = "right" if sent == want else f"wrong, expected {want:02X}"
+        problems.insert(
+            0, f"carried as Modbus ASCII with LRC {sent:02X} ({verdict}); CRC computed here"
+        )
+        return upper_pdu_record(body + crc_bytes(body)), flags, "; ".join(problems)
+    return upper_pdu_record(v.raw), flags, "; ".join(problems)
+
+
+class PcapExporter:
+    """Writes rows of a session's store as link type 252 packets, flushed per packet."""
+
+    def __init__(
+        self,
+        stream: BinaryIO,
+        describer: Describer,
+        line: LineSettings,
+        *,
+        name: str = "modscope",
+    ) -> None:
+        self.describer = describer
+        self.writer = PcapngWriter(stream, application=f"modscope {__version__}")
+        self.interface = self.writer.add_interface(
+            LINKTYPE_WIRESHARK_UPPER_PDU, name=name, description=describe_interface(line)
+        )
+        self.packets = 0
+
+    def write(self, rows: Iterable[int]) -> int:
+        n = 0
+        for i in rows:
+            d = self.describer.detail(i)
+            packet, flags, comment = packet_for(d)
+            self.writer.write_packet(
+                self.interface,
+                max(d.view.t_end, 0.0),
+                packet,
+                flags=flags,
+                comment=comment or None,
+            )
+            n += 1
+        self.packets += n
+        return n
+
+
+# -- transactions and registers -------------------------------------------------------------
+
+
+def _exception_code(d: FrameDetail) -> int | None:
+    if not d.view.exception:
+        return None
+    found = d.dissection.field("exception_code") if d.dissection is not None else None
+    return found.value if found is not None and isinstance(found.value, int) else None
+
+
+def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
+    """One record per request (with its answer, if any) and per answer without request."""
+    store = describer.store
+    for i in rows:
+        kind = store.kind[i]
+        if kind == Kind.REQUEST:
+            req: FrameDetail | None = describer.detail(i)
+            j = store.partner[i]
+            resp = describer.detail(j) if j != NO_PARTNER else None
+        elif kind in (Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) and (
+            store.partner[i] == NO_PARTNER
+        ):
+            req, resp = None, describer.detail(i)
+        else:
+            continue
+        main = req if req is not None else resp
+        assert main is not None
+        v = main.view
+        problems = [*(req.problems if req else ()), *(resp.problems if resp else ())]
+        latency = (resp.latency_ms if resp is not None else None) if req is not None else None
+        yield {
+            "request": req.view.index if req else None,
+            "t": req.view.t if req else None,
+            "unit": v.unit,
+            "device": main.label,
+            "function": v.function,
+            "name": main.name,
+            "request_summary": req.summary if req else "",
+            "response": resp.view.index if resp else None,
+            "t_response": resp.view.t if resp else None,
+            "latency_ms": None if latency is None else round(latency, 3),
+            "status": Status.NAMES[v.status] or KIND_NAMES[Kind(v.kind)],
+            "exception_code": _exception_code(resp) if resp else None,
+            "response_summary": resp.summary if resp else "",
+            "problems": list(dict.fromkeys(problems)),
+            "request_raw": req.view.raw.hex() if req else "",
+            "response_raw": resp.view.raw.hex() if resp else "",
+        }
+
+
+def register_records(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
+    """One record per register or bit value a frame carries (named where a dictionary
+    binds the unit; raw values otherwise)."""
+    store = describer.store
+    for i in rows:
+        if store.kind[i] not in (Kind.REQUEST, Kind.RESPONSE):
+            continue
+        d = describer.detail(i)
+        v = d.view
+        base = {"index": v.index, "t": v.t, "unit": v.unit, "device": d.label}
+        if d.registers:
+            for r in d.registers:
+                yield {
+                    **base,
+                    "access": "write" if v.kind == Kind.REQUEST else "read",
+                    "table": r.table,
+                    "address": r.address,
+                    "name": r.name,
+                    "value": r.value,
+                    "value_unit": r.unit,
+                    "text": r.text,
+                    "raw": list(r.raw),
+                    "partial": r.partial,
+                    "check_ok": v.check_ok,
+                }
+            continue
+        if d.dissection is None:
+            continue
+        for data in d.dissection.data:
+            if data.address is None:
+                continue
+            for k, value in enumerate(data.values):
+                yield {
+                    **base,
+                    "access": "write" if data.write else "read",
+                    "table": data.table,
+                    "address": data.address + k,
+                    "name": "",
+                    "value": value,
+                    "value_unit": "",
+                    "text": str(value),
+                    "raw": [value],
+                    "partial": False,
+                    "check_ok": v.check_ok,
+                }
+
+
+def _cell(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.6f}".rstrip("0").rstrip(".") if value == value else "nan"
+    if isinstance(value, list):
+        joiner = "; " if value and isinstance(value[0], str) else " "
+        return joiner.join(str(x) for x in value)
+    return str(value)
+
+
+def write_table(
+    out: TextIO, fmt: str, columns: tuple[str, ...], records: Iterable[dict[str, Any]]
+) -> int:
+    """Records as JSONL or CSV (with a header row). Returns the number written."""
+    n = 0
+    if fmt == "csv":
+        writer = csv.writer(out)
+        writer.writerow(columns)
+        for rec in records:
+            writer.writerow([_cell(rec.get(c)) for c in columns])
+            n += 1
+    elif fmt == "jsonl":
+        for rec in records:
+            out.write(json.dumps(rec, ensure_ascii=False) + "\n")
+            n += 1
+    else:
+        raise ValueError(f"{fmt} cannot hold this table; use csv or jsonl")
+    return n
+
+
+# -- the command -----------------------------------------------------------------------------
+
+
+def output_format(path: str, fmt: str | None) -> str:
+    """The export format: --format if given, else from the output's extension."""
+    if fmt is not None:
+        return fmt
+    if path == "-":
+        raise ValueError("writing to standard output needs --format (text, jsonl, csv, pcapng)")
+    found = EXTENSIONS.get(Path(path).suffix.lower())
+    if found is None:
+        raise ValueError(
+            f"{path}: cannot tell the format from the name; give --format "
+            f"({', '.join(EXPORT_FORMATS)}) or end the name in "
+            ".pcapng, .csv, .jsonl or .txt"
+        )
+    return found
+
+
+def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from sniffer.session import open_session
+
+    source = Path(args.file)
+    try:
+        fmt = output_format(args.output, args.format)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    what = args.what
+    if fmt == "pcapng" and what != "frames":
+        raise UsageError(f"a pcapng export holds frames; --what {what} needs csv or jsonl")
+    if fmt == "text" and what != "frames":
+        raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
+    if args.output != "-" and Path(args.output).resolve() == source.resolve():
+        raise UsageError(f"{args.output}: is the capture being read; choose another output")
+    bindings = bindings_for(args)
+    session, capture = open_session(
+        source, read_options(args), bindings=bindings, timeout=args.timeout
+    )
+    session.ingest(capture.chunks())
+    session.warnings.extend(capture.warnings)
+    for w in session.warnings:
+        err.write(f"modscope: warning: {plain(w)}\n")
+    rows = range(len(session.store))
+    describer = session.describer
+    if fmt == "pcapng":
+        binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
+        try:
+            n = PcapExporter(binary, describer, session.line, name=source.name).write(rows)
+        finally:
+            if args.output != "-":
+                binary.close()
+        err.write(f"{args.output}: {n} packets (link type 252, Modbus RTU)\n")
+        return 0
+    text = out if args.output == "-" else _open_text(args.output)
+    try:
+        if what == "frames":
+            n = Lister(text, fmt, describer, absolute=args.time == "abs").write(rows, flush=False)
+        elif what == "transactions":
+            n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
+        else:
+            n = write_table(text, fmt, REGISTER_COLUMNS, register_records(describer, rows))
+        text.flush()
+    finally:
+        if text is not out:
+            text.close()
+    if args.output != "-":
+        err.write(f"{args.output}: {n} {what} ({fmt})\n")
+    return 0
+
+
+def _open_binary(path: str) -> BinaryIO:
+    try:
+        return open(path, "wb")
+    except OSError as exc:
+        raise UsageError(
+            f"{path}: cannot be written ({exc.strerror or exc}); choose a folder you can write to"
+        ) from None
+
+
+def _open_text(path: str) -> TextIO:
+    try:
+        return open(path, "w", encoding="utf-8", newline="")
+    except OSError as exc:
+        raise UsageError(
+            f"{path}: cannot be written ({exc.strerror or exc}); choose a folder you can write to"
+        ) from None
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "export",
+        help="write a capture's frames for Wireshark, or frames/transactions/registers as "
+        "CSV or JSONL",
+        description=(
+            "Frame, pair and decode a capture, then write it out: as pcapng that Wireshark "
+            "decodes as Modbus RTU with no configuration (requests outbound, answers "
+            "inbound, CRC errors flagged, problems in packet comments), or as CSV/JSONL "
+            "tables of frames, transactions or register values. The format follows the "
+            "output's extension (.pcapng, .csv, .jsonl, .txt) unless --format says."
+        ),
+    )
+    p.add_argument("file", help="capture file (any format replay reads)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file, or -")
+    p.add_argument(
+        "--what",
+        choices=WHATS,
+        default="frames",
+        help="frames (default), transactions (request + answer per row) or registers",
+    )
+    p.add_argument("--format", choices=EXPORT_FORMATS, help="default: from OUT's extension")
+    p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
+    add_line_options(p)
+    g = p.add_argument_group("logic analyser captures (.sr)")
+    g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
+    g.add_argument("--invert", action="store_true", help="idle-low levels")
+    add_device_options(p)
+    p.set_defaults(func=cmd_export)
