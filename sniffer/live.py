@@ -39,6 +39,7 @@ from sniffer.cli import (
 from sniffer.export import PcapExporter
 from sniffer.listing import Lister
 from sniffer.model import Chunk, Direction
+from sniffer.pipeline import LIVE_MERGE_SLACK
 from sniffer.recorder import Recorder, RecordError, Ring, parse_duration, parse_size
 from sniffer.serial_source import (
     DEFAULT_QUEUE,
@@ -377,6 +378,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         bindings=bindings,
         timeout=args.timeout,
         source=", ".join(s.name for s in specs),
+        merge_slack=LIVE_MERGE_SLACK,
     )
     use_tui = (
         args.format is None

@@ -29,6 +29,7 @@ class Pairer:
         self.timeout = timeout
         # vendor function codes whose broadcasts do get an answer (VED903B 0x41)
         self.answered_broadcasts = answered_broadcasts
+        self.end_time = float("-inf")  # when the capture ended, if the source said so
         self.next = 0
         self.open = -1  # index of the request waiting for its answer
         self.last_timed_out = b""  # raw bytes of the last request that got no answer
@@ -127,8 +128,10 @@ class Pairer:
         slave, may have stopped first (unless the capture went on past the timeout)."""
         self.update()
         s = self.store
-        if self.open >= 0 and len(s) and s.t_end[len(s) - 1] - s.t_end[self.open] > self.timeout:
-            self._time_out(self.open)
+        if self.open >= 0:
+            end = max(s.t_end[len(s) - 1], self.end_time)
+            if end - s.t_end[self.open] > self.timeout:
+                self._time_out(self.open)
 
 
 def latency(store: FrameStore, i: int) -> float | None:

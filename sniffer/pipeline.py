@@ -16,7 +16,9 @@ from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pairing import Pairer, default_timeout
 from sniffer.store import FrameStore
 
+CAPTURE_COMPLETE = "capture complete"  # a source's last word: when the capture ended
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
+LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 
 
 @dataclass
@@ -42,8 +44,10 @@ class Pipeline:
         timeout: float | None = None,
         vendor: Mapping[int, FunctionSpec] | None = None,
         answered_broadcasts: frozenset[int] = frozenset(),
+        merge_slack: float = MERGE_SLACK,
     ) -> None:
         self.line = line
+        self.merge_slack = merge_slack
         self.store = store if store is not None else FrameStore()
         self.exact_timing = exact_timing
         # the public registry, plus the vendor codes of the devices on this bus
@@ -68,6 +72,10 @@ class Pipeline:
         ch = self.channels.get(chunk.channel)
         if ch is None:
             ch = self._add_channel(chunk.channel, chunk.direction)
+        if chunk.event == CAPTURE_COMPLETE and not chunk.data:
+            # the recorder stopped here: requests still open by then have timed out
+            self.pairer.end_time = max(self.pairer.end_time, chunk.t_end)
+            return
         if chunk.event and not chunk.data:
             text = chunk.event + (f": {chunk.note}" if chunk.note else "")
             (ch.staging if ch.staging is not None else self.store).add_event(
@@ -175,9 +183,9 @@ class Pipeline:
             if final:
                 watermark = float("inf")
             else:
-                watermark = min(c.last_t for c in self.channels.values()) - MERGE_SLACK
+                watermark = min(c.last_t for c in self.channels.values()) - self.merge_slack
                 if now is not None:
-                    watermark = max(watermark, now - MERGE_SLACK)
+                    watermark = max(watermark, now - self.merge_slack)
             self._merge(watermark)
 
     def _merge(self, watermark: float) -> None:

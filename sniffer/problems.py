@@ -6,20 +6,23 @@ from dissectors.checks import crc16, lrc
 from sniffer.framing import Flag, Kind, ascii_body
 from sniffer.store import FrameView, Status
 
-_FLAG_TEXT: tuple[tuple[Flag, str], ...] = (
-    (Flag.GAP_INSIDE, "silence longer than 1.5 characters inside the frame"),
-    (Flag.SHORT_SILENCE, "less than 3.5 characters of silence before the frame"),
-    (Flag.LINE_ERROR, "framing or parity error on the line"),
-    (Flag.NON_HEX, "characters other than hex digits between ':' and CR LF"),
-    (Flag.ABORTED, "aborted: a new ':' came before CR LF"),
-    (Flag.UNTERMINATED, "no CR LF before the capture ended"),
-    (Flag.TOO_LONG, "longer than the mode's longest frame"),
-    (Flag.LONG_GAP, "more than 1 s between two characters of the frame"),
-    (Flag.NO_CR, "LF without CR"),
-    (Flag.RETRY, "retry of a request that got no answer"),
-    (Flag.LATE, "answer came after the response timeout"),
-    (Flag.ANSWERED_BROADCAST, "answer to a broadcast, which must get none"),
-    (Flag.QUIET_VIOLATED, "sent during the device's quiet time after a write"),
+_FLAG_TEXT: tuple[tuple[int, str], ...] = tuple(
+    (int(flag), text)
+    for flag, text in (
+        (Flag.GAP_INSIDE, "silence longer than 1.5 characters inside the frame"),
+        (Flag.SHORT_SILENCE, "less than 3.5 characters of silence before the frame"),
+        (Flag.LINE_ERROR, "framing or parity error on the line"),
+        (Flag.NON_HEX, "characters other than hex digits between ':' and CR LF"),
+        (Flag.ABORTED, "aborted: a new ':' came before CR LF"),
+        (Flag.UNTERMINATED, "no CR LF before the capture ended"),
+        (Flag.TOO_LONG, "longer than the mode's longest frame"),
+        (Flag.LONG_GAP, "more than 1 s between two characters of the frame"),
+        (Flag.NO_CR, "LF without CR"),
+        (Flag.RETRY, "retry of a request that got no answer"),
+        (Flag.LATE, "answer came after the response timeout"),
+        (Flag.ANSWERED_BROADCAST, "answer to a broadcast, which must get none"),
+        (Flag.QUIET_VIOLATED, "sent during the device's quiet time after a write"),
+    )
 )
 
 
@@ -54,9 +57,9 @@ def frame_problems(frame: FrameView, note: str = "") -> list[str]:
     text = check_text(frame)
     if text:
         out.append(text)
-    for flag, words in _FLAG_TEXT:
-        if frame.flags & flag:
-            out.append(words)
+    flags = frame.flags
+    if flags:
+        out.extend(words for flag, words in _FLAG_TEXT if flags & flag)
     if frame.status == Status.TIMEOUT:
         out.append("no answer (timeout)")
     elif frame.status == Status.ORPHAN:

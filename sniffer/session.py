@@ -12,7 +12,7 @@ from pathlib import Path
 from sniffer.annotate import Annotator, Binding, vendor_functions
 from sniffer.describe import Describer
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import Pipeline
+from sniffer.pipeline import MERGE_SLACK, Pipeline
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
@@ -36,6 +36,7 @@ class Session:
         exact_timing: bool = False,
         timeout: float | None = None,
         source: str = "",
+        merge_slack: float = MERGE_SLACK,
     ) -> None:
         self.line = line
         self.source = source
@@ -48,6 +49,7 @@ class Session:
             timeout=timeout,
             vendor=vendor,
             answered_broadcasts=answered,
+            merge_slack=merge_slack,
         )
         self.annotator = Annotator(bindings or {})
         self.stats = Stats(self.store)

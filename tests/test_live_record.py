@@ -123,8 +123,18 @@ def test_events_are_rtac_records_with_comments(tmp_path: Path) -> None:
         b"data lost: 12 bytes in 3 reads dropped",
     ):
         assert text in raw
-    events = [c.event for c in open_capture(path).chunks()]
-    assert events == ["data lost", "data lost", "data lost", "framing error"]
+    # replayed, each event says what happened, from the recorder's comment; the last
+    # record tells when the capture ended
+    chunks = list(open_capture(path).chunks())
+    assert [c.event for c in chunks] == [
+        "port lost",
+        "reconnect",
+        "data lost",
+        "framing error",
+        "capture complete",
+    ]
+    assert chunks[0].note == "/dev/ttyUSB0: unplugged"
+    assert chunks[-1].t_end == pytest.approx(T0 + 4)
 
 
 def test_ring_buffer_by_size_keeps_the_newest_files(tmp_path: Path) -> None:
@@ -145,7 +155,7 @@ def test_ring_buffer_by_size_keeps_the_newest_files(tmp_path: Path) -> None:
     for f in files:  # each file stands alone, with its line settings
         capture = open_capture(f)
         assert capture.info.line == LINE
-        data = [c.data for c in capture.chunks()]
+        data = [c.data for c in capture.chunks() if not c.event]
         assert set(data) == {frame}
         total += len(data)
         assert capture.warnings == []
@@ -160,7 +170,8 @@ def test_ring_buffer_by_time(tmp_path: Path) -> None:
     rec.close()
     files = sorted(tmp_path.glob("bus_*.pcapng"))
     assert len(files) == 5
-    assert [len(list(open_capture(f).chunks())) for f in files] == [2, 2, 2, 2, 2]
+    counts = [sum(not c.event for c in open_capture(f).chunks()) for f in files]
+    assert counts == [2, 2, 2, 2, 2]
 
 
 def test_ring_options_are_checked(tmp_path: Path) -> None:
@@ -314,7 +325,7 @@ def test_record_to_standard_output(tmp_path: Path) -> None:
     path = tmp_path / "stdout.pcapng"
     path.write_bytes(out)
     capture = open_capture(path)
-    assert [c.data for c in capture.chunks()] == [frame]
+    assert [c.data for c in capture.chunks() if not c.event] == [frame]
     assert capture.info.line == LineSettings(baud=19200, parity="N", stopbits=2, mode="auto")
 
 

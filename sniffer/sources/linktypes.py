@@ -87,7 +87,7 @@ RTAC_EVENTS: dict[int, tuple[str, str]] = {
     RTAC_DATA_TX_END: ("", ""),
     RTAC_DATA_RX_END: ("", ""),
     RTAC_CAPTURE_DATA_LOST: ("data lost", "capture lost data"),
-    RTAC_CAPTURE_COMPLETE: ("", ""),
+    RTAC_CAPTURE_COMPLETE: ("capture complete", ""),  # an end time, not a row (Pipeline)
     RTAC_FRAMING_ERROR: ("framing error", ""),
     RTAC_PARITY_ERROR: ("parity error", ""),
     RTAC_SERIAL_BREAK: ("break", "serial break"),

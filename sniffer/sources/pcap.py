@@ -22,7 +22,9 @@ packet time (by less than a minute); RTAC events become event chunks ("framing e
 "parity error", "data lost", "break", "control lines" with the line states as note),
 after the data chunk when the record carries bytes too.
 
-Link type 252: each packet is one frame. `t_end` is the packet time and `t_start` one
+Link type 252: each packet is one frame. Answers (inbound) go to their own channel,
+`SLAVE_CHANNEL` above their interface's, so that requests and answers are framed as two
+directions, the way a probe per direction is. `t_end` is the packet time and `t_start` one
 frame length earlier, moved later where needed so that every frame starts at least t3.5
 after the previous one on its channel ends (and `t_end` no earlier than `t_start`): the
 framer then never joins two frames. Times move only where frames are closer than t3.5
@@ -82,6 +84,9 @@ LINKTYPE_NAMES = {
 }
 SEPARATION_MARGIN = 1e-6  # beyond t3.5, so float rounding of Unix times cannot undo it
 RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
+
+
+SLAVE_CHANNEL = 128  # link type 252 answers: this far above their interface's channel
 
 
 def packet_direction(linktype: int, role: Direction, flags: int | None) -> Direction:
@@ -193,6 +198,13 @@ class _PacketDecoder:
         )
         if record.event == RTAC_STATUS_CHANGE:
             note = control_lines_text(record.control_lines)
+        if event and comment:
+            # a recorder's comment says what happened: "port lost: ...", "reconnect: ..."
+            said, _, rest = comment.partition(":")
+            if rest:
+                event, note = said.strip(), rest.strip()
+            else:
+                note = comment
         if event:
             yield Chunk(
                 data=b"",
@@ -218,7 +230,8 @@ class _PacketDecoder:
                 f"exported-PDU packet at byte offset {offset} has broken tags; skipped"
             )
             return
-        if record.dissector != "mbrtu" and record.dissector not in self.other_dissectors:
+        known = ("mbrtu", "data")  # data: noise and events in modscope's own exports
+        if record.dissector not in known and record.dissector not in self.other_dissectors:
             self.other_dissectors.add(record.dissector)
             self.warnings.append(
                 f"{iface.label}: exported PDUs for dissector {record.dissector!r}, expected "
@@ -233,11 +246,12 @@ class _PacketDecoder:
         t_end = max(t, t_start)
         iface.last_end = t_end
         direction = packet_direction(iface.linktype, iface.note.role, flags)
+        channel = iface.channel + (SLAVE_CHANNEL if direction == Direction.SLAVE else 0)
         yield Chunk(
             data=record.pdu,
             t_end=t_end,
             t_start=t_start,
-            channel=iface.channel,
+            channel=channel,
             direction=direction,
             note=comment,
         )

@@ -1,0 +1,645 @@
+"""Provides the modscope TUI app and `run_tui`: frame list, details, filter, units, register watch.
+
+Structure: a background thread feeds the session (a capture file, or a live line) and
+posts batched `Indexed` messages; the app publishes the new row count to its
+`ViewModel` and the widgets redraw what is on screen. Filters and the register watch
+run in their own worker threads over the published rows and post their progress.
+"""
+
+from __future__ import annotations
+
+import time
+from array import array
+from collections import deque
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from rich.text import Text
+from textual import work
+from textual.app import App
+from textual.message import Message
+from textual.notifications import SeverityLevel
+from textual.widgets import ContentSwitcher, Input, Static
+from textual.worker import get_current_worker
+
+from sniffer.describe import Describer
+from sniffer.listing import FORMATS, Lister
+from sniffer.model import Chunk
+from sniffer.session import Session, open_session
+from sniffer.sources import Capture, ReadOptions
+from sniffer.tui.feed import (
+    FeedProgress,
+    LiveSource,
+    LiveStatus,
+    Pacing,
+    feed_capture,
+    feed_live,
+    live_status,
+)
+from sniffer.tui.model import ViewModel
+from sniffer.tui.query import QueryError, parse_query, parse_time_point
+from sniffer.tui.rows import FilterJob, resolve_time
+from sniffer.tui.screens.dialogs import AskScreen, HelpScreen
+from sniffer.tui.screens.main import MainScreen
+from sniffer.tui.screens.register import RegisterScreen
+from sniffer.tui.watch import Watch
+from sniffer.tui.widgets.detail import DetailPane
+from sniffer.tui.widgets.frame_list import FrameList, ListHeader
+from sniffer.tui.widgets.status import StatusBar, StatusInfo
+from sniffer.tui.widgets.units import Cache, UnitsPanel, unit_rows
+from sniffer.tui.widgets.watch import WatchPanel
+
+Reopen = Callable[[], tuple[Session, Capture]]
+PANES = ("detail", "units", "watch")
+EXPORT_FORMATS = {"jsonl": "jsonl", "json": "jsonl", "ndjson": "jsonl", "csv": "csv"}
+
+
+class Indexed(Message):
+    """The feeding thread published rows (batched: a newer one replaces a queued one)."""
+
+    def __init__(self, progress: FeedProgress, generation: int) -> None:
+        super().__init__()
+        self.progress = progress
+        self.generation = generation
+
+    def can_replace(self, message: Message) -> bool:
+        return isinstance(message, Indexed) and message.generation == self.generation
+
+
+class PortNotice(Message):
+    """Something happened on a live port (lost, back, data lost)."""
+
+    def __init__(self, text: str) -> None:
+        super().__init__()
+        self.text = text
+
+
+class FilterUpdated(Message):
+    def __init__(self, generation: int) -> None:
+        super().__init__()
+        self.generation = generation
+
+    def can_replace(self, message: Message) -> bool:
+        return isinstance(message, FilterUpdated) and message.generation == self.generation
+
+
+class ModscopeApp(App[int]):
+    """The analyser's main screen."""
+
+    CSS_PATH = "modscope.tcss"
+    TITLE = "modscope"
+    ENABLE_COMMAND_PALETTE = False
+
+    def __init__(
+        self,
+        session: Session,
+        capture: Capture | None = None,
+        live: LiveSource | None = None,
+        *,
+        reopen: Reopen | None = None,
+        speed: float | None = None,
+        blink: bool = True,
+    ) -> None:
+        super().__init__()
+        self.session = session
+        self.capture = capture
+        self.live = live
+        self.reopen = reopen
+        self.model = ViewModel(session)
+        self.main = MainScreen(self.model, blink=blink)
+        self.pacing = Pacing(speed)
+        self.generation = 0
+        self.filter_generation = 0
+        self.paused = False
+        self.blink = blink
+        self.watch_model: Watch | None = None
+        self.units_cache: Cache = {}
+        self.feed_note = ""
+        self.said: deque[str] = deque(maxlen=50)  # what `say` told the user, newest last
+        self._rate_mark: tuple[float, int] = (time.monotonic(), 0)
+        self._rate: float | None = None
+        self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
+
+    # -- layout ----------------------------------------------------------------------------
+
+    @property
+    def frames(self) -> FrameList:
+        return self.main.query_one("#frames", FrameList)
+
+    async def on_mount(self) -> None:
+        await self.push_screen(self.main)
+        frames = self.frames
+        frames.following = self.live is not None or self.pacing.speed is not None
+        frames.focus()
+        self._start_feed()
+        self.set_interval(0.5, self._tick)
+        self.call_after_refresh(self._header)
+
+    def on_resize(self) -> None:
+        self.call_after_refresh(self._header)
+
+    def _header(self) -> None:
+        self.main.query_one("#list-header", ListHeader).show(self.frames.columns())
+        self._status()
+
+    # -- feeding ---------------------------------------------------------------------------
+
+    def _start_feed(self) -> None:
+        gen = self.generation
+        session, pacing = self.session, self.pacing
+
+        def publish(p: FeedProgress) -> None:
+            self.post_message(Indexed(p, gen))
+
+        def report(text: str) -> None:
+            self.post_message(PortNotice(text))
+
+        if self.live is not None:
+            live = self.live
+            self.run_worker(
+                lambda: feed_live(session, live, pacing, publish, report=report),
+                thread=True,
+                group="feed",
+            )
+        elif self.capture is not None:
+            capture = self.capture
+            chunks: Iterable[Chunk] = capture.chunks()
+            self.run_worker(
+                lambda: feed_capture(session, chunks, pacing, publish, warnings=capture.warnings),
+                thread=True,
+                group="feed",
+            )
+        else:  # a session ingested before the app started
+            session.store.sync()
+            self.post_message(Indexed(FeedProgress(len(session.store), 0, True), gen))
+
+    def on_indexed(self, message: Indexed) -> None:
+        if message.generation != self.generation:
+            return
+        p = message.progress
+        self.model.publish(p.rows)
+        if p.done:
+            self.model.done = True
+            self.indexed.set()
+            if p.error:
+                self.feed_note = p.error
+                self.say(p.error, title="the feed stopped", severity="error")
+            for w in self.session.warnings[:5]:
+                self.say(w, title="capture", severity="warning")
+        if not self.paused:
+            self._show_new_rows()
+        self._status()
+
+    def on_port_notice(self, message: PortNotice) -> None:
+        self.say(message.text, title="port", severity="warning")
+
+    def _show_new_rows(self) -> None:
+        model = self.model
+        model.shown = model.published
+        if model.job is not None:
+            self._ensure_filter_worker()
+        elif model.view.count != model.shown:
+            model.update_view()
+            self.frames.rows_changed()
+
+    # -- filtering -------------------------------------------------------------------------
+
+    def _restart_filter(self) -> None:
+        model = self.model
+        frames = self.frames
+        keep = frames.cursor_row
+        self.filter_generation += 1
+        self.workers.cancel_group(self, "filter")
+        job = model.new_job()
+        frames.anchor_row = None if frames.following else keep
+        frames.reset()
+        frames.rows_changed()
+        self._filter_info()
+        if job is not None:
+            self._run_filter(job, self.filter_generation)
+
+    def _ensure_filter_worker(self) -> None:
+        job = self.model.job
+        running = any(w.group == "filter" and w.is_running for w in self.workers)
+        if job is not None and not running:
+            self._run_filter(job, self.filter_generation)
+
+    @work(thread=True, group="filter", exclusive=True)
+    def _run_filter(self, job: FilterJob, generation: int) -> None:
+        worker = get_current_worker()
+        seen = (-1, -1.0)
+        while not worker.is_cancelled:
+            more = job.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
+            state = (len(job.rows), job.progress)
+            if state != seen:
+                seen = state
+                self.post_message(FilterUpdated(generation))
+            if not more:
+                if job.caught_up and job.upto >= self.model.shown and self.model.done:
+                    break
+                time.sleep(0.1)
+
+    def on_filter_updated(self, message: FilterUpdated) -> None:
+        if message.generation != self.filter_generation or self.model.job is None:
+            return
+        self.model.update_view()
+        self.frames.rows_changed()
+        self._filter_info()
+
+    def _filter_info(self) -> None:
+        model = self.model
+        info = self.main.query_one("#filter-info", Static)
+        bar = self.main.query_one("#filter-bar")
+        bar.set_class(model.problems_only, "-problems")
+        bar.set_class(model.transactions, "-transactions")
+        parts = []
+        if model.problems_only:
+            parts.append("problems")
+        if model.transactions:
+            parts.append("transactions")
+        job = model.job
+        if job is not None:
+            if not job.caught_up or job.progress < 1.0:
+                parts.append(f"{len(job.rows):,} rows, {job.progress:.0%}")
+            else:
+                parts.append(f"{len(job.rows):,} of {model.shown:,}")
+        info.update(Text(" · ".join(parts)))
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        if event.input.id != "filter":
+            return
+        event.stop()
+        bar = self.main.query_one("#filter-bar")
+        try:
+            query = parse_query(event.value)
+        except QueryError as exc:
+            bar.add_class("-error")
+            self.main.query_one("#filter-info", Static).update(Text(str(exc)))
+            return
+        bar.remove_class("-error")
+        self.model.query = query
+        self._restart_filter()
+        self.frames.focus()
+
+    # -- cursor and details ----------------------------------------------------------------
+
+    def on_frame_list_cursor_moved(self, message: FrameList.CursorMoved) -> None:
+        self._show_detail(message.row)
+
+    def on_frame_list_follow_changed(self, message: FrameList.FollowChanged) -> None:
+        self._status()
+
+    def _show_detail(self, row: int | None, *, partner_first: bool = False) -> None:
+        if self.main.query_one("#lower", ContentSwitcher).current != "detail":
+            return
+        pane = self.main.query_one("#detail", DetailPane)
+        if row is None:
+            pane.show(None)
+            return
+        model = self.model
+        j = model.partner(row)
+        d = model.detail(row)
+        other = model.detail(j) if j is not None else None
+        if partner_first and other is not None:
+            pane.show(other, d)
+        else:
+            pane.show(d, other)
+
+    # -- actions ---------------------------------------------------------------------------
+
+    def action_help(self) -> None:
+        self.push_screen(HelpScreen())
+
+    def action_edit_filter(self) -> None:
+        self.main.query_one("#filter", Input).focus()
+
+    def action_to_list(self) -> None:
+        self.frames.focus()
+
+    def action_fields(self) -> None:
+        if self.main.query_one("#lower", ContentSwitcher).current == "detail":
+            self.main.query_one("#fields").focus()
+
+    def action_problems(self) -> None:
+        self.model.problems_only = not self.model.problems_only
+        self._restart_filter()
+
+    def action_transactions(self) -> None:
+        self.model.transactions = not self.model.transactions
+        self._restart_filter()
+
+    def action_absolute(self) -> None:
+        self.model.absolute = not self.model.absolute
+        self.frames.reset()
+        self._header()
+
+    def action_follow(self) -> None:
+        self.frames.action_follow()
+
+    def action_pause(self) -> None:
+        self.paused = not self.paused
+        self.pacing.paused = self.paused and self.live is None
+        self.set_class(self.paused, "-paused")
+        if not self.paused:
+            self._show_new_rows()
+        self._status()
+
+    def action_partner(self) -> None:
+        row = self.frames.cursor_row
+        if row is None:
+            return
+        j = self.model.partner(row)
+        if j is None:
+            self.say("this frame has no paired request or answer")
+        elif self.model.view.contains(j):
+            self.frames.go_to_row(j)
+        else:
+            self.action_pane("detail")
+            self._show_detail(row, partner_first=True)
+
+    def action_pane(self, name: str) -> None:
+        if name not in PANES:
+            return
+        switcher = self.main.query_one("#lower", ContentSwitcher)
+        self.main.remove_class("-zoom")
+        switcher.current = name
+        if name == "detail":
+            self._show_detail(self.frames.cursor_row)
+        elif name == "units":
+            self._units()
+        else:
+            self._start_watch()
+            self._watch()
+
+    def action_zoom(self) -> None:
+        self.main.toggle_class("-zoom")
+
+    def action_go_to(self) -> None:
+        self.push_screen(
+            AskScreen(
+                "go to: seconds from the start (12.5, 2m), a clock time (14:03:07) "
+                "or a row (#1234)",
+                placeholder="12.5",
+            ),
+            self._go_to,
+        )
+
+    def _go_to(self, answer: str | None) -> None:
+        if not answer:
+            return
+        model, frames = self.model, self.frames
+        if answer.startswith("#"):
+            try:
+                row = int(answer[1:])
+            except ValueError:
+                self.say(f"{answer!r} is not a row number", severity="error")
+                return
+            frames.go_to_row(row)
+            return
+        try:
+            point = parse_time_point(answer)
+        except QueryError as exc:
+            self.say(str(exc), severity="error")
+            return
+        t = resolve_time(point, model.origin)
+        frames.go_to(model.view.at_time(model.reader, t))
+
+    def action_speed(self) -> None:
+        if self.live is not None:
+            self.say("a live capture runs at the line's own speed")
+            return
+        if self.pacing.speed is None:
+            if self.model.done:
+                self._restart(speed=1.0)
+            else:
+                self.pacing.speed = 1.0
+                self.frames.action_follow()
+        else:
+            self.pacing.speed = None
+        self._status()
+
+    def action_export(self) -> None:
+        count = len(self.model.view)
+        self.push_screen(
+            AskScreen(
+                f"export the {count:,} rows shown to a file (.jsonl, .csv, anything else: text)",
+                value="modscope-export.jsonl",
+            ),
+            self._export,
+        )
+
+    def _export(self, answer: str | None) -> None:
+        if not answer:
+            return
+        view = self.model.view
+        rows: Iterable[int] = (
+            range(view.count) if view.rows is None else array("Q", view.rows[: view.count])
+        )
+        self._write_export(Path(answer).expanduser(), rows)
+
+    @work(thread=True, group="export")
+    def _write_export(self, path: Path, rows: Iterable[int]) -> None:
+        suffix = path.suffix.lower().lstrip(".")
+        fmt = EXPORT_FORMATS.get(suffix, "text")
+        assert fmt in FORMATS
+        describer = Describer(self.model.reader, self.session.annotator, size=256)
+        try:
+            with path.open("w", encoding="utf-8", newline="" if fmt == "csv" else None) as out:
+                lister = Lister(out, fmt, describer, absolute=self.model.absolute)
+                n = lister.write(rows, flush=False)
+        except OSError as exc:
+            reason = f"cannot write {path}: {exc.strerror or exc}"
+            self.call_from_thread(self.say, reason, severity="error")
+            return
+        self.call_from_thread(self.say, f"wrote {n:,} rows to {path} ({fmt})")
+
+    # -- restart (replay at the original speed) --------------------------------------------
+
+    def _restart(self, speed: float | None) -> None:
+        try:
+            session, capture = (self.reopen or (lambda: reopen_file(self.session)))()
+        except Exception as exc:  # the file went away, or cannot be read again
+            self.say(f"cannot replay the capture again: {exc}", severity="error")
+            return
+        self.pacing.stop.set()
+        self.workers.cancel_group(self, "filter")
+        self.workers.cancel_group(self, "watch")
+        old = self.model
+        self.generation += 1
+        self.session, self.capture = session, capture
+        self.model = ViewModel(session)
+        self.model.absolute, self.model.transactions = old.absolute, old.transactions
+        self.model.problems_only, self.model.query = old.problems_only, old.query
+        self.watch_model = None
+        self.units_cache = {}
+        self.indexed = _Flag()
+        self.pacing = Pacing(speed)
+        frames = self.frames
+        frames.model = self.main.model = self.model
+        frames.following = True
+        self._restart_filter()
+        self._start_feed()
+        if self.main.query_one("#lower", ContentSwitcher).current == "watch":
+            self._start_watch()
+
+    # -- periodic --------------------------------------------------------------------------
+
+    def _tick(self) -> None:
+        now = time.monotonic()
+        mark_t, mark_rows = self._rate_mark
+        if now - mark_t >= 1.0:
+            rows = self.model.published
+            self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
+            self._rate_mark = (now, rows)
+        self._status()
+        current = self.main.query_one("#lower", ContentSwitcher).current
+        if current == "units":
+            self._units()
+        elif current == "watch":
+            self._watch()
+        if self.model.job is not None:
+            self._filter_info()
+
+    def _status(self) -> None:
+        model, session = self.model, self.session
+        stats = session.stats
+        errors = sum(u.check_errors for u in list(stats.units.values())) + stats.noise_spans
+        rate = self._rate
+        if model.done:  # the capture's own rate
+            span = model.latest - model.origin
+            rate = model.published / span if span > 0 else None
+        live = self.live
+        status = live_status(live) if live is not None else LiveStatus()
+        line = session.line.describe()
+        if session.mode != session.line.mode:
+            line += f" ({session.mode})"
+        info = StatusInfo(
+            source=Path(session.source).name if live is None else session.source,
+            line=line,
+            rows=model.published,
+            bytes=session.store.bytes_total,
+            errors=errors,
+            rate=rate,
+            indexing=not model.done and live is None and self.pacing.speed is None,
+            paused=self.paused,
+            following=self.frames.following,
+            speed="1x" if self.pacing.speed else "",
+            recording=Path(status.recording).name if status.recording else "",
+            recorded_bytes=status.recorded_bytes,
+            losses=status.lost_bytes,
+            note=self.feed_note or status.failure,
+        )
+        self.main.query_one("#status", StatusBar).show(info)
+
+    def _units(self) -> None:
+        model = self.model
+        labels = {u: b.label for u, b in self.session.annotator.bindings.items()}
+        units = list(self.session.stats.units.values())
+        rows = unit_rows(units, labels, dict(model.last_answer), model.latest, self.units_cache)
+        self.main.query_one("#units", UnitsPanel).show(rows, model.latest)
+
+    def _start_watch(self) -> None:
+        if self.watch_model is None:
+            self.watch_model = Watch(self.model.reader, self.session.annotator)
+            if not self.watch_model.bound:
+                self.say(
+                    "no unit is bound to a device dictionary, so no register has a name: "
+                    "use --bus or --unit ADDR=MODEL"
+                )
+            self._run_watch(self.watch_model, self.generation)
+
+    @work(thread=True, group="watch", exclusive=True)
+    def _run_watch(self, watch: Watch, generation: int) -> None:
+        worker = get_current_worker()
+        while not worker.is_cancelled and generation == self.generation:
+            more = watch.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
+            if not more:
+                if self.model.done and watch.next >= self.model.shown:
+                    break
+                time.sleep(0.2)
+
+    def _watch(self) -> None:
+        watch = self.watch_model
+        if watch is None:
+            return
+        panel = self.main.query_one("#watch", WatchPanel)
+        panel.show(watch.snapshot(), self.model.latest, watch.version)
+
+    def on_watch_panel_open(self, message: WatchPanel.Open) -> None:
+        watch = self.watch_model
+        if watch is None or message.key not in watch.series:
+            return
+        with watch.lock:
+            series = watch.series[message.key]
+        screen = RegisterScreen(series, self.model.origin, self.model.absolute)
+        self.push_screen(screen, self._jump_to_row)
+
+    def _jump_to_row(self, row: int | None) -> None:
+        if row is None:
+            return
+        if not self.model.view.contains(row):
+            self.say("that frame is hidden by the filter; showing the nearest")
+        self.frames.go_to_row(row)
+        self.action_pane("detail")
+
+    def say(self, text: str, *, title: str = "", severity: SeverityLevel = "information") -> None:
+        """Tell the user something (never as markup); kept in `said` for a while."""
+        self.said.append(text)
+        self.notify(text, title=title, severity=severity, markup=False)
+
+    # -- leaving ---------------------------------------------------------------------------
+
+    async def action_quit(self) -> None:
+        self._stop_feed()
+        self.exit(0)
+
+    def _stop_feed(self) -> None:
+        self.pacing.stop.set()
+
+    def on_unmount(self) -> None:
+        self._stop_feed()
+
+
+class _Flag:
+    """A flag set once on the UI thread; `wait` polls it from async code (tests, benchmarks)."""
+
+    def __init__(self) -> None:
+        self.value = False
+
+    def set(self) -> None:
+        self.value = True
+
+    def is_set(self) -> bool:
+        return self.value
+
+
+def reopen_file(session: Session) -> tuple[Session, Capture]:
+    """Open the session's capture file again, with the same line settings and bindings."""
+    line = session.line
+    options = ReadOptions(
+        baud=line.baud,
+        bytesize=line.bytesize,
+        parity=line.parity,
+        stopbits=line.stopbits,
+        mode=line.mode,
+    )
+    return open_session(
+        session.source,
+        options,
+        bindings=session.annotator.bindings,
+        timeout=session.pipeline.pairer.timeout,
+    )
+
+
+def run_tui(
+    session: Session,
+    capture: Capture | None = None,
+    live: LiveSource | None = None,
+    *,
+    reopen: Reopen | None = None,
+    speed: float | None = None,
+) -> int:
+    """Run the TUI on a session: a capture being opened, a live source, or an ingested one."""
+    app = ModscopeApp(session, capture, live, reopen=reopen, speed=speed)
+    result = app.run()
+    return result if isinstance(result, int) else 0

@@ -1,0 +1,184 @@
+"""Provides the feeding of a session from a background thread: a capture file or a live line.
+
+The thread frames, pairs and counts; the UI only reads rows below the count published
+with each `FeedProgress` (all columns of those rows are complete). A capture can be
+replayed as fast as possible or at its original speed, and paused; a live capture
+(`sniffer.live.LiveCapture`, see `LiveSource`) is pumped. Nothing here imports Textual.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Protocol
+
+from sniffer.model import Chunk
+from sniffer.session import Session
+
+
+class LiveSource(Protocol):
+    """A live line as the TUI consumes it: `sniffer.live.LiveCapture`, already started.
+
+    `pump(timeout)` feeds what the ports read to the session (waiting up to `timeout`)
+    and brings it up to date; it is called from the feeding thread only. `stop()` ends
+    the capture (the caller of `run_tui` does that after the app has returned).
+    Optional attributes the TUI shows when present: `messages` (a deque of what
+    happened on the ports; the TUI takes them out), `failure`, `recorder` (with `files`),
+    `feed` (with `lost_bytes`).
+    """
+
+    def pump(self, timeout: float = ...) -> range: ...
+
+
+@dataclass(frozen=True, slots=True)
+class LiveStatus:
+    """What the status bar says about a live capture."""
+
+    recording: str = ""
+    recorded_bytes: int | None = None
+    lost_bytes: int = 0
+    failure: str = ""
+
+
+def live_status(source: object) -> LiveStatus:
+    """Recording file and size, lost bytes and failure of a live capture, if it has them."""
+    recorder = getattr(source, "recorder", None)
+    files = getattr(recorder, "files", None) or []
+    recording = str(files[-1]) if files else ""
+    size: int | None = None
+    if recording:
+        try:
+            size = os.stat(recording).st_size
+        except OSError:
+            size = None
+    lost = int(getattr(getattr(source, "feed", None), "lost_bytes", 0) or 0)
+    failure = str(getattr(source, "failure", "") or "")
+    return LiveStatus(recording, size, lost, failure)
+
+
+@dataclass(frozen=True, slots=True)
+class FeedProgress:
+    """What the feeding thread published: rows below `rows` are complete."""
+
+    rows: int
+    bytes_done: int
+    done: bool = False
+    error: str = ""
+
+
+Publish = Callable[[FeedProgress], None]
+
+
+class Pacing:
+    """How a capture is fed, shared between the UI and the feeding thread.
+
+    `speed` None: as fast as possible; 1.0: the original speed (chunk times drive
+    the feed). `paused` holds the feed. `stop` ends it (the app quits or restarts).
+    """
+
+    def __init__(self, speed: float | None = None) -> None:
+        self._speed = speed
+        self.paused = False
+        self.stop = threading.Event()
+        self._anchor: tuple[float, float] | None = None  # (wall clock, capture time)
+
+    @property
+    def speed(self) -> float | None:
+        return self._speed
+
+    @speed.setter
+    def speed(self, value: float | None) -> None:
+        self._speed = value
+        self._anchor = None
+
+    def stopped(self) -> bool:
+        return self.stop.is_set()
+
+    def pace(self, chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+        """The chunks, held back while paused and timed to the speed."""
+        for chunk in chunks:
+            if self.paused:
+                while self.paused and not self.stop.is_set():
+                    time.sleep(0.05)
+                self._anchor = None
+            if self.stop.is_set():
+                return
+            speed = self._speed
+            if speed:
+                now = time.monotonic()
+                if self._anchor is None:
+                    self._anchor = (now, chunk.t_end)
+                wall, t0 = self._anchor
+                due = wall + (chunk.t_end - t0) / speed
+                while due - now > 0 and not self.stop.is_set() and not self.paused:
+                    time.sleep(min(0.05, due - now))
+                    now = time.monotonic()
+                    if self._anchor is None:  # speed changed while waiting
+                        break
+            yield chunk
+
+
+def feed_capture(
+    session: Session,
+    chunks: Iterable[Chunk],
+    pacing: Pacing,
+    publish: Publish,
+    *,
+    every: float = 0.1,
+    warnings: list[str] | None = None,
+) -> None:
+    """Ingest a capture in this thread, publishing progress every `every` seconds."""
+
+    bytes_done = good_rows = 0
+
+    def progress(done: int, rows: int) -> None:
+        nonlocal bytes_done, good_rows
+        bytes_done, good_rows = done, rows
+        if not pacing.stopped():
+            publish(FeedProgress(rows, done))
+
+    try:
+        session.ingest(pacing.pace(chunks), progress, every=every, should_stop=pacing.stopped)
+    except Exception as exc:  # a reader bug must not kill the UI: keep what was indexed
+        error = f"{type(exc).__name__}: {exc}"
+        publish(FeedProgress(good_rows, bytes_done, True, error))
+        return
+    if warnings:
+        session.warnings.extend(warnings)
+    if not pacing.stopped():
+        publish(FeedProgress(len(session.store), bytes_done, done=True))
+
+
+def feed_live(
+    session: Session,
+    source: LiveSource,
+    pacing: Pacing,
+    publish: Publish,
+    *,
+    every: float = 0.1,
+    pump_timeout: float = 0.05,
+    report: Callable[[str], None] | None = None,
+) -> None:
+    """Pump a live capture until `pacing.stop` is set, publishing every `every` seconds.
+    What happens on the ports (`source.messages`) is passed to `report`."""
+    last = 0.0
+    ended = ""
+    messages = getattr(source, "messages", None)
+    try:
+        while not pacing.stopped():
+            source.pump(pump_timeout)
+            while messages and report is not None:
+                report(str(messages.popleft()))
+            now = time.monotonic()
+            if now - last >= every:
+                last = now
+                store = session.store
+                publish(FeedProgress(len(store), store.bytes_total))
+    except Exception as exc:  # the capture broke: keep what was framed, say why
+        ended = f"{type(exc).__name__}: {exc}"
+    if not pacing.stopped() or ended:
+        store = session.store
+        publish(FeedProgress(len(store), store.bytes_total, bool(ended), ended))

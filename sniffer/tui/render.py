@@ -1,0 +1,372 @@
+"""Provides the text of the TUI's rows, hex dumps and plots as rich Text built from plain strings.
+
+Nothing that came from a device is ever parsed as markup: every string goes through
+`sniffer.text.plain` (control characters escaped, length capped) and into `Text`
+objects with explicit styles. Styles come from the widgets (their CSS component
+classes), keyed by the names below.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+from rich.style import Style
+from rich.text import Text
+
+from dissectors.dictionary import RegisterValue
+from dissectors.values import Dissection
+from sniffer.describe import FrameDetail
+from sniffer.framing import PROBLEM_MASK, Flag, Kind
+from sniffer.store import FrameView, Status
+from sniffer.text import plain
+
+Styles = Mapping[str, Style]
+
+# what colours a row: the first that applies
+ROW_STATES = ("noise", "event", "check", "timeout", "exception", "orphan", "problem", "open")
+_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX)
+SPARK = "▁▂▃▄▅▆▇█"
+
+
+# short tags for the flags a row's summary starts with (the detail pane says it in full)
+FLAG_TAGS: tuple[tuple[Flag, str], ...] = (
+    (Flag.GAP_INSIDE, "gap"),
+    (Flag.SHORT_SILENCE, "short-silence"),
+    (Flag.LINE_ERROR, "line-error"),
+    (Flag.NON_HEX, "non-hex"),
+    (Flag.ABORTED, "aborted"),
+    (Flag.UNTERMINATED, "unterminated"),
+    (Flag.TOO_LONG, "too-long"),
+    (Flag.LONG_GAP, "long-gap"),
+    (Flag.NO_CR, "no-cr"),
+    (Flag.RETRY, "retry"),
+    (Flag.LATE, "late"),
+    (Flag.ANSWERED_BROADCAST, "answered-broadcast"),
+    (Flag.DEVICE_SLOW, "slow"),
+    (Flag.QUIET_VIOLATED, "quiet-time"),
+)
+
+
+def flag_tags(flags: int) -> str:
+    """`slow retry ` for a row with those flags ('' for none)."""
+    return "".join(tag + " " for flag, tag in FLAG_TAGS if flags & flag)
+
+
+def row_state(v: FrameView) -> str:
+    """The name of the state a row is coloured by ('' for a plain good frame)."""
+    if v.kind == Kind.NOISE:
+        return "noise"
+    if v.kind == Kind.EVENT:
+        return "event"
+    if v.flags & _CHECK:
+        return "check"
+    if v.status == Status.TIMEOUT:
+        return "timeout"
+    if v.status == Status.EXCEPTION or v.exception:
+        return "exception"
+    if v.status == Status.ORPHAN:
+        return "orphan"
+    if v.flags & PROBLEM_MASK:
+        return "problem"
+    if v.status == Status.OPEN:
+        return "open"
+    return ""
+
+
+def time_text(t: float, origin: float, absolute: bool) -> str:
+    if absolute:
+        stamp = datetime.fromtimestamp(t, tz=UTC).astimezone()
+        return stamp.strftime("%H:%M:%S.%f")[:-3]
+    return f"{t - origin:.6f}"
+
+
+def delta_text(dt: float | None) -> str:
+    if dt is None:
+        return ""
+    if dt < 0:
+        return "-" + delta_text(-dt)[1:]
+    if dt < 1:
+        return f"+{dt * 1000:.1f}ms"
+    if dt < 60:
+        return f"+{dt:.3f}s"
+    minutes, seconds = divmod(dt, 60)
+    if minutes < 60:
+        return f"+{int(minutes)}m{seconds:04.1f}s"
+    hours, minutes = divmod(minutes, 60)
+    return f"+{int(hours)}h{int(minutes):02d}m"
+
+
+def ago_text(seconds: float) -> str:
+    """A compact age: `95ms`, `3.0s`, `2m03s`, `1h02m`."""
+    if seconds < 1:
+        return f"{max(0.0, seconds) * 1000:.0f}ms"
+    if seconds < 60:
+        return f"{seconds:.1f}s"
+    minutes, secs = divmod(int(seconds), 60)
+    if minutes < 60:
+        return f"{minutes}m{secs:02d}s"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}h{minutes:02d}m"
+
+
+def latency_text(ms: float | None) -> str:
+    if ms is None:
+        return ""
+    return f"{ms:.1f}ms" if ms < 1000 else f"{ms / 1000:.2f}s"
+
+
+@dataclass(frozen=True, slots=True)
+class Columns:
+    """Widths of the frame list's columns for one terminal width."""
+
+    width: int
+    time: int
+    delta: int  # 0: hidden
+    label: int  # 0: hidden
+    name: int
+    latency: int
+
+
+def columns_for(width: int, absolute: bool) -> Columns:
+    time = 12 if absolute else 11
+    if width >= 110:
+        return Columns(width, time, 9, 14, 24, 8)
+    if width >= 90:
+        return Columns(width, time, 9, 10, 18, 8)
+    return Columns(width, time, 0, 0, 15, 7)
+
+
+# shorter names for narrow terminals, used only when the full name does not fit
+SHORT_NAMES = {
+    "Read Coils": "Read Coils",
+    "Read Discrete Inputs": "Read Inputs",
+    "Read Holding Registers": "Read Holding",
+    "Read Input Registers": "Read Input Regs",
+    "Write Single Coil": "Write Coil",
+    "Write Single Register": "Write Register",
+    "Read Exception Status": "Exc Status",
+    "Get Comm Event Counter": "Event Counter",
+    "Get Comm Event Log": "Event Log",
+    "Write Multiple Coils": "Write Coils",
+    "Write Multiple Registers": "Write Registers",
+    "Report Server ID": "Server ID",
+    "Read File Record": "Read File",
+    "Write File Record": "Write File",
+    "Mask Write Register": "Mask Write",
+    "Read/Write Multiple Registers": "Read/Write Regs",
+    "Read FIFO Queue": "Read FIFO",
+    "Encapsulated Interface Transport": "Encapsulated",
+}
+
+
+def short_name(name: str, width: int) -> str:
+    if len(name) <= width:
+        return name
+    return SHORT_NAMES.get(name, name)
+
+
+def _fit(text: str, width: int) -> str:
+    if len(text) <= width:
+        return text.ljust(width)
+    return text[: max(0, width - 1)] + "…"
+
+
+def header_text(cols: Columns) -> Text:
+    """The column titles above the frame list."""
+    parts = ["time".rjust(cols.time)]
+    if cols.delta:
+        parts.append("delta".rjust(cols.delta))
+    unit = "unit" + (" " + "device".ljust(cols.label) if cols.label else "")
+    parts += [unit.ljust(4 + (cols.label + 1 if cols.label else 0)), "dir "]
+    parts += [_fit("function", cols.name), "latency".rjust(cols.latency), "summary"]
+    text = Text(" ".join(parts), no_wrap=True, overflow="ellipsis")
+    text.truncate(cols.width)
+    return text
+
+
+def row_text(
+    d: FrameDetail,
+    *,
+    answer: FrameDetail | None,
+    when: str,
+    delta: str,
+    cols: Columns,
+    styles: Styles,
+) -> Text:
+    """One line of the frame list. `answer` is given for a transaction row (the request's
+    paired answer): its values, status and latency stand for the transaction."""
+    v = d.view
+    state = row_state(answer.view) if answer is not None else ""
+    state = state or row_state(v)
+    text = Text(no_wrap=True, overflow="ellipsis")
+    text.append(when.rjust(cols.time), styles.get("time"))
+    if cols.delta:
+        text.append(" " + delta.rjust(cols.delta - 1), styles.get("dim"))
+    text.append(" ")
+    if v.kind in (Kind.NOISE, Kind.EVENT):
+        text.append(" " * 4 + (" " * (cols.label + 1) if cols.label else ""))
+        direction = "??? " if v.kind == Kind.NOISE else "--- "
+    else:
+        text.append(f"u{v.unit:<3d}", styles.get("unit"))
+        if cols.label:
+            text.append(" " + _fit(plain(d.label, 80), cols.label), styles.get("label"))
+        direction = (d.direction + " ") if answer is None else "M<>S"
+    text.append(" " + direction + " ", styles.get("dim"))
+    summary = d.summary
+    latency = d.latency_ms if v.kind != Kind.REQUEST or answer is not None else None
+    if answer is not None:
+        a = answer.view
+        if a.exception or answer.registers:
+            summary = answer.summary
+        latency = answer.latency_ms
+    name = plain(d.name, 80)
+    if v.kind == Kind.NOISE:
+        name = "noise"
+        summary = v.raw[:32].hex(" ") + (" …" if len(v.raw) > 32 else "")
+    text.append(_fit(short_name(name, cols.name), cols.name), styles.get(state or "name"))
+    text.append(" " + latency_text(latency).rjust(cols.latency - 1), styles.get("dim"))
+    text.append(" ")
+    if v.flags & _CHECK:
+        text.append("BAD CHECK ", styles.get("check"))
+    tags = flag_tags(v.flags | (answer.view.flags if answer is not None else 0))
+    if tags:
+        text.append(tags, styles.get("problem"))
+    if v.status in (Status.TIMEOUT, Status.ORPHAN) and answer is None:
+        text.append(Status.NAMES[v.status] + " ", styles.get(row_state(v)))
+    text.append(plain(summary, 600), styles.get(state) if state in ("noise", "event") else None)
+    text.truncate(cols.width, overflow="ellipsis")
+    return text
+
+
+# -- hex dump --------------------------------------------------------------------------------
+
+
+def raw_span(span: tuple[int, int], ascii_mode: bool) -> tuple[int, int]:
+    """A body span (unit byte at 0) as offsets in the raw frame. RTU frames hold the body
+    as is; an ASCII frame holds ':' then two hex characters per body byte."""
+    start, end = span
+    if ascii_mode:
+        return 1 + 2 * start, 1 + 2 * end
+    return start, end
+
+
+def bytes_per_line(width: int) -> int:
+    """How many bytes a hex dump line of `width` cells holds (a multiple of 4)."""
+    fit = max(4, (width - 6) // 4)
+    return min(32, fit - fit % 4)
+
+
+def hex_dump(raw: bytes, highlight: tuple[int, int] | None, per_line: int, styles: Styles) -> Text:
+    """Offset, hex and printable characters; bytes in `highlight` (raw offsets) stand out."""
+    out = Text(no_wrap=True)
+    mark = styles.get("highlight")
+    offset_style = styles.get("offset")
+    lo, hi = highlight if highlight is not None else (0, 0)
+    if not raw:
+        out.append("(no bytes)", styles.get("dim"))
+        return out
+    for start in range(0, len(raw), per_line):
+        if start:
+            out.append("\n")
+        out.append(f"{start:04x} ", offset_style)
+        chunk = raw[start : start + per_line]
+        for k, b in enumerate(chunk):
+            at = start + k
+            out.append(" ")
+            out.append(f"{b:02x}", mark if lo <= at < hi else None)
+        out.append("   " * (per_line - len(chunk)) + "  ")
+        for k, b in enumerate(chunk):
+            at = start + k
+            ch = chr(b) if 0x20 <= b < 0x7F else "·"
+            out.append(ch, mark if lo <= at < hi else styles.get("dim"))
+    return out
+
+
+# -- registers -------------------------------------------------------------------------------
+
+
+def register_span(dissection: Dissection | None, reg: RegisterValue) -> tuple[int, int] | None:
+    """Where the words of a named register lie in the body, if the dissection shows it."""
+    if dissection is None:
+        return None
+    for data in dissection.data:
+        if data.table != reg.table or data.address is None:
+            continue
+        first = reg.address - data.address
+        count = max(1, len(reg.raw))
+        if not 0 <= first < len(data.values):
+            continue
+        for f in dissection.fields:
+            if f.children and len(f.children) == len(data.values):
+                last = min(len(f.children), first + count) - 1
+                return f.children[first].span[0], f.children[last].span[1]
+            if f.name == "value" and len(data.values) == 1:
+                return f.span
+    return None
+
+
+def register_text(r: RegisterValue) -> str:
+    """`Under Voltage Trip = 300 V  [0x012C]`"""
+    words = " ".join(f"0x{w:04X}" for w in r.raw[:8]) + (" …" if len(r.raw) > 8 else "")
+    return plain(f"{r.text}  [{words}]" if words else r.text)
+
+
+def sparkline(values: Sequence[float], width: int) -> str:
+    """The last `width` values as block characters, scaled to their own range."""
+    tail = list(values[-width:])
+    if not tail:
+        return ""
+    low, high = min(tail), max(tail)
+    if high == low:
+        return SPARK[3] * len(tail)
+    top = len(SPARK) - 1
+    return "".join(SPARK[round((v - low) / (high - low) * top)] for v in tail)
+
+
+def plot(points: Sequence[tuple[float, float]], width: int, height: int, styles: Styles) -> Text:
+    """A block-character plot of (t, value) points: min/max on the left, time below."""
+    out = Text(no_wrap=True)
+    if not points or width < 16 or height < 3:
+        out.append("(no values)", styles.get("dim"))
+        return out
+    values = [p[1] for p in points]
+    low, high = min(values), max(values)
+    label_w = max(len(_num(low)), len(_num(high))) + 1
+    cols = max(4, width - label_w - 1)
+    rows = max(1, height - 1)
+    t0, t1 = points[0][0], points[-1][0]
+    span = (t1 - t0) or 1.0
+    column: list[float | None] = [None] * cols
+    for t, v in points:
+        k = min(cols - 1, int((t - t0) / span * (cols - 1)))
+        column[k] = v
+    last: float | None = None
+    for k in range(cols):  # carry the last value forward over empty columns
+        if column[k] is None:
+            column[k] = last
+        last = column[k]
+    levels = rows * 8
+    scale = (high - low) or 1.0
+    for r in range(rows):
+        label = _num(high) if r == 0 else _num(low) if r == rows - 1 else ""
+        out.append(label.rjust(label_w) + "│", styles.get("dim"))
+        floor = (rows - 1 - r) * 8
+        line = []
+        for value in column:
+            if value is None:
+                line.append(" ")
+                continue
+            level = round((value - low) / scale * (levels - 1)) + 1 if high != low else levels // 2
+            fill = level - floor
+            line.append(" " if fill <= 0 else "█" if fill >= 8 else SPARK[fill - 1])
+        out.append("".join(line), styles.get("plot"))
+        out.append("\n")
+    axis = f"{0.0:.1f}s".ljust(cols // 2) + f"+{span:.1f}s".rjust(cols - cols // 2)
+    out.append(" " * label_w + "└" + axis, styles.get("dim"))
+    return out
+
+
+def _num(v: float) -> str:
+    return f"{v:.6g}"

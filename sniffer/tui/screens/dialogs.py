@@ -1,0 +1,83 @@
+"""Provides the small screens: help, export to a file, jump to a time or row."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Vertical, VerticalScroll
+from textual.screen import ModalScreen
+from textual.widgets import Input, Static
+
+HELP = """\
+modscope: keys
+
+  ↑ ↓ PgUp PgDn Home   move in the frame list (moving up stops following)
+  End  f               follow the newest frame again
+  Enter                show the frame's fields (Tab moves between panes)
+  p                    jump to the paired request or answer
+  /                    edit the filter (Enter applies, Esc goes back)
+  !                    only problems (exceptions, timeouts, bad checks, noise)
+  t                    one row per frame / one row per transaction
+  a                    relative / absolute (wall clock) time
+  g                    go to a time (12.5, 2m, 14:03:07) or a row (#1234)
+  space                pause / resume (a live capture keeps recording)
+  s                    replay as fast as possible / at the original speed
+  d u w                lower pane: details / units / register watch
+  z                    hide the lower pane (more frames on screen)
+  e                    export the rows shown (.jsonl, .csv, else text)
+  ?                    this help        q  quit
+
+filter language (terms separated by spaces, all must hold)
+
+  unit:3  unit:1,2  unit:1-5     slave address
+  fc:3  fc:3,16                  function code (exceptions included)
+  kind:request|response|exception|noise|event|unknown
+  status:ok|exception|timeout|orphan|broadcast|open|check|noise|problem
+  reg:"Under Voltage"            a named register (bound units; dissects rows)
+  t:10-20  t:10-  t:-20          seconds from the start (500ms, 2m also work)
+  t:14:03-14:05                  clock time of the capture
+  -fc:3  -unit:0                 leave out (unit, fc, kind and status)
+  words  "two words"             text in the row: name, summary, device, problems
+
+  e.g.  unit:3 fc:3 status:timeout    reg:"Under Voltage" t:10-20    exception -unit:4
+"""
+
+
+class HelpScreen(ModalScreen[None]):
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("escape,q,question_mark", "close", "close"),
+    ]
+
+    def compose(self) -> ComposeResult:
+        with VerticalScroll(id="help-box"):
+            yield Static(Text(HELP), id="help-text")
+
+    def action_close(self) -> None:
+        self.dismiss(None)
+
+
+class AskScreen(ModalScreen[str | None]):
+    """One line of input with a prompt: Enter answers, Esc cancels."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape", "cancel", "cancel")]
+
+    def __init__(self, prompt: str, value: str = "", placeholder: str = "") -> None:
+        super().__init__()
+        self.prompt = prompt
+        self.value = value
+        self.placeholder = placeholder
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="ask-box"):
+            yield Static(Text(self.prompt), id="ask-prompt")
+            yield Input(self.value, placeholder=self.placeholder, id="ask-input")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        self.dismiss(event.value.strip() or None)
+
+    def action_cancel(self) -> None:
+        self.dismiss(None)

@@ -1,0 +1,177 @@
+"""Provides the detail pane: the selected frame's field tree, problems and a highlighting hex dump.
+
+Tree nodes carry the byte span of their field (offsets in the body: unit byte and PDU);
+moving over a node highlights those bytes in the hex dump, mapped to the raw frame
+(for ASCII frames each body byte is two hex characters after the ':').
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from rich.style import Style
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.widget import Widget
+from textual.widgets import Static, Tree
+from textual.widgets.tree import TreeNode
+
+from dissectors.values import Field
+from sniffer.describe import FrameDetail
+from sniffer.framing import Kind
+from sniffer.listing import KIND_NAMES
+from sniffer.store import Status
+from sniffer.text import plain
+from sniffer.tui.render import (
+    bytes_per_line,
+    hex_dump,
+    latency_text,
+    raw_span,
+    register_span,
+    register_text,
+)
+
+Span = tuple[int, int]
+
+
+class HexView(Widget):
+    """A hex dump of one frame's raw bytes with one span highlighted."""
+
+    COMPONENT_CLASSES: ClassVar[set[str]] = {
+        "hex-view--highlight",
+        "hex-view--offset",
+        "hex-view--dim",
+    }
+
+    def __init__(self, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self.raw = b""
+        self.ascii = False
+        self.highlight: Span | None = None  # body offsets
+
+    def show(self, raw: bytes, ascii_mode: bool, highlight: Span | None = None) -> None:
+        self.raw, self.ascii, self.highlight = raw, ascii_mode, highlight
+        self.refresh(layout=True)
+
+    def set_highlight(self, span: Span | None) -> None:
+        if span != self.highlight:
+            self.highlight = span
+            self.refresh()
+
+    def raw_highlight(self) -> Span | None:
+        return raw_span(self.highlight, self.ascii) if self.highlight is not None else None
+
+    def render(self) -> Text:
+        styles = {
+            name: self.get_component_rich_style(f"hex-view--{name}", partial=True)
+            for name in ("highlight", "offset", "dim")
+        }
+        per_line = bytes_per_line(self.size.width)
+        return hex_dump(self.raw, self.raw_highlight(), per_line, styles)
+
+
+class FieldTree(Tree[Span | None]):
+    """The fields of a frame; a node's data is its byte span in the body."""
+
+    COMPONENT_CLASSES: ClassVar[set[str]] = {
+        "field-tree--problem",
+        "field-tree--name",
+        "field-tree--section",
+    }
+
+    def style(self, part: str) -> Style:
+        return self.get_component_rich_style(f"field-tree--{part}", partial=True)
+
+
+class DetailPane(Vertical):
+    """Title, field tree and hex dump of the selected frame."""
+
+    def __init__(self, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self.detail: FrameDetail | None = None
+        self.partner_detail: FrameDetail | None = None
+
+    def compose(self) -> ComposeResult:
+        yield Static(Text("no frame selected"), id="detail-title")
+        with Horizontal(id="detail-body"):
+            tree: FieldTree = FieldTree(Text("frame"), id="fields")
+            tree.show_root = False
+            tree.guide_depth = 2
+            yield tree
+            yield HexView(id="hex")
+
+    def show(self, d: FrameDetail | None, partner: FrameDetail | None = None) -> None:
+        """Show a frame's details (`partner`: its paired request or answer, if any)."""
+        self.detail, self.partner_detail = d, partner
+        title = self.query_one("#detail-title", Static)
+        tree = self.query_one("#fields", FieldTree)
+        hexview = self.query_one("#hex", HexView)
+        tree.clear()
+        if d is None:
+            title.update(Text("no frame selected"))
+            hexview.show(b"", False)
+            return
+        title.update(self._title(d, partner))
+        self._fill(tree, d, partner)
+        first = d.fields[0].span if d.fields else None
+        hexview.show(d.view.raw, d.view.ascii, first)
+        tree.cursor_line = 0 if d.fields else -1
+
+    def _title(self, d: FrameDetail, partner: FrameDetail | None) -> Text:
+        v = d.view
+        text = Text(no_wrap=True, overflow="ellipsis")
+        text.append(f"#{v.index} ", "bold")
+        if v.kind in (Kind.NOISE, Kind.EVENT):
+            text.append(plain(d.name) + " " + plain(d.summary, 200))
+            return text
+        text.append(f"{d.direction} u{v.unit} ")
+        if d.label:
+            text.append(plain(d.label, 60) + " ")
+        text.append(f"fc {v.function}{' exception' if v.exception else ''} ")
+        text.append(plain(d.name, 80))
+        mode = "ascii" if v.ascii else "rtu"
+        text.append(f"  {len(v.raw)} bytes {mode}, {KIND_NAMES[v.kind]}")
+        if v.status:
+            text.append(f", {Status.NAMES[v.status]}")
+        if d.latency_ms is not None:
+            text.append(f", {latency_text(d.latency_ms)}")
+        if partner is not None:
+            role = "answer" if v.kind == Kind.REQUEST else "request"
+            text.append(f"  (p: {role} #{partner.view.index})")
+        return text
+
+    def _fill(self, tree: FieldTree, d: FrameDetail, partner: FrameDetail | None) -> None:
+        root = tree.root
+        section = tree.style("section")
+        for f in d.fields:
+            self._field(root, f, tree)
+        if d.registers:
+            node = root.add(Text(f"registers ({len(d.registers)})", section), expand=True)
+            for r in d.registers:
+                span = register_span(d.dissection, r)
+                node.add_leaf(Text(register_text(r)), data=span)
+        if d.problems:
+            node = root.add(Text(f"problems ({len(d.problems)})", section), expand=True)
+            for p in d.problems:
+                node.add_leaf(Text(plain(p), tree.style("problem")))
+        if partner is not None:
+            role = "answer" if d.view.kind == Kind.REQUEST else "request"
+            line = Text(f"{role} #{partner.view.index}: ", section)
+            line.append(plain(partner.summary, 200))
+            root.add_leaf(line)
+        if not d.fields and not d.registers and not d.problems:
+            root.add_leaf(Text(plain(d.summary, 200)))
+
+    def _field(self, parent: TreeNode[Span | None], f: Field, tree: FieldTree) -> None:
+        label = Text(plain(f.name, 60), tree.style("name"))
+        label.append(": " + plain(f.text, 300))
+        if f.children:
+            node = parent.add(label, data=f.span, expand=len(f.children) <= 16)
+            for child in f.children:
+                self._field(node, child, tree)
+        else:
+            parent.add_leaf(label, data=f.span)
+
+    def on_tree_node_highlighted(self, event: Tree.NodeHighlighted[Span | None]) -> None:
+        self.query_one("#hex", HexView).set_highlight(event.node.data)
