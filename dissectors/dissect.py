@@ -6,14 +6,19 @@ spec's `family` routine reads meaning into the fields: names, summaries, the che
 layout cannot express (byte count against quantity, coil values, echoes), and the
 register values the frame carries. Whatever is wrong with the bytes becomes a `Problem`;
 nothing here raises on bus data.
+
+Speed: what depends only on the function code and direction is worked out once (a plan
+per code byte and direction); the fields of a register or bit array make their per-value
+children and text when first read; the last requests' parses (and dissections) are kept
+by their bytes, for the response paired with each and because a polling master sends
+the same requests over and over; the output objects are built by `values.make_*`.
 """
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable
-from dataclasses import dataclass, replace
-from dataclasses import field as dataclass_field
+from dataclasses import dataclass
+from io import BytesIO
 from typing import Any
 
 from construct import ConstructError, Container
@@ -32,19 +37,35 @@ from dissectors.functions import (
     READ_DEVICE_ID_CODES,
     BitValues,
     FunctionSpec,
+    Limit,
     WordValues,
     device_object_name,
     exception_name,
     function_class,
     function_name,
+    parse_body,
 )
-from dissectors.values import Dissection, Field, Problem, RegisterData, Role
+from dissectors.values import (
+    Dissection,
+    Field,
+    Problem,
+    RegisterData,
+    Role,
+    make_dissection,
+    make_field,
+    make_lazy_field,
+    make_problem,
+    make_register_data,
+)
 
 __all__ = ["Dissection", "Field", "Problem", "RegisterData", "Role", "dissect"]
 
 ERROR = "error"
 WARNING = "warning"
 INFO = "info"
+
+_REQUEST = Role.REQUEST
+_RESPONSE = Role.RESPONSE
 
 # Integer fields shown in decimal; every other integer is shown in hex at its width.
 _DECIMAL = frozenset(
@@ -82,82 +103,145 @@ _STATUS_WORDS = {0x0000: "ready", 0xFFFF: "busy"}
 # --- parsing ------------------------------------------------------------------------------
 
 
-@dataclass(slots=True)
 class _Parsed:
     """A body run through a schema: the (possibly partial) Container, where parsing
-    stopped, and the field the frame ended in, if it ended too soon."""
+    stopped, the field the frame ended in if it ended too soon, and the fields as parsed
+    (before a family routine gives them meaning). A kept request's parse also holds the
+    request's dissection, once made."""
 
-    body: bytes
-    values: Any
-    end: int
-    cut: tuple[str, int] | None
+    __slots__ = ("body", "cut", "dissection", "end", "fields", "schema", "values")
+
+    def __init__(self, schema: Any, body: bytes) -> None:
+        self.schema = schema
+        self.body = body
+        self.dissection: Dissection | None = None
+        stream = BytesIO(body)
+        stream.seek(2)
+        try:
+            values = parse_body(schema, stream)
+        except ConstructError as error:
+            partial = getattr(error, "partial", None)
+            self.values = partial if partial is not None else Container()
+            self.end = len(body)
+            self.cut: tuple[str, int] | None = getattr(error, "failed", ("data", 2))
+        else:
+            self.values = values
+            self.end = stream.tell()
+            self.cut = None
+        self.fields = _fields(self.values)
 
 
-def _parse(schema: Any, body: bytes) -> _Parsed:
-    stream = io.BytesIO(body)
-    stream.seek(2)
-    try:
-        values = schema.parse_stream(stream)
-    except ConstructError as error:
-        partial = getattr(error, "partial", None)
-        failed = getattr(error, "failed", ("data", 2))
-        return _Parsed(body, partial if partial is not None else Container(), len(body), failed)
-    return _Parsed(body, values, stream.tell(), None)
+_BIT_TEXT = ("0", "1")
 
 
-def _hex(value: int, width: int) -> str:
-    return f"0x{value:0{2 * max(1, width)}X}"
+class _ArrayField(Field):
+    """A field of register words or coil bits (`value`) whose text and one child per value
+    are made the first time they are read: most frames are never shown."""
+
+    __slots__ = ()
+
+    def __getattr__(self, name: str) -> Any:
+        # Only reached for a slot not filled yet: `text` or `children`.
+        values = self.value
+        assert isinstance(values, tuple)
+        made: Any
+        if name == "children":
+            made = self._children(values)
+        elif name == "text":
+            made = self._text(values)
+        else:
+            raise AttributeError(name)
+        object.__setattr__(self, name, made)
+        return made
+
+    def _children(self, values: tuple[int, ...]) -> tuple[Field, ...]:
+        raise NotImplementedError
+
+    def _text(self, values: tuple[int, ...]) -> str:
+        raise NotImplementedError
+
+
+class _WordsField(_ArrayField):
+    """16-bit words; each child has the two bytes its word came from."""
+
+    __slots__ = ()
+
+    def _children(self, values: tuple[int, ...]) -> tuple[Field, ...]:
+        start, base = self.span[0], self.name
+        return tuple(
+            make_field(f"{base}[{i}]", word, f"0x{word:04X}", (start + 2 * i, start + 2 * i + 2))
+            for i, word in enumerate(values)
+        )
+
+    def _text(self, values: tuple[int, ...]) -> str:
+        return " ".join(map("0x{:04X}".format, values))
+
+
+class _BitsField(_ArrayField):
+    """Coil or input bits, 0 or 1; each child has the byte its bit came from."""
+
+    __slots__ = ()
+
+    def _children(self, values: tuple[int, ...]) -> tuple[Field, ...]:
+        start, base = self.span[0], self.name
+        return tuple(
+            make_field(f"{base}[{i}]", bit, _BIT_TEXT[bit], (start + i // 8, start + i // 8 + 1))
+            for i, bit in enumerate(values)
+        )
+
+    def _text(self, values: tuple[int, ...]) -> str:
+        return " ".join(map(_BIT_TEXT.__getitem__, values))
 
 
 def _fields(record: Any) -> dict[str, Field]:
     """The named fields of a parsed Record, in order, with their spans."""
-    spans: dict[str, tuple[int, int]] = record.get("_spans", {})
+    spans: dict[str, tuple[int, int]] = record.get("_spans", _NO_SPANS)
     out: dict[str, Field] = {}
-    for name, value in record.items():
-        span = spans.get(name)
-        if value is None or span is None or name.startswith("_"):
-            continue
-        out[name] = _field(name, value, span)
+    for name, span in spans.items():
+        value = record[name]
+        if type(value) is int:  # most fields are numbers
+            out[name] = make_field(name, value, _number_text(name, value, span), span)
+        elif value is not None:
+            out[name] = _field(name, value, span)
     return out
 
 
-def _words_field(name: str, words: tuple[int, ...], span: tuple[int, int]) -> Field:
-    start = span[0]
-    children = tuple(
-        Field(f"{name}[{index}]", word, f"0x{word:04X}", (start + 2 * index, start + 2 * index + 2))
-        for index, word in enumerate(words)
-    )
-    return Field(name, tuple(words), " ".join(child.text for child in children), span, children)
+_NO_SPANS: dict[str, tuple[int, int]] = {}  # never written to
+_HEX_HIGH = tuple(f"0x{byte:02X}" for byte in range(256))
+_HEX_LOW = tuple(f"{byte:02X}" for byte in range(256))
 
 
-def _bits_field(name: str, bits: tuple[int, ...], span: tuple[int, int]) -> Field:
-    start = span[0]
-    children = tuple(
-        Field(f"{name}[{index}]", bit, str(bit), (start + index // 8, start + index // 8 + 1))
-        for index, bit in enumerate(bits)
-    )
-    return Field(name, tuple(bits), " ".join(child.text for child in children), span, children)
+def _number_text(name: str, value: int, span: tuple[int, int]) -> str:
+    """A number in decimal (counts and quantities) or in hex at its width."""
+    if name in _DECIMAL:
+        return str(value)
+    width = span[1] - span[0]
+    if width == 2 and 0 <= value <= 0xFFFF:
+        return _HEX_HIGH[value >> 8] + _HEX_LOW[value & 0xFF]
+    if width == 1 and 0 <= value <= 0xFF:
+        return _HEX_HIGH[value]
+    return f"0x{value:0{2 * max(1, width)}X}"
 
 
 def _field(name: str, value: Any, span: tuple[int, int]) -> Field:
-    if isinstance(value, WordValues):
-        return _words_field(name, value, span)
-    if isinstance(value, BitValues):
-        return _bits_field(name, value, span)
-    if isinstance(value, bytes):
-        return Field(name, value, value.hex(" ").upper(), span)
-    if isinstance(value, int):
-        text = str(value) if name in _DECIMAL else _hex(value, span[1] - span[0])
-        return Field(name, value, text, span)
+    kind = type(value)
+    if kind is int:
+        return make_field(name, value, _number_text(name, value, span), span)
+    if kind is WordValues:
+        return make_lazy_field(_WordsField, name, tuple(value), span)
+    if kind is BitValues:
+        return make_lazy_field(_BitsField, name, tuple(value), span)
+    if kind is bytes:
+        return make_field(name, value, value.hex(" ").upper(), span)
     if isinstance(value, dict):
         children = tuple(_fields(value).values())
-        return Field(name, None, "", span, children)
+        return make_field(name, None, "", span, children)
     items = list(value)
     children = tuple(
         _field(f"{name}[{index}]", item, _item_span(item, span)) for index, item in enumerate(items)
     )
     noun = "item" if len(items) == 1 else "items"
-    return Field(name, None, f"{len(items)} {noun}", span, children)
+    return make_field(name, None, f"{len(items)} {noun}", span, children)
 
 
 def _item_span(item: Any, outer: tuple[int, int]) -> tuple[int, int]:
@@ -167,35 +251,124 @@ def _item_span(item: Any, outer: tuple[int, int]) -> tuple[int, int]:
     return (min(s[0] for s in spans.values()), max(s[1] for s in spans.values()))
 
 
+# --- requests seen: parsed once, dissected once --------------------------------------------
+
+_SEEN: dict[bytes, _Parsed] = {}
+_SEEN_AT_MOST = 64  # a polling cycle's requests; more only burdens the cycle collector
+
+
+def _keep(body: bytes, parsed: _Parsed) -> None:
+    """Keep a request's parse: its response is dissected with it next, and a polling
+    master sends the same requests over and over. Kept parses are only read."""
+    if len(_SEEN) >= _SEEN_AT_MOST:
+        _SEEN.clear()
+    _SEEN[body] = parsed
+
+
+def _request_parse(schema: Any, body: bytes) -> _Parsed:
+    """A request for a known function code, parsed, or as it was when last seen."""
+    parsed = _SEEN.get(body)
+    if parsed is None or parsed.schema is not schema:
+        parsed = _Parsed(schema, body)
+        _keep(body, parsed)
+    return parsed
+
+
+# --- what each code byte in each direction is dissected with -------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class _Plan:
+    """How frames with one code byte, in one direction, are dissected."""
+
+    schema: Any
+    family: str
+    routine: Callable[[_Work], None]
+    spec: FunctionSpec | None
+    function: int
+    exception: bool
+    name: str
+    table: str
+    limits: tuple[Limit, ...]  # those of the fields the layout has
+    is_request: bool
+    keep: bool  # a request of a known function: its parse is kept for its response
+    reuse: bool  # a kept request's parse serves (a request, or an echo in the same layout)
+    counted: bool  # the layout has a byte_count field
+    checked: bool  # the layout has a byte_count field or quantities with limits
+
+
+def _plan(code: int, role: Role) -> _Plan:
+    exception = code >= 0x80
+    function = code & 0x7F
+    spec = FUNCTIONS.get(function)
+    if exception:
+        schema, family = EXCEPTION_SCHEMA, "exception"
+    elif spec is None or spec.family == "raw":
+        schema, family = RAW_SCHEMA, "raw"
+    else:
+        schema = spec.request_schema if role is Role.REQUEST else spec.response_schema
+        family = spec.family
+    keep = role is Role.REQUEST and family not in ("exception", "raw")
+    names = {sc.name for sc in schema.subcons}
+    counted = "byte_count" in names
+    limits = tuple(limit for limit in (spec.limits if spec else ()) if limit.field in names)
+    return _Plan(
+        schema=schema,
+        family=family,
+        routine=FAMILIES[family],
+        spec=spec,
+        function=function,
+        exception=exception,
+        name=function_name(function),
+        table=(spec.table or "") if spec is not None else "",
+        limits=limits,
+        is_request=role is Role.REQUEST,
+        keep=keep,
+        reuse=keep or (spec is not None and schema is spec.request_schema),
+        counted=counted,
+        checked=counted or bool(limits),
+    )
+
+
 # --- the work on one frame -----------------------------------------------------------------
 
 
-@dataclass(slots=True)
 class _Work:
     """One dissection in progress: what the family routines read and fill in."""
 
-    body: bytes
-    role: Role
-    function: int
-    spec: FunctionSpec | None
-    parsed: _Parsed
-    fields: dict[str, Field]
-    request: _Parsed | None = None
-    request_fields: dict[str, Field] = dataclass_field(default_factory=dict)
-    problems: list[Problem] = dataclass_field(default_factory=list)
-    data: list[RegisterData] = dataclass_field(default_factory=list)
-    summary: str = ""
+    __slots__ = (
+        "body",
+        "data",
+        "fields",
+        "function",
+        "is_request",
+        "parsed",
+        "plan",
+        "problems",
+        "record",
+        "request",
+        "request_fields",
+        "summary",
+        "table",
+    )
 
-    @property
-    def is_request(self) -> bool:
-        return self.role is Role.REQUEST
-
-    @property
-    def table(self) -> str:
-        return (self.spec.table or "") if self.spec is not None else ""
+    def __init__(self, body: bytes, plan: _Plan, parsed: _Parsed, fields: dict[str, Field]) -> None:
+        self.body = body
+        self.plan = plan
+        self.is_request = plan.is_request
+        self.function = plan.function
+        self.table = plan.table
+        self.parsed = parsed
+        self.record: Any = parsed.values  # the parsed Container
+        self.fields = fields
+        self.request: _Parsed | None = None
+        self.request_fields: dict[str, Field] = _NO_FIELDS
+        self.problems: tuple[Problem, ...] = ()
+        self.data: tuple[RegisterData, ...] = ()
+        self.summary = ""
 
     def get(self, name: str) -> int | None:
-        value = self.parsed.values.get(name)
+        value = self.record.get(name)
         return value if isinstance(value, int) else None
 
     def asked(self, name: str) -> int | None:
@@ -214,12 +387,21 @@ class _Work:
         return found.span if found is not None else None
 
     def problem(self, kind: str, severity: str, text: str, span: tuple[int, int] | None) -> None:
-        self.problems.append(Problem(kind, severity, text, span))
+        self.problems += (make_problem(kind, severity, text, span),)
+
+    def carries(self, address: int | None, values: tuple[int, ...], write: bool) -> None:
+        """Record values of the frame's data table from `address` on."""
+        self.data += (make_register_data(self.table, address, values, write),)
 
     def retext(self, name: str, text: str) -> None:
         found = self.fields.get(name)
         if found is not None:
-            self.fields[name] = replace(found, text=text)
+            self.fields[name] = make_field(
+                found.name, found.value, text, found.span, found.children
+            )
+
+
+_NO_FIELDS: dict[str, Field] = {}  # never written to
 
 
 def _count(n: int, noun: str) -> str:
@@ -227,21 +409,23 @@ def _count(n: int, noun: str) -> str:
 
 
 def _address(value: int) -> str:
+    if 0 <= value <= 0xFFFF:
+        return _HEX_HIGH[value >> 8] + _HEX_LOW[value & 0xFF]
     return f"0x{value:04X}"
 
 
 # --- checks every layout gets --------------------------------------------------------------
 
 
-def _check_structure(w: _Work) -> None:
-    body = w.body
-    if w.parsed.cut is not None:
-        name, start = w.parsed.cut
-        where = "before" if start >= len(body) else "inside"
-        w.problem("truncated", ERROR, f"frame ends {where} {name}", (start, len(body)))
-    byte_count = w.fields.get("byte_count")
+def _check_structure(w: _Work, size: int) -> None:
+    parsed = w.parsed
+    if parsed.cut is not None:
+        name, start = parsed.cut
+        where = "before" if start >= size else "inside"
+        w.problem("truncated", ERROR, f"frame ends {where} {name}", (start, size))
+    byte_count = w.fields.get("byte_count") if w.plan.counted else None
     if byte_count is not None and isinstance(byte_count.value, int):
-        follow = len(body) - byte_count.span[1]
+        follow = size - byte_count.span[1]
         if follow != byte_count.value:
             verb = "byte follows" if follow == 1 else "bytes follow"
             w.problem(
@@ -250,17 +434,15 @@ def _check_structure(w: _Work) -> None:
                 f"byte count {byte_count.value} but {follow} data {verb}",
                 byte_count.span,
             )
-    if w.parsed.end < len(body):
-        extra = len(body) - w.parsed.end
+    if parsed.end < size:
+        extra = size - parsed.end
         w.problem(
             "trailing-bytes",
             WARNING,
             f"{_count(extra, 'trailing byte')} after the PDU",
-            (w.parsed.end, len(body)),
+            (parsed.end, size),
         )
-    if w.spec is None:
-        return
-    for limit in w.spec.limits:
+    for limit in w.plan.limits:
         value = w.get(limit.field)
         if value is None:
             continue
@@ -273,11 +455,12 @@ def _check_structure(w: _Work) -> None:
         w.problem("quantity", ERROR, text, w.span(limit.field))
 
 
-def _pair(w: _Work, request: bytes | None) -> None:
+def _pair(w: _Work, request: bytes) -> None:
     """Parse the paired request, when it is one for the same function code."""
-    if request is None or w.is_request or len(request) < 2:
+    if len(request) < 2:
         return
-    request = bytes(request)
+    if type(request) is not bytes:
+        request = bytes(request)
     if request[1] != w.function:
         w.problem(
             "request-mismatch",
@@ -286,10 +469,11 @@ def _pair(w: _Work, request: bytes | None) -> None:
             None,
         )
         return
-    if w.spec is None or w.spec.request_schema is None:
+    spec = w.plan.spec
+    if spec is None or spec.request_schema is None:
         return
-    w.request = _parse(w.spec.request_schema, request)
-    w.request_fields = _fields(w.request.values)
+    w.request = _request_parse(spec.request_schema, request)
+    w.request_fields = w.request.fields
 
 
 def _echo(w: _Work, names: tuple[str, ...] | None = None) -> None:
@@ -297,9 +481,8 @@ def _echo(w: _Work, names: tuple[str, ...] | None = None) -> None:
     is None), down to the first level where they differ."""
     if w.request is None:
         return
-    mine = {name: f for name, f in w.fields.items() if names is None or name in names}
-    theirs = {name: f for name, f in w.request_fields.items() if names is None or name in names}
-    _compare(w, mine, theirs, "", "")
+    mine = w.fields if names is None else {n: f for n, f in w.fields.items() if n in names}
+    _compare(w, mine, w.request_fields, "", "")
 
 
 def _compare(
@@ -342,7 +525,7 @@ def _checked_values(
     found = w.fields.get("values")
     if found is None:
         return ()
-    values = w.values("values")
+    values = found.value if isinstance(found.value, tuple) else ()
     byte_count = w.get("byte_count")
     bits = w.table in _BIT_TABLES
     need: int | None = None
@@ -360,7 +543,7 @@ def _checked_values(
                         (start, min(found.span[1], found.span[0] + need)),
                     )
                 values = values[:quantity]
-                w.fields["values"] = _bits_field("values", values, found.span)
+                w.fields["values"] = make_lazy_field(_BitsField, "values", values, found.span)
     else:
         if quantity is not None:
             need = 2 * quantity
@@ -386,19 +569,28 @@ def _checked_values(
 
 
 def _read(w: _Work) -> None:
-    noun = _READ_NOUNS.get(w.table, "value")
     if w.is_request:
-        address, quantity = w.get("address"), w.get("quantity")
-        if address is None or quantity is None:
-            w.summary = f"read {noun}s"
-        else:
+        noun = _READ_NOUNS.get(w.table, "value")
+        values = w.record
+        address, quantity = values.get("address"), values.get("quantity")
+        if isinstance(address, int) and isinstance(quantity, int):
             w.summary = f"read {_count(quantity, noun)} from {_address(address)}"
+        else:
+            w.summary = f"read {noun}s"
         return
-    quantity = w.asked("quantity")
+    request = w.request
+    asked = _NO_VALUES if request is None else request.values
+    quantity = asked.get("quantity")
+    if not isinstance(quantity, int):
+        quantity = None
     values = _checked_values(w, quantity, "quantity", from_request=True)
     if "values" in w.fields:
-        w.data.append(RegisterData(w.table, w.asked("address"), values, False))
-    w.summary = _count(len(values), "value")
+        address = asked.get("address")
+        w.carries(address if isinstance(address, int) else None, values, False)
+    w.summary = "1 value" if len(values) == 1 else f"{len(values)} values"
+
+
+_NO_VALUES: dict[str, Any] = {}  # never written to
 
 
 def _write_single(w: _Work) -> None:
@@ -421,10 +613,10 @@ def _write_single(w: _Work) -> None:
             return
         w.retext("value", state)
         w.summary = f"coil {_address(address)} {state}"
-        w.data.append(RegisterData(w.table, address, (1 if state == "ON" else 0,), True))
+        w.carries(address, (1 if state == "ON" else 0,), True)
         return
     w.summary = f"write 0x{value:04X} to register {_address(address)}"
-    w.data.append(RegisterData(w.table, address, (value,), True))
+    w.carries(address, (value,), True)
 
 
 def _write_multiple(w: _Work) -> None:
@@ -433,7 +625,7 @@ def _write_multiple(w: _Work) -> None:
     if w.is_request:
         values = _checked_values(w, quantity, "quantity", from_request=False)
         if "values" in w.fields:
-            w.data.append(RegisterData(w.table, address, values, True))
+            w.carries(address, values, True)
         verb = "write"
     else:
         _echo(w, ("address", "quantity"))
@@ -444,7 +636,7 @@ def _write_multiple(w: _Work) -> None:
                 values = written.value
                 if w.table in _BIT_TABLES and asked_quantity is not None:
                     values = values[:asked_quantity]
-                w.data.append(RegisterData(w.table, w.asked("address"), values, True))
+                w.carries(w.asked("address"), values, True)
         verb = "wrote"
     if address is None or quantity is None:
         w.summary = f"{verb} {noun}s"
@@ -458,7 +650,7 @@ def _read_write(w: _Work) -> None:
         write_quantity = w.get("write_quantity")
         values = _checked_values(w, write_quantity, "write_quantity", from_request=False)
         if "values" in w.fields:
-            w.data.append(RegisterData(w.table, write_address, values, True))
+            w.carries(write_address, values, True)
         read_address, read_quantity = w.get("read_address"), w.get("read_quantity")
         if None in (read_address, read_quantity, write_address, write_quantity):
             w.summary = "read and write registers"
@@ -472,10 +664,10 @@ def _read_write(w: _Work) -> None:
         return
     values = _checked_values(w, w.asked("read_quantity"), "read_quantity", from_request=True)
     if "values" in w.fields:
-        w.data.append(RegisterData(w.table, w.asked("read_address"), values, False))
+        w.carries(w.asked("read_address"), values, False)
     written = w.request_fields.get("values")
     if written is not None and isinstance(written.value, tuple):
-        w.data.append(RegisterData(w.table, w.asked("write_address"), written.value, True))
+        w.carries(w.asked("write_address"), written.value, True)
     w.summary = _count(len(values), "value")
 
 
@@ -765,9 +957,11 @@ def _mei(w: _Work) -> None:
         name = device_object_name(id_field.value)
         raw = value.value if value is not None and isinstance(value.value, bytes) else b""
         text = raw.decode("utf-8", errors="backslashreplace")
-        named.append(Field(name, text, _object_text(raw), item.span, item.children))
+        named.append(make_field(name, text, _object_text(raw), item.span, item.children))
     if objects is not None:
-        w.fields["objects"] = replace(objects, children=tuple(named))
+        w.fields["objects"] = make_field(
+            objects.name, objects.value, objects.text, objects.span, tuple(named)
+        )
     listing = ", ".join(f"{item.name}={item.text}" for item in named)
     w.summary = f"device id: {listing}" if listing else "device id: no objects"
     if more == 0xFF and next_id is not None:
@@ -826,6 +1020,11 @@ FAMILIES: dict[str, Callable[[_Work], None]] = {
 # --- entry point ---------------------------------------------------------------------------
 
 
+_REQUEST_PLANS = tuple(_plan(code, Role.REQUEST) for code in range(256))
+_RESPONSE_PLANS = tuple(_plan(code, Role.RESPONSE) for code in range(256))
+"""The plan for each code byte (function, with the exception bit), by direction."""
+
+
 def dissect(body: bytes, role: Role, *, request: bytes | None = None) -> Dissection:
     """Take one frame apart.
 
@@ -833,10 +1032,11 @@ def dissect(body: bytes, role: Role, *, request: bytes | None = None) -> Dissect
     request's body when a response is dissected: it tells how many coil bits are real,
     where read registers start, and what an echo should repeat. Never raises on any bytes.
     """
-    body = bytes(body)
+    if type(body) is not bytes:
+        body = bytes(body)
     if len(body) < 2:
         missing = "function" if body else "unit"
-        return Dissection(
+        return make_dissection(
             unit=body[0] if body else 0,
             function=0,
             exception=False,
@@ -844,38 +1044,51 @@ def dissect(body: bytes, role: Role, *, request: bytes | None = None) -> Dissect
             name="Truncated frame",
             summary=f"frame too short: {_count(len(body), 'byte')}",
             fields=(),
-            problems=(Problem("truncated", ERROR, f"frame ends before {missing}", (0, len(body))),),
+            problems=(
+                make_problem("truncated", ERROR, f"frame ends before {missing}", (0, len(body))),
+            ),
             data=(),
         )
+    size = len(body)
     unit, code = body[0], body[1]
-    exception = code >= 0x80
-    function = code & 0x7F
-    spec = FUNCTIONS.get(function)
-    if exception:
-        schema, family = EXCEPTION_SCHEMA, "exception"
-    elif spec is None or spec.family == "raw":
-        schema, family = RAW_SCHEMA, "raw"
+    plan = (_REQUEST_PLANS if role is _REQUEST else _RESPONSE_PLANS)[code]
+    parsed = _SEEN.get(body) if plan.reuse else None
+    if parsed is not None and parsed.schema is plan.schema:
+        if plan.keep and parsed.dissection is not None:
+            return parsed.dissection  # the same request again: the same dissection
+        fields = parsed.fields.copy()  # the kept parse's own stay as they were parsed
     else:
-        schema = spec.request_schema if role is Role.REQUEST else spec.response_schema
-        family = spec.family
-    parsed = _parse(schema, body)
-    w = _Work(body, role, function, spec, parsed, _fields(parsed.values))
-    _check_structure(w)
-    _pair(w, request)
-    FAMILIES[family](w)
-    if role is Role.RESPONSE and unit == 0:
-        w.problem("broadcast-response", WARNING, "response from the broadcast address 0", (0, 1))
+        parsed = _Parsed(plan.schema, body)
+        if plan.keep:
+            _keep(body, parsed)
+            fields = parsed.fields.copy()
+        else:
+            fields = parsed.fields
+    w = _Work(body, plan, parsed, fields)
+    if plan.checked or parsed.cut is not None or parsed.end != size:
+        _check_structure(w, size)
+    if request is not None and not plan.is_request:
+        _pair(w, request)
+    plan.routine(w)
     summary = w.summary
-    if role is Role.REQUEST and unit == 0:
-        summary = f"broadcast: {summary}"
-    return Dissection(
-        unit=unit,
-        function=function,
-        exception=exception,
-        role=role,
-        name=function_name(function),
-        summary=summary,
-        fields=tuple(w.fields.values()),
-        problems=tuple(w.problems),
-        data=tuple(w.data),
+    if unit == 0:
+        if plan.is_request:
+            summary = f"broadcast: {summary}"
+        else:
+            w.problem(
+                "broadcast-response", WARNING, "response from the broadcast address 0", (0, 1)
+            )
+    result = make_dissection(
+        unit,
+        plan.function,
+        plan.exception,
+        role,
+        plan.name,
+        summary,
+        tuple(fields.values()),
+        w.problems,
+        w.data,
     )
+    if plan.keep:
+        parsed.dissection = result
+    return result

@@ -24,11 +24,12 @@ from construct import (
     Construct,
     ConstructError,
     Container,
+    FormatField,
     GreedyBytes,
     If,
-    Int8ub,
-    Int16ub,
     ListContainer,
+    Path,
+    Renamed,
     SizeofError,
     StreamError,
     Struct,
@@ -98,45 +99,155 @@ def counted(pos: int, base: int, size: int = 1) -> LengthRule:
 # interpreted, never compiled: bus data is untrusted, and errors must keep their place.
 
 
+class Unsigned(FormatField):  # type: ignore[misc]  # construct is untyped
+    """A big-endian unsigned integer of 1 or 2 bytes: construct's FormatField (so it
+    builds, sizes and compiles as one), parsed with a prepared struct and no helper call.
+    Too few bytes raise the StreamError FormatField raises."""
+
+    def __init__(self, size: int) -> None:
+        super().__init__(">", {1: "B", 2: "H"}[size])
+        self._unpack = struct.Struct(self.fmtstr).unpack
+
+    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+        data = stream.read(self.length)
+        if len(data) != self.length:
+            raise StreamError(
+                "stream read less than specified amount, "
+                f"expected {self.length}, found {len(data)}",
+                path=path,
+            )
+        return self._unpack(data)[0]
+
+
+UInt8 = Unsigned(1)
+UInt16 = Unsigned(2)
+
+
+_NO_CONTEXT, _FIELDS_ONLY, _FULL_CONTEXT = 0, 1, 2
+
+
+def _context_use(sc: Any) -> int:
+    """What parsing `sc` may read of its context: nothing (fixed-size numbers and bytes,
+    our word and bit adapters over them), only fields of the Record by name (`Octets` of
+    `this.name` bytes), or anything (all else: `this` expressions, nested Records,
+    construct's own classes, `parsed` hooks)."""
+    if type(sc) is Renamed:
+        return _FULL_CONTEXT if sc.parsed is not None else _context_use(sc.subcon)
+    if sc.parsed is not None:
+        return _FULL_CONTEXT
+    if type(sc) in (FormatField, Unsigned, _GREEDY_BYTES):
+        return _NO_CONTEXT
+    if type(sc) is Bytes:
+        return _FULL_CONTEXT if callable(sc.length) else _NO_CONTEXT
+    if type(sc) is Octets:
+        if sc.named is not None:
+            return _FIELDS_ONLY
+        return _FULL_CONTEXT if callable(sc.length) else _NO_CONTEXT
+    if type(sc) in (Words, Bits):
+        return _context_use(sc.subcon)
+    return _FULL_CONTEXT
+
+
+_GREEDY_BYTES = type(GreedyBytes)
+
+
 class Record(Struct):  # type: ignore[misc]  # construct is untyped
     """A Struct that remembers where each named field lies: `obj["_spans"][name]` is the
     (start, end) stream position of that field. When the data ends inside a field, the
     ConstructError raised carries `partial` (the fields read so far) and `failed`
-    (the field's name and start), so a truncated frame still shows what it had."""
+    (the field's name and start), so a truncated frame still shows what it had.
 
-    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+    Parsing is construct's interpreter, field by field; what does not depend on the data
+    is worked out once, here: a field that is only named (`"name" / UInt16`) is parsed
+    by what it names, with the path the name adds; a field without a `parsed` hook by its
+    `_parse`; and the Struct context is only built when a field may read more of it than
+    the fields before it by name (`this.byte_count`), which the parsed fields serve."""
+
+    def __init__(self, *subcons: Any, **subconskw: Any) -> None:
+        super().__init__(*subcons, **subconskw)
+        steps = []
+        for sc in self.subcons:
+            name, inner, suffix = sc.name, sc, ""
+            if type(sc) is Renamed and sc.parsed is None:
+                inner, suffix = sc.subcon, f" -> {sc.name}"
+            parse = inner._parse if inner.parsed is None else inner._parsereport
+            steps.append((name, parse, suffix))
+        self._steps: tuple[tuple[str | None, Callable[..., Any], str], ...] = tuple(steps)
+        use = max((_context_use(sc) for sc in self.subcons), default=_NO_CONTEXT)
+        self._fields_only = use == _FIELDS_ONLY
+        self._context: Any = None
+        if use == _FULL_CONTEXT:
+            # What every parse's context starts from: the parsing flags as construct sets
+            # them for a parse (the only time `_parse` runs), and our fields.
+            self._context = Container(
+                _=None,
+                _params=None,
+                _root=None,
+                _parsing=True,
+                _building=False,
+                _sizing=False,
+                _subcons=self._subcons,
+                _io=None,
+                _index=None,
+            )
+
+    def _parse(self, stream: Any, outer: Any, path: Any) -> Any:
         obj = Container()
         spans: dict[str, tuple[int, int]] = {}
         obj["_spans"] = spans
-        context = Container(
-            _=context,
-            _params=context._params,
-            _root=None,
-            _parsing=context._parsing,
-            _building=context._building,
-            _sizing=context._sizing,
-            _subcons=self._subcons,
-            _io=stream,
-            _index=context.get("_index", None),
-        )
-        context._root = context._.get("_root", context)
-        for sc in self.subcons:
-            start = stream.tell()
+        if self._context is not None:
+            context = Container(self._context)
+            context["_"] = outer
+            context["_params"] = outer["_params"]
+            context["_io"] = stream
+            index = outer.get("_index")
+            if index is not None:
+                context["_index"] = index
+            root = outer.get("_root")
+            context["_root"] = context if root is None else root
+        elif self._fields_only:
+            context = obj  # the fields so far, by name: all that is looked up
+        else:
+            context = outer  # not looked at
+        tell = stream.tell
+        start = tell()
+        for name, parse, suffix in self._steps:
             try:
-                value = sc._parsereport(stream, context, path)
+                value = parse(stream, context, path + suffix)
             except ConstructError as error:
                 partial = getattr(error, "partial", None)
-                if sc.name and partial is not None:
-                    obj[sc.name] = partial
-                    spans[sc.name] = (start, stream.tell())
+                if name and partial is not None:
+                    obj[name] = partial
+                    spans[name] = (start, tell())
                 error.partial = obj
-                error.failed = (sc.name or "data", start)
+                error.failed = (name or "data", start)
                 raise
-            if sc.name:
-                obj[sc.name] = value
-                context[sc.name] = value
-                spans[sc.name] = (start, stream.tell())
+            end = tell()
+            if name:
+                obj[name] = value
+                if self._context is not None:
+                    context[name] = value
+                spans[name] = (start, end)
+            start = end
+        if self._context is not None and context["_root"] is context:
+            # Parsing is done: drop the context's reference to itself, so that it is freed
+            # at once rather than left to the cycle collector.
+            context["_root"] = None
         return obj
+
+
+PARSE_CONTEXT: Any = Container(_parsing=True, _building=False, _sizing=False)
+"""The outermost context of a parse, as `parse_stream` makes it. A Record never writes
+to the context it is given (its fields go into its own), so one serves every parse."""
+PARSE_CONTEXT["_params"] = PARSE_CONTEXT
+
+
+def parse_body(schema: Any, stream: Any) -> Any:
+    """`schema.parse_stream(stream)` for a Record (which has no `parsed` hook), without
+    building the outer context each time: the Record reads from the stream's position on."""
+    if schema.parsed is not None:
+        return schema._parsereport(stream, PARSE_CONTEXT, "(parsing)")
+    return schema._parse(stream, PARSE_CONTEXT, "(parsing)")
 
 
 class Repeat(Subconstruct):  # type: ignore[misc]  # construct is untyped
@@ -182,6 +293,15 @@ class Repeat(Subconstruct):  # type: ignore[misc]  # construct is untyped
         raise SizeofError("a repeat has no fixed size", path=path)
 
 
+def _field_named_by(expression: Any) -> str | None:
+    """The field name when `expression` is just `this.name` (which evaluates to
+    `context[name]`), else None."""
+    if type(expression) is not Path:
+        return None
+    name = expression.__getfield__()
+    return name if isinstance(name, str) and repr(expression) == f"this[{name!r}]" else None
+
+
 class Octets(Construct):  # type: ignore[misc]  # construct is untyped
     """`length` raw bytes (a `this` expression; negative means 0). With `exact`, fewer
     bytes than that is an error (the frame is truncated); without, it takes what there
@@ -191,9 +311,14 @@ class Octets(Construct):  # type: ignore[misc]  # construct is untyped
         super().__init__()
         self.length = length
         self.exact = exact
+        self.named = _field_named_by(length)
 
     def _parse(self, stream: Any, context: Any, path: Any) -> Any:
-        length = max(0, evaluate(self.length, context))
+        if self.named is not None:  # this.name: the value of that field, looked up at once
+            length = context[self.named]
+        else:
+            length = self.length(context) if callable(self.length) else self.length
+        length = max(0, length)
         data = stream.read(length)
         if self.exact and len(data) != length:
             raise StreamError(f"expected {length} bytes, found {len(data)}", path=path)
@@ -220,25 +345,43 @@ class BitValues(tuple[int, ...]):
     __slots__ = ()
 
 
-class Words(Adapter):  # type: ignore[misc]  # construct is untyped
+_WORD_FORMATS = tuple(struct.Struct(f">{n}H") for n in range(129))
+
+
+class _Packed(Adapter):  # type: ignore[misc]  # construct is untyped
+    """An Adapter that parses its subcon by `_parse` when it has no `parsed` hook."""
+
+    def _parse(self, stream: Any, context: Any, path: Any) -> Any:
+        subcon = self.subcon
+        if subcon.parsed is None:
+            return self._decode(subcon._parse(stream, context, path), context, path)
+        return self._decode(subcon._parsereport(stream, context, path), context, path)
+
+
+class Words(_Packed):
     """Bytes as big-endian 16-bit words (an odd last byte is left out: a problem to report,
     not an error)."""
 
     def _decode(self, obj: Any, context: Any, path: Any) -> WordValues:
-        data = bytes(obj)
-        return WordValues(struct.unpack_from(f">{len(data) // 2}H", data))
+        n = len(obj) // 2
+        unpack = _WORD_FORMATS[n] if n < len(_WORD_FORMATS) else struct.Struct(f">{n}H")
+        return WordValues(unpack.unpack_from(obj))
 
     def _encode(self, obj: Any, context: Any, path: Any) -> bytes:
         return struct.pack(f">{len(obj)}H", *obj)
 
 
-class Bits(Adapter):  # type: ignore[misc]  # construct is untyped
+_BYTE_BITS = tuple(bytes((byte >> bit) & 1 for bit in range(8)) for byte in range(256))
+"""The eight bits of each byte value, least significant first, as bytes of 0 and 1."""
+
+
+class Bits(_Packed):
     """Packed coil or input bits: the first bit is the least significant bit of the first
     byte. Decodes every bit of every byte; the quantity the request asked for says how
     many of them are real."""
 
     def _decode(self, obj: Any, context: Any, path: Any) -> BitValues:
-        return BitValues((byte >> bit) & 1 for byte in bytes(obj) for bit in range(8))
+        return BitValues(b"".join([_BYTE_BITS[byte] for byte in obj]))
 
     def _encode(self, obj: Any, context: Any, path: Any) -> bytes:
         bits = list(obj)
@@ -251,43 +394,43 @@ class Bits(Adapter):  # type: ignore[misc]  # construct is untyped
 
 # --- schemas, one per distinct layout ------------------------------------------------------
 
-_ADDRESS_QUANTITY = Record("address" / Int16ub, "quantity" / Int16ub)
+_ADDRESS_QUANTITY = Record("address" / UInt16, "quantity" / UInt16)
 _EMPTY = Record()
 _BITS_RESPONSE = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "values" / Bits(Octets(this.byte_count)),
 )
 _REGISTERS_RESPONSE = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "values" / Words(Octets(this.byte_count)),
 )
-_ADDRESS_VALUE = Record("address" / Int16ub, "value" / Int16ub)
-_EXCEPTION_STATUS_RESPONSE = Record("status" / Int8ub)
-_DIAGNOSTICS = Record("sub_function" / Int16ub, "data" / Words(GreedyBytes))
-_EVENT_COUNTER_RESPONSE = Record("status" / Int16ub, "event_count" / Int16ub)
+_ADDRESS_VALUE = Record("address" / UInt16, "value" / UInt16)
+_EXCEPTION_STATUS_RESPONSE = Record("status" / UInt8)
+_DIAGNOSTICS = Record("sub_function" / UInt16, "data" / Words(GreedyBytes))
+_EVENT_COUNTER_RESPONSE = Record("status" / UInt16, "event_count" / UInt16)
 _EVENT_LOG_RESPONSE = Record(
-    "byte_count" / Int8ub,
-    "status" / Int16ub,
-    "event_count" / Int16ub,
-    "message_count" / Int16ub,
+    "byte_count" / UInt8,
+    "status" / UInt16,
+    "event_count" / UInt16,
+    "message_count" / UInt16,
     "events" / Octets(this.byte_count - 6),
 )
 _WRITE_COILS_REQUEST = Record(
-    "address" / Int16ub,
-    "quantity" / Int16ub,
-    "byte_count" / Int8ub,
+    "address" / UInt16,
+    "quantity" / UInt16,
+    "byte_count" / UInt8,
     "values" / Bits(Octets(this.byte_count)),
 )
 _WRITE_REGISTERS_REQUEST = Record(
-    "address" / Int16ub,
-    "quantity" / Int16ub,
-    "byte_count" / Int8ub,
+    "address" / UInt16,
+    "quantity" / UInt16,
+    "byte_count" / UInt8,
     "values" / Words(Octets(this.byte_count)),
 )
 _SERVER_ID_RESPONSE = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "server_id" / Bytes(1),  # device specific; one byte is what devices and pymodbus send
-    "run_indicator" / Int8ub,
+    "run_indicator" / UInt8,
     "additional" / Octets(this.byte_count - 2),
 )
 FILE_REFERENCE_TYPE = 6
@@ -297,54 +440,54 @@ LAST_FILE_RECORD = 9999
 """Record numbers in a file run from 0 to 9999 (0x270F)."""
 
 _FILE_READ_ITEM = Record(
-    "reference_type" / Int8ub,
-    "file_number" / Int16ub,
-    "record_number" / Int16ub,
-    "record_length" / Int16ub,
+    "reference_type" / UInt8,
+    "file_number" / UInt16,
+    "record_number" / UInt16,
+    "record_length" / UInt16,
 )
 _FILE_READ_REQUEST = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "sub_requests" / Repeat(_FILE_READ_ITEM, count=this.byte_count // 7),
 )
 _FILE_READ_RESPONSE = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "sub_responses"
     / Repeat(
         Record(
-            "length" / Int8ub,
-            "reference_type" / Int8ub,
+            "length" / UInt8,
+            "reference_type" / UInt8,
             "record_data" / Words(Octets(this.length - 1, exact=True)),
         ),
         within=this.byte_count,
     ),
 )
 _FILE_WRITE = Record(
-    "byte_count" / Int8ub,
+    "byte_count" / UInt8,
     "sub_requests"
     / Repeat(
         Record(
-            "reference_type" / Int8ub,
-            "file_number" / Int16ub,
-            "record_number" / Int16ub,
-            "record_length" / Int16ub,
+            "reference_type" / UInt8,
+            "file_number" / UInt16,
+            "record_number" / UInt16,
+            "record_length" / UInt16,
             "record_data" / Words(Octets(this.record_length * 2, exact=True)),
         ),
         within=this.byte_count,
     ),
 )
-_MASK_WRITE = Record("address" / Int16ub, "and_mask" / Int16ub, "or_mask" / Int16ub)
+_MASK_WRITE = Record("address" / UInt16, "and_mask" / UInt16, "or_mask" / UInt16)
 _READ_WRITE_REQUEST = Record(
-    "read_address" / Int16ub,
-    "read_quantity" / Int16ub,
-    "write_address" / Int16ub,
-    "write_quantity" / Int16ub,
-    "byte_count" / Int8ub,
+    "read_address" / UInt16,
+    "read_quantity" / UInt16,
+    "write_address" / UInt16,
+    "write_quantity" / UInt16,
+    "byte_count" / UInt8,
     "values" / Words(Octets(this.byte_count)),
 )
-_FIFO_REQUEST = Record("fifo_address" / Int16ub)
+_FIFO_REQUEST = Record("fifo_address" / UInt16)
 _FIFO_RESPONSE = Record(
-    "byte_count" / Int16ub,
-    "fifo_count" / Int16ub,
+    "byte_count" / UInt16,
+    "fifo_count" / UInt16,
     "values" / Words(Octets(this.fifo_count * 2)),
 )
 MEI_DEVICE_ID = 0x0E
@@ -352,25 +495,25 @@ MEI_CANOPEN = 0x0D
 _IS_DEVICE_ID = this.mei_type == MEI_DEVICE_ID
 _NOT_DEVICE_ID = this.mei_type != MEI_DEVICE_ID
 _MEI_REQUEST = Record(
-    "mei_type" / Int8ub,
-    "read_device_id_code" / If(_IS_DEVICE_ID, Int8ub),
-    "object_id" / If(_IS_DEVICE_ID, Int8ub),
+    "mei_type" / UInt8,
+    "read_device_id_code" / If(_IS_DEVICE_ID, UInt8),
+    "object_id" / If(_IS_DEVICE_ID, UInt8),
     "data" / If(_NOT_DEVICE_ID, GreedyBytes),  # MEI 13 CANopen and others: raw
 )
 _MEI_RESPONSE = Record(
-    "mei_type" / Int8ub,
-    "read_device_id_code" / If(_IS_DEVICE_ID, Int8ub),
-    "conformity_level" / If(_IS_DEVICE_ID, Int8ub),
-    "more_follows" / If(_IS_DEVICE_ID, Int8ub),
-    "next_object_id" / If(_IS_DEVICE_ID, Int8ub),
-    "number_of_objects" / If(_IS_DEVICE_ID, Int8ub),
+    "mei_type" / UInt8,
+    "read_device_id_code" / If(_IS_DEVICE_ID, UInt8),
+    "conformity_level" / If(_IS_DEVICE_ID, UInt8),
+    "more_follows" / If(_IS_DEVICE_ID, UInt8),
+    "next_object_id" / If(_IS_DEVICE_ID, UInt8),
+    "number_of_objects" / If(_IS_DEVICE_ID, UInt8),
     "objects"
     / If(
         _IS_DEVICE_ID,
         Repeat(
             Record(
-                "object_id" / Int8ub,
-                "length" / Int8ub,
+                "object_id" / UInt8,
+                "length" / UInt8,
                 "value" / Octets(this.length, exact=True),
             ),
             count=this.number_of_objects,
@@ -379,7 +522,7 @@ _MEI_RESPONSE = Record(
     "data" / If(_NOT_DEVICE_ID, GreedyBytes),
 )
 
-EXCEPTION_SCHEMA: Any = Record("exception_code" / Int8ub)
+EXCEPTION_SCHEMA: Any = Record("exception_code" / UInt8)
 """An exception response (function | 0x80): one exception code byte."""
 
 RAW_SCHEMA: Any = Record("data" / GreedyBytes)
