@@ -248,6 +248,10 @@ class _Framer:
         self.pair_inline = False  # rows are paired as they are framed (RTU fast path)
         self.pending_unit = -1  # the last request, awaiting its answer
         self.pending_fc = -1
+        self._setup(functions)
+
+    def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
+        """What a framer of one mode keeps besides the shared state."""
 
     def feed(self, chunk: Chunk) -> None:
         if not chunk.data:
@@ -266,24 +270,8 @@ class _Framer:
 class RtuFramer(_Framer):
     """Frames one channel of RTU bytes into `out`."""
 
-    def __init__(
-        self,
-        line: LineSettings,
-        out: FrameStore,
-        *,
-        channel: int = 0,
-        direction: Direction = Direction.UNKNOWN,
-        exact_timing: bool = False,
-        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
-    ) -> None:
-        super().__init__(
-            line,
-            out,
-            channel=channel,
-            direction=direction,
-            exact_timing=exact_timing,
-            functions=functions,
-        )
+    def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
+        direction = self.direction
         self.noise_start = -1  # offset where the current noise span began
         # the exact answer length a request implies (none on a channel of requests only):
         # the registry's AnswerRule spread over lists the fast path indexes by code
@@ -691,24 +679,7 @@ class AsciiFramer(_Framer):
     """Frames one channel of Modbus ASCII: ':' opens a frame (and aborts an open one),
     CR LF closes it, the LRC is checked. Everything outside frames is noise."""
 
-    def __init__(
-        self,
-        line: LineSettings,
-        out: FrameStore,
-        *,
-        channel: int = 0,
-        direction: Direction = Direction.UNKNOWN,
-        exact_timing: bool = False,
-        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
-    ) -> None:
-        super().__init__(
-            line,
-            out,
-            channel=channel,
-            direction=direction,
-            exact_timing=exact_timing,
-            functions=functions,
-        )
+    def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
         self.open = -1  # offset of the ':' of an open frame
 
     def idle(self) -> None:
