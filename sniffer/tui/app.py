@@ -19,7 +19,7 @@ from textual import work
 from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
-from textual.widgets import ContentSwitcher, Input, Static
+from textual.widgets import Input
 from textual.worker import get_current_worker
 
 from sniffer.describe import Describer
@@ -43,10 +43,9 @@ from sniffer.tui.screens.dialogs import AskScreen, HelpScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
 from sniffer.tui.watch import Watch
-from sniffer.tui.widgets.detail import DetailPane
-from sniffer.tui.widgets.frame_list import FrameList, ListHeader
-from sniffer.tui.widgets.status import StatusBar, StatusInfo
-from sniffer.tui.widgets.units import Cache, UnitsPanel, unit_rows
+from sniffer.tui.widgets.frame_list import FrameList
+from sniffer.tui.widgets.status import StatusInfo
+from sniffer.tui.widgets.units import Cache, unit_rows
 from sniffer.tui.widgets.watch import WatchPanel
 
 Reopen = Callable[[], tuple[Session, Capture]]
@@ -124,14 +123,14 @@ class ModscopeApp(App[int]):
 
     @property
     def frames(self) -> FrameList:
-        return self.main.query_one("#frames", FrameList)
+        return self.main.frames
 
     async def on_mount(self) -> None:
         await self.push_screen(self.main)
         frames = self.frames
         frames.following = self.live is not None or self.pacing.speed is not None
         frames.focus()
-        self._start_feed()
+        self.call_after_refresh(self._start_feed)  # the first screen first
         self.set_interval(0.5, self._tick)
         self.call_after_refresh(self._header)
 
@@ -139,7 +138,9 @@ class ModscopeApp(App[int]):
         self.call_after_refresh(self._header)
 
     def _header(self) -> None:
-        self.main.query_one("#list-header", ListHeader).show(self.frames.columns())
+        if not self.main.alive:
+            return  # a resize before the main screen is up, or while leaving
+        self.main.header.show(self.frames.columns())
         self._status()
 
     # -- feeding ---------------------------------------------------------------------------
@@ -174,7 +175,7 @@ class ModscopeApp(App[int]):
             self.post_message(Indexed(FeedProgress(len(session.store), 0, True), gen))
 
     def on_indexed(self, message: Indexed) -> None:
-        if message.generation != self.generation:
+        if message.generation != self.generation or not self.main.alive:
             return
         p = message.progress
         self.model.publish(p.rows)
@@ -229,7 +230,9 @@ class ModscopeApp(App[int]):
         worker = get_current_worker()
         seen = (-1, -1.0)
         while not worker.is_cancelled:
-            more = job.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
+            model = self.model
+            final = model.done and model.shown == model.published
+            more = job.advance(model.shown, lambda: worker.is_cancelled, final=final)
             state = (len(job.rows), job.progress)
             if state != seen:
                 seen = state
@@ -242,14 +245,16 @@ class ModscopeApp(App[int]):
     def on_filter_updated(self, message: FilterUpdated) -> None:
         if message.generation != self.filter_generation or self.model.job is None:
             return
+        if not self.main.alive:
+            return
         self.model.update_view()
         self.frames.rows_changed()
         self._filter_info()
 
     def _filter_info(self) -> None:
         model = self.model
-        info = self.main.query_one("#filter-info", Static)
-        bar = self.main.query_one("#filter-bar")
+        info = self.main.filter_info
+        bar = self.main.filter_bar
         bar.set_class(model.problems_only, "-problems")
         bar.set_class(model.transactions, "-transactions")
         parts = []
@@ -269,12 +274,12 @@ class ModscopeApp(App[int]):
         if event.input.id != "filter":
             return
         event.stop()
-        bar = self.main.query_one("#filter-bar")
+        bar = self.main.filter_bar
         try:
             query = parse_query(event.value)
         except QueryError as exc:
             bar.add_class("-error")
-            self.main.query_one("#filter-info", Static).update(Text(str(exc)))
+            self.main.filter_info.update(Text(str(exc)))
             return
         bar.remove_class("-error")
         self.model.query = query
@@ -290,9 +295,9 @@ class ModscopeApp(App[int]):
         self._status()
 
     def _show_detail(self, row: int | None, *, partner_first: bool = False) -> None:
-        if self.main.query_one("#lower", ContentSwitcher).current != "detail":
+        if self.main.lower.current != "detail":
             return
-        pane = self.main.query_one("#detail", DetailPane)
+        pane = self.main.detail
         if row is None:
             pane.show(None)
             return
@@ -311,14 +316,14 @@ class ModscopeApp(App[int]):
         self.push_screen(HelpScreen())
 
     def action_edit_filter(self) -> None:
-        self.main.query_one("#filter", Input).focus()
+        self.main.filter_input.focus()
 
     def action_to_list(self) -> None:
         self.frames.focus()
 
     def action_fields(self) -> None:
-        if self.main.query_one("#lower", ContentSwitcher).current == "detail":
-            self.main.query_one("#fields").focus()
+        if self.main.lower.current == "detail":
+            self.main.detail.query_one("#fields").focus()
 
     def action_problems(self) -> None:
         self.model.problems_only = not self.model.problems_only
@@ -360,7 +365,7 @@ class ModscopeApp(App[int]):
     def action_pane(self, name: str) -> None:
         if name not in PANES:
             return
-        switcher = self.main.query_one("#lower", ContentSwitcher)
+        switcher = self.main.lower
         self.main.remove_class("-zoom")
         switcher.current = name
         if name == "detail":
@@ -473,18 +478,21 @@ class ModscopeApp(App[int]):
         self.watch_model = None
         self.units_cache = {}
         self.indexed = _Flag()
+        self.feed_note = ""
         self.pacing = Pacing(speed)
         frames = self.frames
         frames.model = self.main.model = self.model
         frames.following = True
         self._restart_filter()
         self._start_feed()
-        if self.main.query_one("#lower", ContentSwitcher).current == "watch":
+        if self.main.lower.current == "watch":
             self._start_watch()
 
     # -- periodic --------------------------------------------------------------------------
 
     def _tick(self) -> None:
+        if not self.main.alive:
+            return
         now = time.monotonic()
         mark_t, mark_rows = self._rate_mark
         if now - mark_t >= 1.0:
@@ -492,7 +500,7 @@ class ModscopeApp(App[int]):
             self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
             self._rate_mark = (now, rows)
         self._status()
-        current = self.main.query_one("#lower", ContentSwitcher).current
+        current = self.main.lower.current
         if current == "units":
             self._units()
         elif current == "watch":
@@ -529,14 +537,14 @@ class ModscopeApp(App[int]):
             losses=status.lost_bytes,
             note=self.feed_note or status.failure,
         )
-        self.main.query_one("#status", StatusBar).show(info)
+        self.main.status.show(info)
 
     def _units(self) -> None:
         model = self.model
         labels = {u: b.label for u, b in self.session.annotator.bindings.items()}
         units = list(self.session.stats.units.values())
         rows = unit_rows(units, labels, dict(model.last_answer), model.latest, self.units_cache)
-        self.main.query_one("#units", UnitsPanel).show(rows, model.latest)
+        self.main.units.show(rows, model.latest)
 
     def _start_watch(self) -> None:
         if self.watch_model is None:
@@ -562,7 +570,7 @@ class ModscopeApp(App[int]):
         watch = self.watch_model
         if watch is None:
             return
-        panel = self.main.query_one("#watch", WatchPanel)
+        panel = self.main.watch_panel
         panel.show(watch.snapshot(), self.model.latest, watch.version)
 
     def on_watch_panel_open(self, message: WatchPanel.Open) -> None:

@@ -127,21 +127,33 @@ def feed_capture(
     pacing: Pacing,
     publish: Publish,
     *,
-    every: float = 0.1,
+    every: float = 0.25,
+    first: float = 0.05,
     warnings: list[str] | None = None,
+    breather: float = 0.005,
 ) -> None:
-    """Ingest a capture in this thread, publishing progress every `every` seconds."""
+    """Ingest a capture in this thread, publishing progress after `first` seconds, then
+    every `every` seconds, and once at the end.
+
+    After each publication the thread sleeps `breather` seconds: Python runs one thread
+    at a time, and this lets the UI take the new rows and draw them at once instead of
+    waiting for its turn."""
 
     bytes_done = good_rows = 0
+    last = float("-inf")
 
     def progress(done: int, rows: int) -> None:
-        nonlocal bytes_done, good_rows
+        nonlocal bytes_done, good_rows, last
         bytes_done, good_rows = done, rows
-        if not pacing.stopped():
+        now = time.monotonic()
+        interval = every if pacing.speed is None else min(every, 0.1)  # replays look live
+        if now - last >= interval and not pacing.stopped():
+            last = now
             publish(FeedProgress(rows, done))
+            time.sleep(breather)
 
     try:
-        session.ingest(pacing.pace(chunks), progress, every=every, should_stop=pacing.stopped)
+        session.ingest(pacing.pace(chunks), progress, every=first, should_stop=pacing.stopped)
     except Exception as exc:  # a reader bug must not kill the UI: keep what was indexed
         error = f"{type(exc).__name__}: {exc}"
         publish(FeedProgress(good_rows, bytes_done, True, error))

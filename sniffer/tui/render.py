@@ -253,8 +253,9 @@ def raw_span(span: tuple[int, int], ascii_mode: bool) -> tuple[int, int]:
 
 
 def bytes_per_line(width: int) -> int:
-    """How many bytes a hex dump line of `width` cells holds (a multiple of 4)."""
-    fit = max(4, (width - 6) // 4)
+    """How many bytes a hex dump line of `width` cells holds (a multiple of 4): each
+    line is the offset (5), three cells per byte, two spaces, one cell per byte."""
+    fit = max(4, (width - 7) // 4)
     return min(32, fit - fit % 4)
 
 

@@ -319,9 +319,16 @@ class FilterJob:
         return self.scanned >= self.upto and self.checked >= len(self.candidates)
 
     def advance(
-        self, upto: int, should_stop: Callable[[], bool] | None = None, budget: float = 0.05
+        self,
+        upto: int,
+        should_stop: Callable[[], bool] | None = None,
+        budget: float = 0.05,
+        *,
+        final: bool = False,
     ) -> bool:
-        """Work for about `budget` seconds on rows below `upto`; True if work is left."""
+        """Work for about `budget` seconds on rows below `upto`; True if work is left.
+        `final`: no row will change any more (the capture is indexed), so open requests
+        at the end are taken as they are."""
         self.upto = upto
         store = self.store
         span = self.query.time
@@ -339,7 +346,7 @@ class FilterJob:
             if should_stop is not None and should_stop():
                 return True
             hi = min(limit, self.scanned + BLOCK)
-            if hi == upto:
+            if hi == upto and not final:
                 hi = self._stable(self.scanned, hi)
                 if hi <= self.scanned:
                     break

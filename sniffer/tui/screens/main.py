@@ -49,20 +49,37 @@ class MainScreen(Screen[None]):
         super().__init__(id="main")
         self.model = model
         self.blink = blink
+        # the widgets, made once: the app reaches them directly (no queries), which also
+        # keeps late messages harmless while the app is being torn down
+        self.filter_bar = Horizontal(id="filter-bar")
+        self.filter_input = Input(placeholder=FILTER_HINT, id="filter")
+        self.filter_info = Static(Text(""), id="filter-info")
+        self.header = ListHeader(id="list-header")
+        self.frames = FrameList(model, id="frames")
+        self.lower = ContentSwitcher(initial="detail", id="lower")
+        self.detail = DetailPane(id="detail")
+        self.units = UnitsPanel(id="units")
+        self.watch_panel = WatchPanel(id="watch")
+        self.status = StatusBar(id="status")
 
     def compose(self) -> ComposeResult:
-        with Horizontal(id="filter-bar"):
+        with self.filter_bar:
             yield Static(Text("filter"), id="filter-label")
-            yield Input(placeholder=FILTER_HINT, id="filter")
-            yield Static(Text(""), id="filter-info")
-        yield ListHeader(id="list-header")
-        yield FrameList(self.model, id="frames")
-        with ContentSwitcher(initial="detail", id="lower"):
-            yield DetailPane(id="detail")
-            yield UnitsPanel(id="units")
-            yield WatchPanel(id="watch")
-        yield StatusBar(id="status")
+            yield self.filter_input
+            yield self.filter_info
+        yield self.header
+        yield self.frames
+        with self.lower:
+            yield self.detail
+            yield self.units
+            yield self.watch_panel
+        yield self.status
         yield Footer()
 
+    @property
+    def alive(self) -> bool:
+        """Whether the widgets are on screen (not yet, or no longer, while tearing down)."""
+        return self.is_attached and self.frames.is_attached and self.status.is_attached
+
     def on_mount(self) -> None:
-        self.query_one("#filter", Input).cursor_blink = self.blink
+        self.filter_input.cursor_blink = self.blink

@@ -144,8 +144,8 @@ class DetailPane(Vertical):
     def _fill(self, tree: FieldTree, d: FrameDetail, partner: FrameDetail | None) -> None:
         root = tree.root
         section = tree.style("section")
-        for f in d.fields:
-            self._field(root, f, tree)
+        for f in d.fields:  # raw words folded when the registers below name them
+            self._field(root, f, tree, fold=bool(d.registers))
         if d.registers:
             node = root.add(Text(f"registers ({len(d.registers)})", section), expand=True)
             for r in d.registers:
@@ -163,11 +163,14 @@ class DetailPane(Vertical):
         if not d.fields and not d.registers and not d.problems:
             root.add_leaf(Text(plain(d.summary, 200)))
 
-    def _field(self, parent: TreeNode[Span | None], f: Field, tree: FieldTree) -> None:
+    def _field(
+        self, parent: TreeNode[Span | None], f: Field, tree: FieldTree, *, fold: bool = False
+    ) -> None:
         label = Text(plain(f.name, 60), tree.style("name"))
         label.append(": " + plain(f.text, 300))
         if f.children:
-            node = parent.add(label, data=f.span, expand=len(f.children) <= 16)
+            expand = len(f.children) <= (4 if fold else 16)
+            node = parent.add(label, data=f.span, expand=expand)
             for child in f.children:
                 self._field(node, child, tree)
         else:

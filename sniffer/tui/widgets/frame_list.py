@@ -8,6 +8,7 @@ rows keep the cursor on the last one; moving up stops following.
 
 from __future__ import annotations
 
+import time
 from typing import ClassVar
 
 from rich.style import Style
@@ -76,6 +77,8 @@ class FrameList(ScrollView, can_focus=True):
         self._styles: dict[str, Style] | None = None
         self._cols: Columns | None = None
         self._last_row: int | None = None
+        self.first_drawn: float | None = None  # perf_counter() when rows were first drawn
+        self.drawn_at = 0.0  # perf_counter() when the top line was last drawn
 
     # -- state -----------------------------------------------------------------------------
 
@@ -235,6 +238,10 @@ class FrameList(ScrollView, can_focus=True):
         base = self.rich_style
         if k >= self.count:
             return Strip.blank(width, base)
+        if y == 0:
+            self.drawn_at = time.perf_counter()
+            if self.first_drawn is None:
+                self.first_drawn = self.drawn_at
         row = self.model.view.row(k)
         key = (k, row, self.model.reader.status[row])
         strip = self._strips.get(key)

@@ -14,7 +14,20 @@ from sniffer.stats import UnitStats
 from sniffer.text import plain
 from sniffer.tui.render import ago_text
 
-COLUMNS = ("unit", "device", "state", "req", "ans", "exc", "t/o", "chk", "median", "p95", "seen")
+# fixed widths: columns that grew with whatever was shown first would jump about
+COLUMNS = (
+    ("unit", 4),
+    ("device", 16),
+    ("state", 6),
+    ("req", 7),
+    ("ans", 7),
+    ("exc", 5),
+    ("t/o", 5),
+    ("chk", 5),
+    ("median", 7),
+    ("p95", 7),
+    ("seen", 10),
+)
 SILENT_AFTER = 2.0  # seconds without an answer, at least, before a polled unit is silent
 
 
@@ -113,8 +126,12 @@ class UnitsPanel(DataTable[Text]):
     def on_mount(self) -> None:
         self.cursor_type = "row"
         self.zebra_stripes = True
-        for name in COLUMNS:
-            self.add_column(Text(name), key=name)
+        for name, width in COLUMNS:
+            self.add_column(
+                Text(name, justify="left" if name in ("device", "state") else "right"),
+                key=name,
+                width=width,
+            )
 
     def show(self, rows: list[UnitRow], now: float) -> None:
         silent = self.get_component_rich_style("units-panel--silent", partial=True)
@@ -127,7 +144,7 @@ class UnitsPanel(DataTable[Text]):
                 self.add_row(*self._cells(r, now, silent, bad), key=str(r.unit))
             return
         for r in rows:
-            for name, cell in zip(COLUMNS, self._cells(r, now, silent, bad), strict=True):
+            for (name, _), cell in zip(COLUMNS, self._cells(r, now, silent, bad), strict=True):
                 self.update_cell(str(r.unit), name, cell)
 
     def _cells(self, r: UnitRow, now: float, silent: Style, bad: Style) -> list[Text]:

@@ -13,7 +13,15 @@ from sniffer.text import plain
 from sniffer.tui.render import ago_text, sparkline
 from sniffer.tui.watch import Series, SeriesKey
 
-COLUMNS = ("unit", "register", "value", "changed", "history", "seen")
+# fixed widths: columns that grew with whatever was shown first would jump about
+COLUMNS = (
+    ("unit", 15),
+    ("register", 30),
+    ("value", 18),
+    ("changed", 10),
+    ("history", 16),
+    ("seen", 7),
+)
 SPARK_WIDTH = 16
 
 
@@ -33,8 +41,8 @@ class WatchPanel(DataTable[Text]):
         self.version = -1
 
     def on_mount(self) -> None:
-        for name in COLUMNS:
-            self.add_column(Text(name), key=name)
+        for name, width in COLUMNS:
+            self.add_column(Text(name), key=name, width=width)
 
     def show(self, series: list[Series], now: float, version: int) -> None:
         if version == self.version:
@@ -54,7 +62,7 @@ class WatchPanel(DataTable[Text]):
                 self.move_cursor(row=min(cursor, len(rows) - 1))
             return
         for s, cells in zip(series, rows, strict=True):
-            for name, cell in zip(COLUMNS, cells, strict=True):
+            for (name, _), cell in zip(COLUMNS, cells, strict=True):
                 self.update_cell(_key_text(s.key), name, cell)
 
     def _cells(self, s: Series, now: float, spark: Style, recent: Style) -> list[Text]:
