@@ -12,7 +12,8 @@ from dissectors.dictionary import DictionaryError
 from sniffer import __version__
 from sniffer.annotate import Binding, load_bindings
 from sniffer.listing import FORMATS, Lister
-from sniffer.sources import CaptureError, ReadOptions
+from sniffer.session import Session
+from sniffer.sources import Capture, CaptureError, ReadOptions
 from sniffer.text import plain
 
 EPILOG = """\
@@ -112,7 +113,10 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if use_tui:
         from sniffer.tui.app import run_tui
 
-        return run_tui(session, capture)
+        def reopen() -> tuple[Session, Capture]:
+            return open_session(path, read_options(args), bindings=bindings, timeout=args.timeout)
+
+        return run_tui(session, capture, reopen=reopen)
     show_progress = err.isatty()
 
     def progress(done: int, frames: int) -> None:

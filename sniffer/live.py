@@ -25,6 +25,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 from types import FrameType
 from typing import TextIO
 
@@ -93,6 +94,7 @@ class LiveCapture:
         self.session = session
         self.recorder = recorder
         self.notify = notify
+        self.queue_size = queue_size
         line = session.line if session is not None else reader.specs[0].line
         self.quiet = quiet if quiet is not None else max(line.t35, IDLE_QUIET)
         self.messages: deque[str] = deque(maxlen=200)
@@ -142,6 +144,42 @@ class LiveCapture:
         if self.recorder is not None:
             self.recorder.close(self.reader.clock.now())
         return rows
+
+    # -- recording on demand (the TUI's `r`) ----------------------------------------------
+
+    def start_recording(self, path: str | Path) -> Recorder:
+        """Record from now on into `path` (pcapng, link type 250), while reading goes on.
+        RecordError if the file cannot be written or a recording is already running."""
+        with self._lock:
+            if self.recorder is not None:
+                raise RecordError(f"already recording to {self.recorder.path}; stop it first")
+            recorder = Recorder(path, self.reader.specs)
+            self.recorder = recorder
+            self._rec_feed = self.reader.attach(self.queue_size)
+            self._rec_thread = threading.Thread(
+                target=self._record, name="modscope-recorder", daemon=True
+            )
+            self._rec_thread.start()
+        return recorder
+
+    def stop_recording(self) -> list[Path]:
+        """Finish the running recording (everything read so far is written); its files."""
+        with self._lock:
+            recorder, feed, thread = self.recorder, self._rec_feed, self._rec_thread
+            self.recorder, self._rec_feed, self._rec_thread = None, None, None
+        if recorder is None or feed is None:
+            return []
+        self.reader.detach(feed)
+        if thread is not None:
+            thread.join(30)
+        recorder.close(self.reader.clock.now())
+        return list(recorder.files)
+
+    @property
+    def lost_bytes(self) -> int:
+        """Bytes the display and the recording could not keep up with, together."""
+        feeds = (self.feed, self._rec_feed)
+        return sum(f.lost_bytes for f in feeds if f is not None)
 
     @property
     def running(self) -> bool:
@@ -414,6 +452,8 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             exporter = PcapExporter(pcap_file, session.describer, specs[0].line, name=specs[0].name)
         capture.start()
         if use_tui:
+            # what the ports said while opening shows in the TUI, not behind it
+            capture.messages.extend(f"warning: {w}" for w in reader.warnings)
             run_tui: Callable[..., int] = importlib.import_module("sniffer.tui.app").run_tui
             return run_tui(session, None, live=capture)
         _announce(err, "listening on", specs, recorder)
@@ -523,9 +563,8 @@ def _status(capture: LiveCapture) -> str:
     if rec is not None:
         where = str(rec.files[-1]) if rec.files else "stdout"
         parts.append(f"{rec.packets:,} packets to {where}")
-    feed = capture._rec_feed
-    if feed is not None and feed.lost_bytes:
-        parts.append(f"{feed.lost_bytes:,} bytes lost")
+    if capture.lost_bytes:
+        parts.append(f"{capture.lost_bytes:,} bytes lost")
     if any(not s.connected for s in stats):
         parts.append("waiting for a lost port")
     return "; ".join(parts)

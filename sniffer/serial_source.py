@@ -449,6 +449,19 @@ class LiveReader:
         self.feeds.append(feed)
         return feed
 
+    def attach(self, maxsize: int = DEFAULT_QUEUE) -> ChunkFeed:
+        """A feed for a consumer that joins while the ports are being read (a recording
+        started from the TUI). The list is replaced, not changed, so the reading threads
+        never see it half-updated."""
+        feed = ChunkFeed(maxsize, self.clock)
+        self.feeds = [*self.feeds, feed]
+        return feed
+
+    def detach(self, feed: ChunkFeed) -> None:
+        """Stop offering chunks to `feed` and close it (what it holds can still be read)."""
+        self.feeds = [f for f in self.feeds if f is not feed]
+        feed.close()
+
     def start(self) -> None:
         if self._started:
             return

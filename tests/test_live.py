@@ -19,9 +19,11 @@ from sniffer.cli import main
 from sniffer.framing import Kind
 from sniffer.live import LiveCapture, parse_roles
 from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.recorder import RecordError
 from sniffer.serial_source import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events
 from sniffer.serial_source import _Counters as Counters
 from sniffer.session import Session
+from sniffer.sources import open_capture
 from sniffer.store import Status
 from tests.virtual_bus import Made, VirtualBus, wait_ready
 
@@ -311,3 +313,34 @@ def test_duration_ends_a_capture_by_itself(bus: VirtualBus, tmp_path: Path) -> N
     assert time.monotonic() - started < 10
     assert "0 bytes in 0 reads" in result.stderr
     assert rec.read_bytes()[:4] == b"\x0a\x0d\x0d\x0a"
+
+
+def test_recording_starts_and_stops_while_listening(bus: VirtualBus, tmp_path: Path) -> None:
+    """The TUI's `r`: a recording joins a running capture and holds exactly what was
+    read between start and stop."""
+    tap = bus.attach("tap")
+    bus.attach("master")
+    reader = LiveReader([PortSpec(str(tap), LINE)])
+    session = Session(LINE)
+    capture = LiveCapture(reader, session)
+    capture.start()
+    before, during, after = req(1, 3, 0, 1), req(2, 3, 0, 2), req(3, 3, 0, 3)
+    path = tmp_path / "on-demand.pcapng"
+    try:
+        bus.inject(before, source="master")
+        pump_until(capture, lambda: len(session.store) >= 1)
+        recorder = capture.start_recording(path)
+        with pytest.raises(RecordError, match="already recording"):
+            capture.start_recording(tmp_path / "second.pcapng")
+        bus.inject(during, source="master")
+        pump_until(capture, lambda: len(session.store) >= 2)
+        time.sleep(0.3)  # the recorder gathers reads before it writes them
+        files = capture.stop_recording()
+        assert capture.recorder is None and files == [path] == recorder.files
+        bus.inject(after, source="master")
+        pump_until(capture, lambda: len(session.store) >= 3)
+    finally:
+        capture.stop()
+    recorded = open_capture(path)
+    assert b"".join(c.data for c in recorded.chunks() if not c.event) == during
+    assert recorded.info.line == LINE

@@ -12,6 +12,8 @@ from textual.pilot import Pilot
 from textual.widgets import ContentSwitcher, Input, Static
 
 from sniffer.model import Chunk, SourceInfo
+from sniffer.recorder import Recorder
+from sniffer.serial_source import PortSpec
 from sniffer.session import Session
 from sniffer.sources import Capture
 from sniffer.tui.app import ModscopeApp
@@ -504,6 +506,52 @@ async def test_live_rows_arrive_followed_and_pause_freezes_the_view() -> None:
         assert app.frames.cursor_row == 16
         await pilot.press("s")
         assert app.pacing.speed is None
+
+
+class RecordingLive(FakeLive):
+    """A live source that can record, like `sniffer.live.LiveCapture`."""
+
+    def __init__(self, session: Session, folder: Path) -> None:
+        super().__init__(session)
+        self.folder = folder
+        self.recorder: Recorder | None = None
+
+    def start_recording(self, path: Path) -> Recorder:
+        self.recorder = Recorder(path, [PortSpec("/dev/ttyUSB0", LINE)])
+        return self.recorder
+
+    def stop_recording(self) -> list[Path]:
+        recorder, self.recorder = self.recorder, None
+        assert recorder is not None
+        recorder.close()
+        return list(recorder.files)
+
+
+async def test_r_starts_and_stops_a_recording_of_the_live_line(tmp_path: Path) -> None:
+    session = Session(LINE, exact_timing=True, source="/dev/ttyUSB0")
+    live = RecordingLive(session, tmp_path)
+    app = ModscopeApp(session, live=live)
+    target = tmp_path / "from-the-tui.pcapng"
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("r")
+        await pilot.pause()
+        assert isinstance(app.screen, AskScreen)
+        app.screen.query_one(Input).value = str(target)
+        await pilot.press("enter")
+        await wait_said(pilot, app, f"recording to {target}")
+        assert live.recorder is not None and target.exists()
+        assert "from-the-tui.pcapng" in screen_text(app)  # the status bar names it
+        await pilot.press("r")
+        await wait_said(pilot, app, f"recording stopped: {target}")
+        assert live.recorder is None
+
+
+async def test_r_on_a_capture_file_explains_instead() -> None:
+    session = Session(LINE, exact_timing=True, source="hostile.pcapng")
+    app = ModscopeApp(session, capture_of(hostile_chunks()))
+    async with app.run_test(size=SIZE) as pilot:
+        await pilot.press("r")
+        await wait_said(pilot, app, "recording is for a live line")
 
 
 async def test_s_replays_at_the_original_speed() -> None:

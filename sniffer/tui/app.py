@@ -25,6 +25,7 @@ from textual.worker import get_current_worker
 from sniffer.describe import Describer
 from sniffer.listing import FORMATS, Lister
 from sniffer.model import Chunk
+from sniffer.recorder import RecordError
 from sniffer.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
 from sniffer.tui.feed import (
@@ -32,6 +33,7 @@ from sniffer.tui.feed import (
     LiveSource,
     LiveStatus,
     Pacing,
+    Recordable,
     feed_capture,
     feed_live,
     live_status,
@@ -421,6 +423,42 @@ class ModscopeApp(App[int]):
                 self.frames.action_follow()
         else:
             self.pacing.speed = None
+        self._status()
+
+    def action_record(self) -> None:
+        """Start recording the live line to a file, or stop the running recording."""
+        live = self.live
+        if live is None or not isinstance(live, Recordable):
+            self.say(
+                "recording is for a live line (modscope live PORT); this capture is a file "
+                "already: e exports the rows shown"
+            )
+            return
+        if getattr(live, "recorder", None) is not None:
+            files = live.stop_recording()
+            where = ", ".join(str(f) for f in files) or "nothing written"
+            self.say(f"recording stopped: {where}")
+            self._status()
+            return
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        self.push_screen(
+            AskScreen(
+                "record the line from now on to (pcapng; r again stops)",
+                value=f"modscope-{stamp}.pcapng",
+            ),
+            self._record,
+        )
+
+    def _record(self, answer: str | None) -> None:
+        live = self.live
+        if not answer or not isinstance(live, Recordable):
+            return
+        try:
+            recorder = live.start_recording(Path(answer).expanduser())
+        except RecordError as exc:
+            self.say(str(exc), severity="error")
+            return
+        self.say(f"recording to {recorder.files[-1] if recorder.files else answer}")
         self._status()
 
     def action_export(self) -> None:

@@ -13,9 +13,11 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import Protocol
+from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 from sniffer.model import Chunk
+from sniffer.recorder import Recorder
 from sniffer.session import Session
 
 
@@ -31,6 +33,17 @@ class LiveSource(Protocol):
     """
 
     def pump(self, timeout: float = ...) -> range: ...
+
+
+@runtime_checkable
+class Recordable(Protocol):
+    """A live source that can start and stop a recording while it runs (`r`)."""
+
+    recorder: Recorder | None
+
+    def start_recording(self, path: Path) -> Recorder: ...
+
+    def stop_recording(self) -> list[Path]: ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,7 +67,7 @@ def live_status(source: object) -> LiveStatus:
             size = os.stat(recording).st_size
         except OSError:
             size = None
-    lost = int(getattr(getattr(source, "feed", None), "lost_bytes", 0) or 0)
+    lost = int(getattr(source, "lost_bytes", 0) or 0)
     failure = str(getattr(source, "failure", "") or "")
     return LiveStatus(recording, size, lost, failure)
 

@@ -28,6 +28,7 @@ modscope: keys
   d u w                lower pane: details / units / register watch
   z                    hide the lower pane (more frames on screen)
   e                    export the rows shown (.jsonl, .csv, else text)
+  r                    live: start recording the line to a file, or stop it
   ?                    this help        q  quit
 
 filter language (terms separated by spaces, all must hold)

@@ -33,6 +33,7 @@ class MainScreen(Screen[None]):
         Binding("p", "app.partner", "pair"),
         Binding("g", "app.go_to", "go to"),
         Binding("e", "app.export", "export"),
+        Binding("r", "app.record", "record"),
         Binding("u", "app.pane('units')", "units"),
         Binding("w", "app.pane('watch')", "watch"),
         Binding("d", "app.pane('detail')", "detail"),
