@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from array import array
 from collections import Counter
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -18,8 +19,8 @@ class UnitStats:
     exceptions: Counter[int] = field(default_factory=Counter)
     timeouts: int = 0
     check_errors: int = 0
-    latencies: list[float] = field(default_factory=list)  # seconds
-    request_times: list[float] = field(default_factory=list)
+    latencies: array[float] = field(default_factory=lambda: array("d"))  # seconds
+    request_times: array[float] = field(default_factory=lambda: array("d"))
     last_seen: float = 0.0
 
     @property
@@ -41,6 +42,12 @@ class UnitStats:
             return None
         gaps = sorted(b - a for a, b in pairwise(times))
         return gaps[len(gaps) // 2]
+
+
+NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)
+EXCEPTION, EVENT = int(Kind.EXCEPTION), int(Kind.EVENT)
+BAD_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX)
+TIMEOUT, OPEN = Status.TIMEOUT, Status.OPEN
 
 
 class Stats:
@@ -71,36 +78,40 @@ class Stats:
                 self._open.discard(i)
                 if s.status[i] == Status.TIMEOUT:
                     self.unit(s.unit[i]).timeouts += 1
+        kind, unit, flags, status = s.kind, s.unit, s.flags, s.status
+        t, t_end, fc, partner = s.t, s.t_end, s.fc, s.partner
+        units = self.units
         for i in range(self.next, len(s)):
-            k = s.kind[i]
-            if k == Kind.NOISE:
+            k = kind[i]
+            if k == NOISE:
                 self.noise_spans += 1
                 self.noise_bytes += s.length[i]
                 continue
-            if k == Kind.EVENT:
+            if k == EVENT:
                 self.events += 1
                 continue
-            st = self.unit(s.unit[i])
-            st.last_seen = s.t_end[i]
-            if s.flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
+            u = unit[i]
+            st = units.get(u) or self.unit(u)
+            st.last_seen = t_end[i]
+            if flags[i] & BAD_CHECK:
                 st.check_errors += 1
                 continue
-            if k == Kind.REQUEST:
+            if k == REQUEST:
                 st.requests += 1
-                st.request_times.append(s.t[i])
-                if s.status[i] == Status.TIMEOUT:
+                st.request_times.append(t[i])
+                state = status[i]
+                if state == TIMEOUT:
                     st.timeouts += 1
-                elif s.status[i] == Status.OPEN:
+                elif state == OPEN:
                     self._open.add(i)
-            elif k in (Kind.RESPONSE, Kind.EXCEPTION):
+            elif k in (RESPONSE, EXCEPTION):
                 st.responses += 1
-                fc = s.fc[i]
-                if fc & 0x80:
+                if fc[i] & 0x80:
                     body = s.view(i).body()
                     st.exceptions[body[2] if len(body) > 2 else 0] += 1
-                j = s.partner[i]
+                j = partner[i]
                 if j != NO_PARTNER:
-                    st.latencies.append(s.t[i] - s.t_end[j])
+                    st.latencies.append(t[i] - t_end[j])
         self.next = len(s)
 
     def table(self, labels: dict[int, str] | None = None) -> str:
