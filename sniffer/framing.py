@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import enum
 from bisect import bisect_left, bisect_right
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from dissectors.checks import crc16, lrc
 from dissectors.functions import (
@@ -300,6 +300,17 @@ class RtuFramer(_Framer):
                 continue
             self.request_base[code] = r.base
             self.request_count[code] = r.count_pos if r.count_size else 0
+        self.tables = (
+            self.request_base,
+            self.request_count,
+            self.answer_pos,
+            self.answer_base,
+            self.answer_item,
+            self.answer_up,
+            self.answer_byte,
+        )
+        self._appenders_of: FrameStore | None = None  # the store `_appenders` write into
+        self._appenders: tuple[Callable[[Any], None], ...] = ()
         self.pending_len = 0
         self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
         self.pair_inline = True  # off while `out` is a staging store (several channels)
@@ -321,10 +332,15 @@ class RtuFramer(_Framer):
     def _scan_bytes(self, buf: bytearray, final: bool) -> None:
         end = len(buf)
         pos = self.pos
-        request_base = self.request_base
-        request_count = self.request_count
-        answer_pos, answer_base = self.answer_pos, self.answer_base
-        answer_item, answer_up, answer_byte = self.answer_item, self.answer_up, self.answer_byte
+        (
+            request_base,
+            request_count,
+            answer_pos,
+            answer_base,
+            answer_item,
+            answer_up,
+            answer_byte,
+        ) = self.tables
         check = crc16
         tl = self.timeline
         out = self.out
@@ -332,13 +348,18 @@ class RtuFramer(_Framer):
         # the newest chunk's timing, for the inline time estimate of frames inside it
         cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
         # row columns, appended inline on the fast paths
-        a_off, a_len, a_t, a_te = (
-            out.offset.append,
-            out.length.append,
-            out.t.append,
-            out.t_end.append,
-        )
-        a_kind, a_unit, a_fc = out.kind.append, out.unit.append, out.fc.append
+        if self._appenders_of is not out:
+            self._appenders_of = out
+            self._appenders = (
+                out.offset.append,
+                out.length.append,
+                out.t.append,
+                out.t_end.append,
+                out.kind.append,
+                out.unit.append,
+                out.fc.append,
+            )
+        a_off, a_len, a_t, a_te, a_kind, a_unit, a_fc = self._appenders
         pairs_append = self.pairs.append
         row = len(out.t)
         pr = self.pending_row if self.pair_inline else -1
