@@ -372,16 +372,30 @@ class RtuFramer(_Framer):
         while end - pos >= MIN_RTU:
             unit = buf[pos]
             fc = buf[pos + 1]
-            found = 0
-            kind = 0
             # fast path 1: the answer the open request predicts, or its exception
-            if unit == pu and fc in (pf, pfx):
+            # (two comparisons, not `in (pf, pfx)`: that builds a tuple, which the GC counts)
+            if unit == pu and (fc == pf or fc == pfx):  # noqa: SIM109
                 length = pl if fc == pf else EXCEPTION_LENGTH
-                if pos + length > end and not final:
-                    break  # wait for the rest of it
-                if pos + length <= end and check(buf[pos : pos + length]) == 0:
-                    found = length
-                    kind = 2 if fc == pf else 3  # Kind.RESPONSE, Kind.EXCEPTION
+                stop = pos + length
+                if stop > end:
+                    if not final:
+                        break  # wait for the rest of it
+                elif inline and pos >= cur_start and check(buf[pos:stop]) == 0:
+                    t0 = cur_t0 + (pos - cur_start) * cur_rate
+                    a_off(pos)
+                    a_len(length)
+                    a_t(t0)
+                    a_te(t0 + length * cur_rate)
+                    a_kind(2 if fc == pf else 3)  # Kind.RESPONSE, Kind.EXCEPTION
+                    a_unit(unit)
+                    a_fc(fc)
+                    if pr >= 0:
+                        pairs_append(pr)  # this row answers row pr
+                        pairs_append(row)
+                    pr = pu = -1
+                    row += 1
+                    pos = stop
+                    continue
             # fast path 2: a request, when no answer is predicted for it
             elif inline:
                 length = request_base[fc]
@@ -391,50 +405,43 @@ class RtuFramer(_Framer):
                         if pos + cpos >= end and not final:
                             break
                         length += buf[pos + cpos] if pos + cpos < end else 0
-                    if pos + length > end and not final:
-                        break
-                    if pos + length <= end and check(buf[pos : pos + length]) == 0:
-                        found = length
-                        kind = 1  # Kind.REQUEST
-            if found and inline and pos >= cur_start:
-                a_off(pos)
-                a_len(found)
-                a_t(cur_t0 + (pos - cur_start) * cur_rate)
-                a_te(cur_t0 + (pos + found - cur_start) * cur_rate)
-                a_kind(kind)
-                a_unit(unit)
-                a_fc(fc)
-                if kind != 1 and pr >= 0:
-                    pairs_append(pr)  # this row answers row pr
-                    pairs_append(row)
-                pr = -1
-                pu = -1
-                if kind == 1 and unit:
-                    pr = row
-                    ap = answer_pos[fc]
-                    if ap >= 0:
-                        pl = (
-                            answer_base[fc]
-                            + (
-                                (buf[pos + ap] << 8 | buf[pos + ap + 1]) * answer_item[fc]
-                                + answer_up[fc]
-                            )
-                            // answer_byte[fc]
-                        )
-                        pu, pf, pfx = unit, fc, fc | 0x80
-                    elif ap == FIXED:
-                        pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
-                    elif ap == ECHO:
-                        pu, pf, pfx, pl = unit, fc, fc | 0x80, found
-                    elif ap == WALKED:
-                        walked = self._predict(buf, pos, found, fc)
-                        if walked is not None:
-                            pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
-                    if pl > MAX_RTU:
-                        pu = -1
-                row += 1
-                pos += found
-                continue
+                    stop = pos + length
+                    if stop > end:
+                        if not final:
+                            break
+                    elif pos >= cur_start and check(buf[pos:stop]) == 0:
+                        t0 = cur_t0 + (pos - cur_start) * cur_rate
+                        a_off(pos)
+                        a_len(length)
+                        a_t(t0)
+                        a_te(t0 + length * cur_rate)
+                        a_kind(1)  # Kind.REQUEST
+                        a_unit(unit)
+                        a_fc(fc)
+                        pr = pu = -1
+                        if unit:  # a broadcast gets no answer
+                            pr = row
+                            ap = answer_pos[fc]
+                            if ap >= 0:
+                                q = buf[pos + ap] << 8 | buf[pos + ap + 1]
+                                pl = (
+                                    answer_base[fc]
+                                    + (q * answer_item[fc] + answer_up[fc]) // answer_byte[fc]
+                                )
+                                pu, pf, pfx = unit, fc, fc | 0x80
+                            elif ap == FIXED:
+                                pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
+                            elif ap == ECHO:
+                                pu, pf, pfx, pl = unit, fc, fc | 0x80, length
+                            elif ap == WALKED:
+                                walked = self._predict(buf, pos, length, fc)
+                                if walked is not None:
+                                    pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
+                            if pl > MAX_RTU:
+                                pu = -1
+                        row += 1
+                        pos = stop
+                        continue
             self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
             self.pending_row = pr
             found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
