@@ -241,17 +241,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _extra_commands() -> list[
     Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]
 ]:
-    """Commands that live in their own modules (live capture, export, the TUI)."""
-    found = []
-    for module in ("sniffer.live", "sniffer.export", "sniffer.tui.commands"):
-        try:
-            mod = __import__(module, fromlist=["register"])
-        except ModuleNotFoundError as exc:
-            if exc.name != module:
-                raise
-            continue
-        found.append(mod.register)
-    return found
+    """Commands that live in their own modules (live capture, export, the TUI). Imported
+    here, not at the top: those modules build on this one's option helpers."""
+    from sniffer import export, live
+    from sniffer.tui import commands
+
+    return [live.register, export.register, commands.register]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
