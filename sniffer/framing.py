@@ -27,7 +27,8 @@ from dissectors.functions import (
     NEED_MORE,
     AnswerRule,
     FunctionSpec,
-    Walker,
+    LengthRule,
+    fixed,
 )
 from sniffer.model import Chunk, Direction, LineSettings
 
@@ -81,8 +82,9 @@ class Flag(enum.IntFlag):
 # Pairing and device-timing flags are set later, on stored frames.
 PROBLEM_MASK = (1 << 24) - 1 - Flag.SILENCE_FRAMED
 
-# A rule as the hot loop wants it: (base, count_pos, count_size, walker, kind)
-_Rule = tuple[int, int, int, Walker | None, int]
+# A length rule and the kind of frame it describes (the fast paths use their own tables)
+_Rule = tuple[LengthRule, int]
+_EXCEPTION_RULE: _Rule = (fixed(EXCEPTION_LENGTH), int(Kind.EXCEPTION))
 
 
 def _compile_rules(
@@ -92,15 +94,13 @@ def _compile_rules(
     for code, spec in functions.items():
         rules: list[_Rule] = []
         if spec.request_length is not None and direction != Direction.SLAVE:
-            r = spec.request_length
-            rules.append((r.base, r.count_pos, r.count_size, r.walker, int(Kind.REQUEST)))
+            rules.append((spec.request_length, int(Kind.REQUEST)))
         if spec.response_length is not None and direction != Direction.MASTER:
-            r = spec.response_length
-            rules.append((r.base, r.count_pos, r.count_size, r.walker, int(Kind.RESPONSE)))
+            rules.append((spec.response_length, int(Kind.RESPONSE)))
         table[code] = tuple(rules)
     if direction != Direction.MASTER:
         for code in range(1, 128):
-            table[code | 0x80] = ((EXCEPTION_LENGTH, 0, 0, None, int(Kind.EXCEPTION)),)
+            table[code | 0x80] = (_EXCEPTION_RULE,)
     return table
 
 
@@ -153,10 +153,13 @@ class _Timeline:
         self.cur_rate = (chunk.t_end - t_start) / n if n else 0.0
         if gap >= self.t35:
             self.boundaries.append(start)
-        if chunk.event and n:
-            self.line_errors.update(range(start, start + n))
         self.offset += n
         self.last_end = chunk.t_end
+
+    def mark_error(self) -> None:
+        """The last byte read had a framing or parity error."""
+        if self.offset:
+            self.line_errors.add(self.offset - 1)
 
     def _span(self, pos: int) -> _Span:
         k = bisect_right(self.starts, pos) - 1
@@ -262,6 +265,11 @@ class _Framer:
 
     def finish(self) -> None:
         self._scan(final=True)
+
+    def line_error(self) -> None:
+        """The source says the last byte fed came with a framing or parity error: the
+        frame or noise span that ends up holding it is flagged."""
+        self.timeline.mark_error()
 
     def _scan(self, final: bool) -> None:
         raise NotImplementedError
@@ -514,23 +522,13 @@ class RtuFramer(_Framer):
                 cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
             else:
                 cands.append((self.pending_len, 0, int(Kind.RESPONSE)))
-        for base, cpos, csize, walker, rkind in self.rules[fc]:
-            if walker is not None:
-                length = walker(buf, pos, end)
-                if length == IMPOSSIBLE:
-                    continue
-                if length == NEED_MORE:
-                    waiting = waiting or not final
-                    continue
-            elif csize == 0:
-                length = base
-            elif pos + cpos + csize > end:
+        for rule, rkind in self.rules[fc]:
+            length = rule.length(buf, pos, end)
+            if length == IMPOSSIBLE:
+                continue
+            if length == NEED_MORE:
                 waiting = waiting or not final
                 continue
-            elif csize == 1:
-                length = base + buf[pos + cpos]
-            else:
-                length = base + (buf[pos + cpos] << 8 | buf[pos + cpos + 1])
             if MIN_RTU <= length <= MAX_RTU:
                 cands.append((length, PREFERENCE[rkind], rkind))
         if len(cands) > 1:
@@ -645,16 +643,7 @@ class RtuFramer(_Framer):
         predicted = EXCEPTION_LENGTH if fc & 0x80 else self.pending_len
         if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc and length == predicted:
             return True
-        for base, cpos, csize, walker, _ in self.rules[fc]:
-            if walker is None and csize == 0 and base == length:
-                return True
-            if walker is None and csize and start + cpos + csize <= len(buf):
-                count = buf[start + cpos]
-                if csize == 2:
-                    count = count << 8 | buf[start + cpos + 1]
-                if base + count == length:
-                    return True
-        return False
+        return any(rule.length(buf, start, len(buf)) == length for rule, _ in self.rules[fc])
 
     def _kind_of(self, start: int) -> int:
         fc = self.stream[start + 1]
@@ -662,7 +651,7 @@ class RtuFramer(_Framer):
             return int(Kind.EXCEPTION)
         if self.stream[start] == self.pending_unit and fc == self.pending_fc:
             return int(Kind.RESPONSE)
-        kinds = {rule[4] for rule in self.rules[fc]}
+        kinds = {kind for _, kind in self.rules[fc]}
         if int(Kind.REQUEST) in kinds:
             return int(Kind.REQUEST)
         if kinds:
@@ -794,17 +783,8 @@ class AsciiFramer(_Framer):
         else:
             kind = int(Kind.UNKNOWN)
             matches = set()
-            for base, cpos, csize, walker, rkind in self.rules[fc]:
-                if walker is not None:
-                    n = walker(body, 0, len(body))
-                elif csize == 0:
-                    n = base
-                elif cpos + csize <= len(body):
-                    count = body[cpos] if csize == 1 else body[cpos] << 8 | body[cpos + 1]
-                    n = base + count
-                else:
-                    continue
-                if n == length:
+            for rule, rkind in self.rules[fc]:
+                if rule.length(body, 0, len(body)) == length:
                     matches.add(rkind)
             if int(Kind.REQUEST) in matches:
                 kind = int(Kind.REQUEST)

@@ -17,6 +17,7 @@ from sniffer.pairing import Pairer, default_timeout
 from sniffer.store import FrameStore
 
 CAPTURE_COMPLETE = "capture complete"  # a source's last word: when the capture ended
+BYTE_ERRORS = ("framing error", "parity error")  # events about the byte before them
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 
@@ -76,6 +77,8 @@ class Pipeline:
             # the recorder stopped here: requests still open by then have timed out
             self.pairer.end_time = max(self.pairer.end_time, chunk.t_end)
             return
+        if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
+            ch.framer.line_error()  # exact sources report it right after its byte
         if chunk.event and not chunk.data:
             text = chunk.event + (f": {chunk.note}" if chunk.note else "")
             (ch.staging if ch.staging is not None else self.store).add_event(

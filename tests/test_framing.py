@@ -397,3 +397,21 @@ def test_stress_stream_at_one_million_frames() -> None:
     recovered, spurious, reported = _stress(1_000_000)
     assert recovered >= 0.999
     assert spurious / reported < 1 / 10_000
+
+
+def test_a_byte_with_a_parity_error_flags_the_frame_that_holds_it() -> None:
+    """An exact source (logic analyser) reports the error right after its byte."""
+    bad = bytearray(READ_RESP)
+    bad[4] ^= 0x01  # the byte the UART saw with wrong parity
+    chunks = []
+    for start, frame in ((0.0, READ_REQ), (0.02, bytes(bad)), (0.04, READ_REQ)):
+        for k, b in enumerate(frame):
+            t0 = start + k * CHAR
+            chunks.append(Chunk(bytes([b]), t_start=t0, t_end=t0 + CHAR))
+            if start == 0.02 and k == 4:
+                chunks.append(Chunk(b"", t_end=t0 + CHAR, event="parity error"))
+    store = frame_capture(chunks, RTU, exact_timing=True)
+    found = [r for r in rows(store) if r.kind != Kind.EVENT]
+    assert [r.raw for r in found] == [READ_REQ, bytes(bad), READ_REQ]
+    assert [bool(r.flags & Flag.LINE_ERROR) for r in found] == [False, True, False]
+    assert Kind.EVENT in {Kind(k) for k in store.kind}  # and the event stays in the listing
