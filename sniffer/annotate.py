@@ -25,8 +25,9 @@ from dissectors.dictionary import (
 )
 from dissectors.dictionary.device import Window
 from dissectors.dictionary.vendor import FIELD_SIZES, VendorField
+from dissectors.dissect import dissect
 from dissectors.functions import AnswerRule, FunctionSpec, fixed
-from dissectors.values import Dissection, RegisterData
+from dissectors.values import Dissection, RegisterData, Role
 from sniffer.framing import Flag, Kind
 from sniffer.store import NO_PARTNER, FrameStore
 
@@ -89,9 +90,11 @@ class Annotator:
         self.next = 0
         self.tracks: dict[tuple[int, int], _WindowTrack] = {}
         self.last_write: dict[int, tuple[float, int]] = {}  # unit -> (time, fc) of a write
+        self.windows_of: dict[int, list[_WindowTrack]] = {}
         for unit, b in self.bindings.items():
             for n, window in enumerate(b.dictionary.windows):
-                self.tracks[(unit, n)] = _WindowTrack(window)
+                track = self.tracks[(unit, n)] = _WindowTrack(window)
+                self.windows_of.setdefault(unit, []).append(track)
 
     def label(self, unit: int) -> str:
         b = self.bindings.get(unit)
@@ -123,16 +126,17 @@ class Annotator:
             last = self.last_write.get(unit)
             if last is not None and store.t[i] - last[0] < timing.quiet_after_write_ms / 1000:
                 store.flags[i] |= Flag.QUIET_VIOLATED
-        fc = store.fc[i]
-        if fc in (6, 16) and store.flags[i] & Flag.CHECK_BAD == 0:
-            body = store.view(i).body()
-            for (u, _), track in self.tracks.items():
-                if u != unit:
+        tracks = self.windows_of.get(unit)
+        if tracks and not store.flags[i] & Flag.CHECK_BAD:
+            # what the request writes, as the dissector reads it (FC 6, 16, 23)
+            for data in dissect(store.view(i).body(), Role.REQUEST).data:
+                if not data.write or data.address is None or data.table != "holding_registers":
                     continue
-                number = _written_word(body, fc, track.window.select)
-                if number is not None:
-                    track.rows.append(i)
-                    track.numbers.append(number)
+                for track in tracks:
+                    k = track.window.select - data.address
+                    if 0 <= k < len(data.values):
+                        track.rows.append(i)
+                        track.numbers.append(data.values[k])
 
     def _answer(self, store: FrameStore, i: int, unit: int) -> None:
         timing = self.bindings[unit].dictionary.timing
@@ -238,19 +242,3 @@ def vendor_functions(
 
 def _covers(start: int, count: int, address: int) -> bool:
     return start <= address < start + count
-
-
-def _written_word(body: bytes, fc: int, address: int) -> int | None:
-    """The value a FC 6 or FC 16 request writes to `address`, if it does."""
-    if fc == 6 and len(body) >= 6:
-        if int.from_bytes(body[2:4], "big") == address:
-            return int.from_bytes(body[4:6], "big")
-        return None
-    if fc == 16 and len(body) >= 7:
-        start = int.from_bytes(body[2:4], "big")
-        count = int.from_bytes(body[4:6], "big")
-        if start <= address < start + count:
-            pos = 7 + 2 * (address - start)
-            if pos + 2 <= len(body):
-                return int.from_bytes(body[pos : pos + 2], "big")
-    return None

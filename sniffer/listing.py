@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import io
 import json
 from collections.abc import Iterable
 from datetime import UTC, datetime
@@ -181,9 +180,3 @@ class Lister:
             if flush:
                 self.out.flush()
         return n
-
-
-def listing_text(describer: Describer, rows: Iterable[int], fmt: str = "text") -> str:
-    buf = io.StringIO()
-    Lister(buf, fmt, describer).write(rows, flush=False)
-    return buf.getvalue()

@@ -139,7 +139,3 @@ def replay_file(
     session.ingest(capture.chunks(), progress)
     session.warnings.extend(capture.warnings)
     return session
-
-
-def whole(store: FrameStore) -> range:
-    return range(len(store))
