@@ -89,9 +89,35 @@ class Chunk:
     note: str = ""
 
 
+class Stamp(enum.Enum):
+    """What a source's timestamps mean. Pairing and latency use it to decide what the
+    timing can measure: only EXACT and READ_END stamps follow the wire closely enough to
+    compute gaps; the others can order frames but bound latencies only loosely."""
+
+    EXACT = "exact"  # per character, start and end (logic analyser, RTAC records)
+    READ_END = "read-end"  # when a host read returned (serial port; bursts of up to ~16 ms)
+    FRAME_START = "frame-start"  # when the frame's first byte was seen
+    FRAME_END = "frame-end"  # when the frame's last byte was seen
+    PRINT = "print"  # when a logger printed the line: before or after the frame's end
+    NONE = "none"  # no timestamps at all: any time shown is synthetic
+
+
+class Labels(enum.Enum):
+    """How far a source's direction labels can be trusted."""
+
+    NONE = "none"  # no labels
+    CERTAIN = "certain"  # one probe or port per direction: the wire says who sent it
+    HINT = "hint"  # a logger's own sends vs receives, EPB flags, dump markers: usually right
+
+
 @dataclass(frozen=True, slots=True)
 class SourceInfo:
-    """What a capture reader learned about its file: format, settings, warnings."""
+    """What a capture reader learned about its file: format, settings, warnings.
+
+    `stamps` says what the timestamps mean and `resolution` how fine they are (seconds;
+    0 when exact, 1e-3 for a logger printing milliseconds); `labels` how far the
+    direction carried by the chunks can be trusted.
+    """
 
     path: str
     format: str
@@ -99,3 +125,6 @@ class SourceInfo:
     exact_timing: bool = False
     channels: dict[int, str] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    stamps: Stamp = Stamp.READ_END
+    resolution: float = 0.0
+    labels: Labels = Labels.NONE
