@@ -28,8 +28,8 @@ from dissectors.dictionary.vendor import FIELD_SIZES, VendorField
 from dissectors.dissect import dissect
 from dissectors.functions import AnswerRule, FunctionSpec, fixed
 from dissectors.values import Dissection, RegisterData, Role
-from sniffer.framing import Flag, Kind
 from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.vocab import Flag, Kind
 
 REGISTER_TABLES = ("holding_registers", "input_registers")
 

@@ -30,7 +30,7 @@ from dissectors.checks import crc_bytes, lrc
 from sniffer import __version__
 from sniffer.cli import UsageError, add_device_options, add_line_options, bindings_for, read_options
 from sniffer.describe import Describer, FrameDetail
-from sniffer.framing import Flag, Kind, ascii_body
+from sniffer.framing import ascii_body
 from sniffer.listing import FORMATS, KIND_NAMES, Lister
 from sniffer.model import LineSettings
 from sniffer.sources.pcapng_writer import (
@@ -42,8 +42,9 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     upper_pdu_record,
 )
-from sniffer.store import NO_PARTNER, Status
+from sniffer.store import NO_PARTNER
 from sniffer.text import plain
+from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
 EXPORT_FORMATS = (*FORMATS, "pcapng")
@@ -73,7 +74,7 @@ REGISTER_COLUMNS = (
 def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     """(link type 252 packet, EPB flags, comment) for one row."""
     v = d.view
-    problems = list(d.problems)
+    problems = list(d.problem_texts)
     if v.kind == Kind.EVENT:
         return upper_pdu_record(b"", "data"), 0, d.summary or "event"
     if v.kind == Kind.NOISE:
@@ -163,7 +164,7 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
         main = req if req is not None else resp
         assert main is not None
         v = main.view
-        problems = [*(req.problems if req else ()), *(resp.problems if resp else ())]
+        problems = [*(req.problem_texts if req else ()), *(resp.problem_texts if resp else ())]
         latency = (resp.latency_ms if resp is not None else None) if req is not None else None
         yield {
             "request": req.view.index if req else None,
@@ -176,7 +177,7 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
             "response": resp.view.index if resp else None,
             "t_response": resp.view.t if resp else None,
             "latency_ms": None if latency is None else round(latency, 3),
-            "status": Status.NAMES[v.status] or KIND_NAMES[Kind(v.kind)],
+            "status": STATUS_NAMES[v.status] or KIND_NAMES[Kind(v.kind)],
             "exception_code": _exception_code(resp) if resp else None,
             "response_summary": resp.summary if resp else "",
             "problems": list(dict.fromkeys(problems)),

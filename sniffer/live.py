@@ -52,8 +52,8 @@ from sniffer.serial_source import (
     list_ports,
 )
 from sniffer.session import Session
-from sniffer.store import Status
 from sniffer.text import plain
+from sniffer.vocab import Status
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks

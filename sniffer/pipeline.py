@@ -11,10 +11,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from dissectors.functions import FUNCTIONS, FunctionSpec
-from sniffer.framing import AsciiFramer, Flag, Framer, Kind, RtuFramer, looks_ascii
+from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pairing import Pairer, default_timeout
 from sniffer.store import FrameStore
+from sniffer.vocab import Flag, Kind
 
 CAPTURE_COMPLETE = "capture complete"  # a source's last word: when the capture ended
 BYTE_ERRORS = ("framing error", "parity error")  # events about the byte before them
@@ -246,4 +247,4 @@ def frame_capture(
     return pipeline.store
 
 
-__all__ = ["Flag", "Kind", "Pipeline", "frame_capture"]
+__all__ = ["Pipeline", "frame_capture"]

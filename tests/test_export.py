@@ -23,7 +23,6 @@ from sniffer.export import (
     register_records,
     transaction_records,
 )
-from sniffer.framing import Kind
 from sniffer.model import Chunk, LineSettings
 from sniffer.recorder import Recorder
 from sniffer.serial_source import PortSpec
@@ -35,6 +34,7 @@ from sniffer.sources.linktypes import (
     EPB_FLAG_OUTBOUND,
     parse_upper_pdu,
 )
+from sniffer.vocab import Kind
 
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
 ASCII = LineSettings(baud=9600, parity="E", stopbits=1, bytesize=7, mode="ascii")
