@@ -178,6 +178,14 @@ def quiet_stdout() -> None:
         os.close(devnull)
 
 
+def check_reader(capture: LiveCapture) -> None:
+    """A reading thread that ended through a bug ends the command as a bug (exit 70, with
+    the thread's own traceback), after what was read has been written out."""
+    reader = capture.reader
+    if reader.error is not None:
+        raise RuntimeError(reader.failure) from reader.error
+
+
 def status(capture: LiveCapture) -> str:
     stats = capture.reader.stats
     parts = [f"{s.name}: {s.bytes:,} bytes in {s.reads:,} reads" for s in stats]

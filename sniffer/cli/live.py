@@ -17,6 +17,7 @@ from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
     announce,
+    check_reader,
     duration_option,
     notifier,
     open_reader,
@@ -150,6 +151,7 @@ def stream(
         quiet_stdout()
         capture.stop()
         return 0
+    check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0

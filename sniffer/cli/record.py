@@ -12,6 +12,7 @@ from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
     announce,
+    check_reader,
     duration_option,
     notifier,
     open_reader,
@@ -58,6 +59,7 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if show:
         err.write("\r\x1b[K")
     err.write(f"modscope: {status(capture)}\n")
+    check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0
