@@ -45,6 +45,7 @@ POLL_SECONDS = 0.2  # longest wait of a reader before it looks at its stop flag
 RETRY_SECONDS = 0.5  # how often a lost port is tried again
 ICOUNT_SECONDS = 1.0  # how often the driver's error counters are read
 DEFAULT_QUEUE = 100_000  # chunks a feed holds before it drops (and counts)
+QUEUE_BYTES = 8 << 20  # bytes a feed holds before it drops: 90 s of a 921600 baud line
 URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 TIOCGICOUNT = 0x545D  # Linux: struct serial_icounter_struct
 TIOCEXCL = getattr(termios, "TIOCEXCL", 0x540C)
@@ -273,14 +274,22 @@ class _Loss:
 
 class ChunkFeed:
     """One consumer's bounded, thread-safe queue of chunks. `offer` never blocks: when
-    the queue is full the chunk is dropped and counted, and a "data lost" event chunk
-    with the count is queued ahead of the next chunk that fits."""
+    the queue holds `maxsize` chunks or `max_bytes` bytes the chunk is dropped and
+    counted, and a "data lost" event chunk with the count is queued ahead of the next
+    chunk that fits. Both bounds matter: a busy line gives few big reads."""
 
-    def __init__(self, maxsize: int = DEFAULT_QUEUE, clock: WallClock | None = None) -> None:
+    def __init__(
+        self,
+        maxsize: int = DEFAULT_QUEUE,
+        clock: WallClock | None = None,
+        max_bytes: int = QUEUE_BYTES,
+    ) -> None:
         if maxsize < 1:
             raise ValueError(f"a feed holds at least one chunk, not {maxsize}")
         self.maxsize = maxsize
+        self.max_bytes = max_bytes
         self.clock = clock or WallClock()
+        self._bytes = 0
         self._items: deque[Chunk] = deque()
         self._cond = threading.Condition()
         self._closed = False
@@ -293,7 +302,9 @@ class ChunkFeed:
         with self._cond:
             if self._closed:
                 return
-            if len(self._items) >= self.maxsize:
+            if len(self._items) >= self.maxsize or (
+                self._bytes + len(chunk.data) > self.max_bytes and self._items
+            ):
                 loss = self._loss.get(chunk.channel)
                 if loss is None:
                     loss = self._loss[chunk.channel] = _Loss(since=chunk.t_end)
@@ -309,6 +320,7 @@ class ChunkFeed:
             if self._loss:
                 self._mark_losses(chunk.t_end)
             self._items.append(chunk)
+            self._bytes += len(chunk.data)
             self._cond.notify()
 
     def _mark_losses(self, t: float) -> None:
@@ -330,6 +342,7 @@ class ChunkFeed:
                 self._cond.wait(timeout)
             items = list(self._items)
             self._items.clear()
+            self._bytes = 0
             if not items and self._closed and self._loss:
                 self._mark_losses(self.clock.now())
                 items = list(self._items)
