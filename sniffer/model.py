@@ -116,7 +116,9 @@ class SourceInfo:
 
     `stamps` says what the timestamps mean and `resolution` how fine they are (seconds;
     0 when exact, 1e-3 for a logger printing milliseconds); `labels` how far the
-    direction carried by the chunks can be trusted.
+    direction carried by the chunks can be trusted. `line` is what the capture is read
+    with (the command line over the file's own); `recorded_line` what the file itself
+    recorded, if it did.
     """
 
     path: str
@@ -128,3 +130,4 @@ class SourceInfo:
     stamps: Stamp = Stamp.READ_END
     resolution: float = 0.0
     labels: Labels = Labels.NONE
+    recorded_line: LineSettings | None = None

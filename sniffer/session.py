@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping
+from importlib import resources
 from pathlib import Path
 
 from sniffer.annotate import Annotator, Binding
@@ -17,9 +18,15 @@ from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
 
-ROOT = Path(__file__).resolve().parent.parent
-DEMO_CAPTURE = ROOT / "captures" / "demo.pcapng"
-DEMO_BUS = ROOT / "captures" / "demo-bus.toml"
+
+def _demo_file(name: str) -> Path:
+    """A file of the bundled demo: package data (`sniffer/demo/`), so an installed wheel
+    has it too, found through importlib.resources rather than the source tree."""
+    return Path(str(resources.files("sniffer").joinpath("demo", name)))
+
+
+DEMO_CAPTURE = _demo_file("demo.pcapng")
+DEMO_BUS = _demo_file("demo-bus.toml")
 
 Progress = Callable[[int, int], None]
 """progress(bytes_done, frames_so_far)."""

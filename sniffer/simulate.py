@@ -1,6 +1,6 @@
 """Provides the demo bus: a master polling the seed devices, recorded as a USB adapter sees it.
 
-`python -m sniffer.simulate captures/demo.pcapng` writes the bundled demo capture. The
+`python -m sniffer.simulate sniffer/demo/demo.pcapng` writes the bundled demo capture. The
 traffic is deterministic: a SCADA master polls a VED903B exciter (unit 1), a DCRL power
 factor controller (unit 2) and an RVS-DN soft starter (unit 3) with plausible values
 that drift over time, plus one address nobody answers (unit 4). A few faults are mixed

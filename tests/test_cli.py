@@ -13,6 +13,7 @@ import pytest
 
 from dissectors.checks import with_crc
 from sniffer.cli import main
+from sniffer.session import DEMO_CAPTURE
 
 ROOT = Path(__file__).resolve().parent.parent
 WIZ = ROOT / "tests" / "captures" / "sigrok" / "wizmodbus" / "wizmodbus.sr"
@@ -113,11 +114,11 @@ def test_unknown_model_names_the_known_ones(capsys: pytest.CaptureFixture[str]) 
 def test_truncated_capture_warns_with_the_offset(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    demo = (ROOT / "captures" / "demo.pcapng").read_bytes()
+    demo = DEMO_CAPTURE.read_bytes()
     cut = tmp_path / "cut.pcapng"
     cut.write_bytes(demo[: len(demo) // 2 + 7])
     code, out, err = run(["replay", str(cut), "--format", "text"], capsys)
-    assert code == 0 and len(out.splitlines()) > 500
+    assert code == 1 and len(out.splitlines()) > 500  # read, with a warning
     assert "warning" in err and "offset" in err
 
 
@@ -153,3 +154,93 @@ def test_help_explains_the_commands() -> None:
     ).stdout
     for word in ("replay", "dict", "examples:"):
         assert word in out
+
+
+# -- exit status as capture tools use it (issue 15) ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("cut", "status"),
+    [(None, 0), (50_000, 1), (120, 2)],  # whole; cut inside a block; cut before any packet
+)
+@pytest.mark.parametrize("command", ["replay", "export"])
+def test_exit_status_says_whether_all_was_read(
+    cut: int | None,
+    status: int,
+    command: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    capture = tmp_path / "bus.pcapng"
+    demo = DEMO_CAPTURE.read_bytes()
+    capture.write_bytes(demo if cut is None else demo[:cut])
+    argv = ["replay", str(capture), "--stats"]
+    if command == "export":
+        argv = ["export", str(capture), "-o", str(tmp_path / "out.jsonl")]
+    code, _, err = run(argv, capsys)
+    assert code == status, err
+    assert ("truncated pcapng block" in err) == (cut is not None)
+
+
+def test_the_exit_status_is_in_the_help(capsys: pytest.CaptureFixture[str]) -> None:
+    for command in ("replay", "export"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        out = capsys.readouterr().out
+        assert "exit status:" in out and "read with warnings" in out
+
+
+# -- line settings: the flags win over the file, with a warning --------------------------------
+
+
+def test_flags_win_over_the_recorded_line_settings_with_a_warning(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, err = run(["replay", "--stats", "--baud", "9600", "--parity", "N"], capsys)
+    assert code == 0
+    assert "(9600 8N1" in out.splitlines()[0]  # the flags were used
+    assert "recorded at 19200 8E1" in err and "--baud 9600, --parity N" in err
+    code, out, err = run(["replay", "--stats", "--baud", "19200"], capsys)
+    assert code == 0 and "warning" not in err  # a flag that agrees says nothing
+
+
+# -- --unit ------------------------------------------------------------------------------------
+
+
+def test_two_bindings_of_one_address_are_an_error_naming_both(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, err = run(
+        ["replay", "--stats", "--unit", "3=rvs-dn", "--unit", "3=dcrl:Pump 1"], capsys
+    )
+    assert code == 2 and out == ""
+    assert err == (
+        "modscope: error: --unit '3=rvs-dn' and --unit '3=dcrl:Pump 1' both bind address 3; "
+        "keep one\n"
+    )
+
+
+def test_a_label_with_a_space_binds_when_quoted(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(["replay", "--stats", "--unit", "3=rvs-dn:Pump 1"], capsys)
+    assert code == 0 and "Pump 1" in out
+
+
+# -- the README agrees with the program ---------------------------------------------------------
+
+
+def test_readme_example_listing_is_what_the_demo_gives(capsys: pytest.CaptureFixture[str]) -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("### The listing", 1)[1].split("```", 2)[1]
+    shown = [line for line in block.splitlines() if line.strip()]
+    code, out, _ = run(["replay"], capsys)
+    assert code == 0
+    listed = out.splitlines()
+    assert len(shown) >= 3
+    for line in shown:
+        assert line in listed, line
+
+
+def test_readme_commands_with_spaces_are_quoted() -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "--unit 3=rvs-dn:Pump 1" not in readme.replace("'3=rvs-dn:Pump 1'", "")
+    assert "pip install 'modscope[serve]'" in readme

@@ -9,11 +9,14 @@ from pathlib import Path
 from typing import BinaryIO, TextIO
 
 from sniffer.cli.options import (
+    READ_EPILOG,
     SubParsers,
     add_device_options,
     add_line_options,
     bindings_for,
+    line_warnings,
     read_options,
+    read_status,
 )
 from sniffer.errors import UsageError
 from sniffer.export import (
@@ -60,14 +63,15 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
     bindings = bindings_for(args)
-    session, capture = open_session(
-        source, read_options(args), bindings=bindings, timeout=args.timeout
-    )
+    options = read_options(args)
+    session, capture = open_session(source, options, bindings=bindings, timeout=args.timeout)
+    told = line_warnings(options, capture.info.recorded_line, str(source))
     session.ingest(capture.chunks())
     session.warnings.extend(capture.warnings)
-    for w in session.warnings:
+    for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     rows = range(len(session.store))
+    status = read_status(capture.warnings, len(rows))
     describer = session.describer
     if fmt == "pcapng":
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
@@ -77,7 +81,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             if args.output != "-":
                 binary.close()
         err.write(f"{args.output}: {n} packets (link type 252, Modbus RTU)\n")
-        return 0
+        return status
     text = out if args.output == "-" else _open_text(args.output)
     try:
         if what == "frames":
@@ -92,7 +96,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             text.close()
     if args.output != "-":
         err.write(f"{args.output}: {n} {what} ({fmt})\n")
-    return 0
+    return status
 
 
 def _open_binary(path: str) -> BinaryIO:
@@ -125,6 +129,8 @@ def register(sub: SubParsers) -> None:
             "tables of frames, transactions or register values. The format follows the "
             "output's extension (.pcapng, .csv, .jsonl, .txt) unless --format says."
         ),
+        epilog=READ_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="capture file (any format replay reads)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file, or -")

@@ -234,7 +234,9 @@ def add_recording_options(p: argparse.ArgumentParser, required: bool) -> None:
         "--write",
         required=required,
         metavar="FILE",
-        help="record to FILE.pcapng" + (" (- for standard output)" if required else ""),
+        help="record to FILE, pcapng, under exactly the name given, as tcpdump -w does "
+        "(name it .pcapng so other tools know it)"
+        + (" (- for standard output)" if required else ""),
     )
     g.add_argument("--rotate-size", metavar="SIZE", help="ring buffer: new file past SIZE (10M)")
     g.add_argument("--rotate-time", metavar="TIME", help="ring buffer: new file every TIME (1h)")

@@ -98,6 +98,61 @@ def line_of(options: ReadOptions, from_file: LineSettings | None = None) -> Line
         raise UsageError(f"line settings: {exc}") from None
 
 
+def line_warnings(options: ReadOptions, from_file: LineSettings | None, path: str) -> list[str]:
+    """The flags win over what a capture recorded; say so where they contradict it."""
+    if from_file is None:
+        return []
+    given = {
+        "--baud": (options.baud, from_file.baud),
+        "--bytesize": (options.bytesize, from_file.bytesize),
+        "--parity": (options.parity, from_file.parity),
+        "--stopbits": (options.stopbits, from_file.stopbits),
+    }
+    clash = [f"{flag} {mine}" for flag, (mine, its) in given.items() if mine not in (None, its)]
+    if not clash:
+        return []
+    return [
+        f"{path}: recorded at {from_file.describe()}; read with {', '.join(clash)} as the "
+        "command line says (drop the flags to use the recorded settings)"
+    ]
+
+
 def bindings_for(args: argparse.Namespace, default_bus: Path | None = None) -> dict[int, Binding]:
+    """Bindings from --bus and --unit (which win over the bus file); two --unit options
+    for one address are a mistake, not a choice of the last."""
+    from dissectors.dictionary.bus import parse_unit_binding
+
+    seen: dict[int, str] = {}
+    for text in args.unit:
+        try:
+            address = parse_unit_binding(text).address
+        except ValueError:
+            continue  # load_bindings says what is wrong with it
+        if address in seen:
+            raise UsageError(
+                f"--unit {seen[address]!r} and --unit {text!r} both bind address {address}; "
+                "keep one"
+            )
+        seen[address] = text
     bus = args.bus or (str(default_bus) if default_bus and default_bus.exists() else None)
     return load_bindings(bus, args.unit, args.dict)
+
+
+READ_EPILOG = """\
+exit status:
+  0  the whole capture was read
+  1  it was read with warnings (a truncated file, a damaged record): the rows
+     before and after the damage are there, the warnings say where
+  2  nothing usable was read, or a user error (one line says what to fix)
+"""
+
+EXIT_OK = 0  # everything was read
+EXIT_WARNINGS = 1  # read, with warnings (a truncated file, a damaged record)
+EXIT_NOTHING = 2  # nothing usable was read (also every user error)
+
+
+def read_status(warnings: list[str], rows: int) -> int:
+    """The exit status of a command that read a capture, as capture tools use them."""
+    if not warnings:
+        return EXIT_OK
+    return EXIT_WARNINGS if rows else EXIT_NOTHING

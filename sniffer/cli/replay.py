@@ -9,12 +9,15 @@ from pathlib import Path
 from typing import TextIO
 
 from sniffer.cli.options import (
+    READ_EPILOG,
     SubParsers,
     add_device_options,
     add_line_options,
     add_output_options,
     bindings_for,
+    line_warnings,
     read_options,
+    read_status,
 )
 from sniffer.errors import UsageError
 from sniffer.listing import Lister
@@ -33,6 +36,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     options = read_options(args)
     use_tui = args.format is None and not args.stats and out.isatty() and sys.stdin.isatty()
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+    told = line_warnings(options, capture.info.recorded_line, str(path))
     if use_tui:
         from sniffer.tui.app import run_tui
 
@@ -51,17 +55,18 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if show_progress:
         err.write("\r\x1b[K")
     session.warnings.extend(capture.warnings)
-    for w in session.warnings:
+    for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
+    status = read_status(capture.warnings, len(session.store))
     if args.stats:
         labels = {u: b.label for u, b in bindings.items()}
         out.write(f"{path} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n")
-        return 0
+        return status
     lister = Lister(out, args.format or "text", session.describer, absolute=args.time == "abs")
     lister.write(range(len(session.store)), flush=False)
     out.flush()
-    return 0
+    return status
 
 
 def register(sub: SubParsers) -> None:
@@ -71,8 +76,12 @@ def register(sub: SubParsers) -> None:
         description=(
             "Read a capture (pcap/pcapng, sigrok .sr, socat -x or hexdump text, raw bytes; "
             "recognised from its content) and show every frame: in the TUI on a terminal, "
-            "as a listing with --format or when piped."
+            "as a listing with --format or when piped. Line settings: the flags, else what "
+            "the capture recorded, else 19200 8E1 (a flag that contradicts the file is "
+            "used, with a warning)."
         ),
+        epilog=READ_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", nargs="?", help="capture file (default: the bundled demo)")
     add_line_options(p)

@@ -538,7 +538,13 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
                 break
     line = options.line(section.file_line)
     channels = {iface.channel: iface.label for iface in section.all}
-    info = SourceInfo(path=str(path), format="pcapng", line=line, channels=channels)
+    info = SourceInfo(
+        path=str(path),
+        format="pcapng",
+        line=line,
+        channels=channels,
+        recorded_line=section.file_line,
+    )
     warnings: list[str] = []
     return Capture(
         info=info, _chunks=_pcapng_chunks(path, options, info, warnings), warnings=warnings
