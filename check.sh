@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Every check modscope has, from a fresh clone: installs what the tests need (a virtual
-# environment with the dev extras, and the peer programs tshark, socat and mbpoll from
-# Debian's packages), then runs ruff, mypy (strict) and the whole test suite.
+# Every check modscope has, from a fresh clone: a virtual environment with the dev
+# extras, the peer programs the tests talk to (from Debian's packages, where apt-get and
+# root or sudo are available), then ruff, mypy (strict) and the test suite. Each step
+# says what it does and how long it took. Without apt, or without root, the programs
+# that are missing are named and the tests that need them are skipped with that reason;
+# everything else still runs.
 #
 #   ./check.sh            everything, slow tests included
 #   ./check.sh --quick    skip the tests marked slow
@@ -10,35 +13,91 @@ cd "$(dirname "$0")"
 
 VENV=${MODSCOPE_VENV:-.venv}
 PYTHON=${PYTHON:-python3}
+# program -> Debian package; tests that need a missing program skip, naming it
+PEERS="tshark:tshark socat:socat mbpoll:mbpoll mosquitto:mosquitto \
+mosquitto_pub:mosquitto-clients tcpdump:tcpdump tmux:tmux"
 
-if [ ! -x "$VENV/bin/python" ]; then
-  echo "== creating $VENV"
-  "$PYTHON" -m venv "$VENV"
-fi
-echo "== installing modscope with its dev extras"
-"$VENV/bin/python" -m pip install --quiet --upgrade pip >/dev/null 2>&1 || true
-"$VENV/bin/python" -m pip install --quiet -e '.[dev,imports]'
+T0=$SECONDS
+STEP_START=$SECONDS
+step() {  # step "what is done now"
+  STEP_START=$SECONDS
+  echo "== $1"
+}
+done_step() {
+  echo "   done in $((SECONDS - STEP_START)) s"
+}
 
-missing=()
-for tool in tshark socat mbpoll; do
-  command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
+# -- what is missing, and whether we can install it: said before anything is done -------
+have() {  # a program on PATH, or in /usr/sbin (mosquitto) that a user's PATH may lack
+  command -v "$1" >/dev/null 2>&1 || [ -x "/usr/sbin/$1" ]
+}
+missing_pkgs=()
+missing_progs=()
+for pair in $PEERS; do
+  prog=${pair%%:*}
+  pkg=${pair#*:}
+  if ! have "$prog"; then
+    missing_progs+=("$prog")
+    [[ " ${missing_pkgs[*]-} " == *" $pkg "* ]] || missing_pkgs+=("$pkg")
+  fi
 done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "== installing peer programs for the tests: ${missing[*]}"
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq tshark socat mbpoll >/dev/null
+SUDO=""
+can_apt=no
+if [ ${#missing_pkgs[@]} -gt 0 ]; then
+  if ! command -v apt-get >/dev/null 2>&1; then
+    echo "== note: ${missing_progs[*]} not installed and there is no apt-get here;"
+    echo "   the tests that need them will be skipped (they say which program)"
+  elif [ "$(id -u)" -eq 0 ]; then
+    can_apt=yes
+  elif command -v sudo >/dev/null 2>&1; then
+    echo "== note: installing ${missing_pkgs[*]} with apt-get needs root: sudo may ask for"
+    echo "   your password now (Ctrl-C and install them yourself to avoid it)"
+    SUDO="sudo"
+    can_apt=yes
+  else
+    echo "== note: ${missing_pkgs[*]} not installed; apt-get needs root and there is no sudo:"
+    echo "   as root run: apt-get install ${missing_pkgs[*]}"
+    echo "   until then the tests that need them are skipped (they say which program)"
+  fi
 fi
 
-echo "== ruff"
+# -- the virtual environment -------------------------------------------------------------
+if [ ! -x "$VENV/bin/python" ]; then
+  step "creating the virtual environment $VENV"
+  "$PYTHON" -m venv "$VENV"
+  done_step
+fi
+step "installing modscope and its dev extras into $VENV (a minute or two the first time)"
+"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[dev,imports]'
+done_step
+
+# -- peer programs ---------------------------------------------------------------------------
+if [ "$can_apt" = yes ]; then
+  step "installing peer programs for the tests: ${missing_pkgs[*]} (apt-get, quietly)"
+  if $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null \
+    && echo "   package lists updated; installing" \
+    && $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+      "${missing_pkgs[@]}" >/dev/null; then
+    done_step
+  else
+    echo "   apt-get failed; the tests that need ${missing_progs[*]} will be skipped"
+  fi
+fi
+
+# -- the checks --------------------------------------------------------------------------------
+step "ruff (lint and format)"
 "$VENV/bin/ruff" check .
 "$VENV/bin/ruff" format --check .
-echo "== mypy (strict)"
+done_step
+step "mypy (strict)"
 "$VENV/bin/mypy"
-echo "== pytest"
+done_step
 if [ "${1:-}" = "--quick" ]; then
-  "$VENV/bin/pytest" -m "not slow"
+  step "pytest, without the slow tests"
+  "$VENV/bin/pytest" -q -m "not slow"
 else
-  "$VENV/bin/pytest"
+  step "pytest, the whole suite (slow tests included: several minutes)"
+  "$VENV/bin/pytest" -q
 fi
+done_step
+echo "== all checks passed in $((SECONDS - T0)) s"

@@ -87,3 +87,18 @@ def test_no_module_outside_the_cli_imports_it() -> None:
         if "sniffer.cli" in text or "from sniffer import cli" in text:
             offenders.append(str(path.relative_to(ROOT)))
     assert offenders == []
+
+
+def test_a_missing_peer_program_is_named_in_the_skip_reason(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    from tests.conftest import missing_reason
+
+    (tmp_path / "socat").write_text("#!/bin/sh\n")
+    (tmp_path / "socat").chmod(0o755)
+    monkeypatch.setenv("PATH", str(tmp_path))  # socat here, nothing else
+    assert missing_reason(("socat",)) is None
+    reason = missing_reason(("socat", "mosquitto_pub", "tshark"))
+    assert reason == (
+        "mosquitto_pub, tshark not installed (apt-get install mosquitto-clients tshark)"
+    )

@@ -452,14 +452,11 @@ def test_live_ends_as_a_bug_when_its_reader_thread_dies(
 
 
 @pytest.mark.peer
+@pytest.mark.needs("socat")
 def test_live_on_a_socat_pty_with_the_default_8e1(tmp_path: Path) -> None:
     """The issue's recipe: `socat pty,raw,echo=0,link=A pty,raw,echo=0,link=B`, then
     `modscope live A` with the default settings. Where the pty takes 8E1 (Linux) the
     frames come through; where it refuses, the one-line message comes, never a traceback."""
-    import shutil
-
-    if shutil.which("socat") is None:
-        pytest.skip("socat is not installed (apt-get install socat)")
     a, b = tmp_path / "A", tmp_path / "B"
     socat = subprocess.Popen(
         ["socat", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],

@@ -1,0 +1,49 @@
+"""Provides the `needs` marker: a test that runs an external program is skipped, with a
+reason naming the program and the package that brings it, where the program is missing
+(./check.sh installs them with apt where it can; the rest of the suite runs anyway)."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+PACKAGES = {  # program -> the Debian package that has it
+    "tshark": "tshark",
+    "text2pcap": "wireshark-common (comes with tshark)",
+    "socat": "socat",
+    "mbpoll": "mbpoll",
+    "mosquitto": "mosquitto",
+    "mosquitto_pub": "mosquitto-clients",
+    "mosquitto_sub": "mosquitto-clients",
+    "tcpdump": "tcpdump",
+    "tmux": "tmux",
+}
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", "needs(*programs): skip, naming the program, where one is not installed"
+    )
+
+
+def find_program(name: str) -> str | None:
+    """The program's path: on PATH, or in /usr/sbin (mosquitto), which a user's PATH may
+    lack."""
+    return shutil.which(name) or shutil.which(name, path="/usr/sbin")
+
+
+def missing_reason(programs: tuple[str, ...]) -> str | None:
+    """Why a test needing `programs` cannot run here, or None when all are installed."""
+    missing = [p for p in programs if find_program(p) is None]
+    if not missing:
+        return None
+    packages = sorted({PACKAGES.get(p, p) for p in missing})
+    return f"{', '.join(missing)} not installed (apt-get install {' '.join(packages)})"
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    for mark in item.iter_markers("needs"):
+        reason = missing_reason(tuple(str(a) for a in mark.args))
+        if reason is not None:
+            pytest.skip(reason)
