@@ -11,7 +11,7 @@ from pathlib import Path
 
 from sniffer.annotate import Annotator, Binding, vendor_functions
 from sniffer.describe import Describer
-from sniffer.model import Chunk, LineSettings
+from sniffer.model import Chunk, Labels, LineSettings, Stamp
 from sniffer.pipeline import MERGE_SLACK, Pipeline
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.stats import Stats
@@ -37,6 +37,9 @@ class Session:
         timeout: float | None = None,
         source: str = "",
         merge_slack: float = MERGE_SLACK,
+        labels: Labels = Labels.CERTAIN,
+        stamps: Stamp = Stamp.READ_END,
+        resolution: float = 0.0,
     ) -> None:
         self.line = line
         self.source = source
@@ -50,6 +53,9 @@ class Session:
             vendor=vendor,
             answered_broadcasts=answered,
             merge_slack=merge_slack,
+            labels=labels,
+            stamps=stamps,
+            resolution=resolution,
         )
         self.annotator = Annotator(bindings or {})
         self.stats = Stats(self.store)
@@ -78,6 +84,8 @@ class Session:
     def finish(self) -> None:
         self.pipeline.finish()
         self.refresh()
+        # what the source's labels and stamps turned out to be worth, said once
+        self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
 
     def ingest(
         self,
@@ -122,6 +130,9 @@ def open_session(
         exact_timing=capture.info.exact_timing,
         timeout=timeout,
         source=str(path),
+        labels=capture.info.labels,
+        stamps=capture.info.stamps,
+        resolution=capture.info.resolution,
     )
     return session, capture
 
