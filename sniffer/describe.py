@@ -13,7 +13,7 @@ from dissectors.dissect import dissect
 from dissectors.functions import function_name
 from dissectors.values import Dissection, Field, Problem, Role
 from sniffer.annotate import Annotator
-from sniffer.pairing import latency
+from sniffer.pairing import latency, measure
 from sniffer.problems import frame_problems
 from sniffer.store import NO_PARTNER, FrameStore, FrameView
 from sniffer.text import plain
@@ -32,8 +32,9 @@ class FrameDetail:
     dissection: Dissection | None
     registers: tuple[RegisterValue, ...]
     problems: tuple[Problem, ...]
-    latency_ms: float | None
+    latency_ms: float | None  # measured; None when the timing cannot give it
     label: str  # the device label from the bus bindings
+    latency_max_ms: float | None = None  # when only a bound is known: at most this
 
     @property
     def problem_texts(self) -> tuple[str, ...]:
@@ -171,6 +172,7 @@ class Describer:
         elif extra_summary:
             summary += ": " + extra_summary
         lat = latency(store, i)
+        measured = measure(store, i)
         if view.flags & Flag.DEVICE_SLOW:
             slow = FLAG_MEANINGS[Flag.DEVICE_SLOW]
             text = slow.text
@@ -186,6 +188,7 @@ class Describer:
             d,
             tuple(registers),
             tuple(Problem(p.kind, p.severity, plain(p.text), p.span) for p in problems),
-            None if lat is None else lat * 1000,
+            None if measured is None or measured.bound else measured.seconds * 1000,
             label,
+            measured.seconds * 1000 if measured is not None and measured.bound else None,
         )

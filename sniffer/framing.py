@@ -44,6 +44,10 @@ NO_ANSWER = -4  # the code has no answer rule
 MAX_ASCII = 513
 MAX_NOISE = 256  # bytes in one noise row; longer noise is shown in pieces
 MIN_RTU = 4
+INF = float("inf")
+# a chunk may seem this much faster than the line before its stamps count as inconsistent
+# (a USB adapter hands over a read up to about a millisecond after its first bytes came)
+TOO_FAST_SLACK = 0.002
 
 
 # A length rule and the kind of frame it describes (the fast paths use their own tables)
@@ -92,6 +96,9 @@ class _Timeline:
         self.boundaries: list[int] = []  # stream offsets preceded by silence >= t3.5
         self.line_errors: set[int] = set()
         self.last_end: float | None = None
+        self.slack = TOO_FAST_SLACK  # how much too fast a chunk may seem (see add)
+        self.too_fast = 0  # chunks whose stamps leave their bytes too little time
+        self.first_too_fast: float | None = None
         self.offset = 0
         # the newest chunk: where it starts, when, and seconds per byte
         self.cur_start = 0
@@ -106,6 +113,11 @@ class _Timeline:
         else:
             t_start = chunk.t_end - n * self.char
             if self.last_end is not None and t_start < self.last_end:
+                if t_start < self.last_end - self.slack:
+                    # the bytes need longer on the wire than the stamps leave them
+                    self.too_fast += 1
+                    if self.first_too_fast is None:
+                        self.first_too_fast = chunk.t_end
                 t_start = self.last_end
         gap = float("inf") if self.last_end is None else t_start - self.last_end
         if t_start > chunk.t_end:
@@ -215,6 +227,7 @@ class _Framer:
         self.pair_inline = False  # rows are paired as they are framed (RTU fast path)
         self.pending_unit = -1  # the last request, awaiting its answer
         self.pending_fc = -1
+        self.timeout = float("inf")  # the response timeout (the pipeline sets it)
         self._setup(functions)
 
     def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
@@ -284,6 +297,7 @@ class RtuFramer(_Framer):
         self._appenders_of: FrameStore | None = None  # the store `_appenders` write into
         self._appenders: tuple[Callable[[Any], None], ...] = ()
         self.pending_len = 0
+        self.pending_deadline = INF  # see _scan_bytes
         self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
         self.pair_inline = True  # off while `out` is a staging store (several channels)
         self.pairs: list[int] = []  # rows the fast path paired, flat: request, answer, ...
@@ -341,9 +355,21 @@ class RtuFramer(_Framer):
         # the open request, as locals: written back before every slow-path call
         pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
         pfx = pf | 0x80
+        # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this time
+        # they are the master's retry, not the answer (inf for every other code)
+        pdl = self.pending_deadline
+        timeout = self.timeout
         while end - pos >= MIN_RTU:
             unit = buf[pos]
             fc = buf[pos + 1]
+            if unit == pu and fc == pf and pdl != INF:
+                t0 = (
+                    cur_t0 + (pos - cur_start) * cur_rate
+                    if pos >= cur_start
+                    else tl.start_time(pos)
+                )
+                if t0 > pdl:
+                    pu = -1  # the wait is over
             # fast path 1: the answer the open request predicts, or its exception
             # (two comparisons, not `in (pf, pfx)`: that builds a tuple, which the GC counts)
             if unit == pu and (fc == pf or fc == pfx):  # noqa: SIM109
@@ -391,6 +417,7 @@ class RtuFramer(_Framer):
                         a_unit(unit)
                         a_fc(fc)
                         pr = pu = -1
+                        pdl = INF
                         if unit:  # a broadcast gets no answer
                             pr = row
                             ap = answer_pos[fc]
@@ -405,6 +432,7 @@ class RtuFramer(_Framer):
                                 pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
                             elif ap == ECHO:
                                 pu, pf, pfx, pl = unit, fc, fc | 0x80, length
+                                pdl = t0 + length * cur_rate + timeout
                             elif ap == WALKED:
                                 walked = self._predict(buf, pos, length, fc)
                                 if walked is not None:
@@ -416,6 +444,7 @@ class RtuFramer(_Framer):
                         continue
             self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
             self.pending_row = pr
+            self.pending_deadline = pdl
             found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
             if not found and waiting:
                 break
@@ -435,12 +464,14 @@ class RtuFramer(_Framer):
             self._emit_frame(buf, pos, found, kind)
             pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
             pfx = pf | 0x80
+            pdl = self.pending_deadline
             pr = self.pending_row
             row = len(out.t)
             inline = not exact
             pos += found
         self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
         self.pending_row = pr
+        self.pending_deadline = pdl
         if final:
             if end > pos and self.noise_start < 0:
                 self.noise_start = pos
@@ -481,7 +512,8 @@ class RtuFramer(_Framer):
         # (0); any other frame is more likely a request (1) than an answer nobody asked
         # for (2)
         cands: list[tuple[int, int, int]] = []
-        if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc:
+        pending = unit == self.pending_unit and (fc & 0x7F) == self.pending_fc
+        if pending and (fc & 0x80 or not self._expired(pos)):
             if fc & 0x80:
                 cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
             else:
@@ -511,6 +543,12 @@ class RtuFramer(_Framer):
                     )
                 return length, ckind, False
         return 0, 0, waiting
+
+    def _expired(self, pos: int) -> bool:
+        """Whether the echo the open request awaits can no longer start at `pos`."""
+        return (
+            self.pending_deadline != INF and self.timeline.start_time(pos) > self.pending_deadline
+        )
 
     def _silence_framed(
         self, buf: bytearray, pos: int, end: int, fc: int, final: bool
@@ -567,9 +605,13 @@ class RtuFramer(_Framer):
             self.pending_row = -1  # pairing of slow-path rows is left to the Pairer
         if kind == Kind.REQUEST:
             self.pending_unit = -1
+            self.pending_deadline = INF
             predicted = self._predict(buf, pos, length, fc) if unit != 0 else None
             if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                 self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
+                if self.answer_pos[fc] == ECHO:
+                    end_time = self.timeline.end_time(pos + length - 1)
+                    self.pending_deadline = end_time + self.timeout
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
             self.pending_unit = -1
         self.units_seen.add(unit)
@@ -649,6 +691,11 @@ class AsciiFramer(_Framer):
 
     def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
         self.open = -1  # offset of the ':' of an open frame
+        self.answer_rules = {
+            code: spec.answer for code, spec in functions.items() if spec.answer is not None
+        }
+        self.pending_len = -1  # the open request's answer body length (-1: not known)
+        self.pending_end = 0.0  # when the open request ended
 
     def idle(self) -> None:
         """ASCII allows 1 s between characters: idleness alone does not close a frame."""
@@ -711,7 +758,8 @@ class AsciiFramer(_Framer):
         else:
             if lrc(body[:-1]) != body[-1]:
                 flags |= Flag.CHECK_BAD
-            kind = self._kind(body)
+            tl = self.timeline
+            kind = self._kind(body, tl.start_time(start), tl.end_time(end - 1))
         if self._long_gap(start, end):
             flags |= Flag.LONG_GAP
         self._row(start, end, kind, flags)
@@ -724,12 +772,19 @@ class AsciiFramer(_Framer):
                 return True
         return False
 
-    def _kind(self, body: bytes) -> int:
+    def _kind(self, body: bytes, t0: float, t1: float) -> int:
+        """Request, answer or exception, by the open request and the length rules. An
+        answer must have the length its request predicts (a repeated request from the
+        same master is a retry, not its answer), and the wait ends with the response
+        timeout."""
         unit, fc = body[0], body[1]
         length = len(body) - 1 + 2  # as if it were an RTU frame with its CRC
+        if self.pending_unit >= 0 and t0 - self.pending_end > self.timeout:
+            self.pending_unit = -1  # the open request timed out
+        awaited = unit == self.pending_unit and (fc & 0x7F) == self.pending_fc
         if fc & 0x80:
             kind = int(Kind.EXCEPTION)
-        elif unit == self.pending_unit and fc == self.pending_fc:
+        elif awaited and self.pending_len in (-1, length):
             kind = int(Kind.RESPONSE)
         else:
             kind = int(Kind.UNKNOWN)
@@ -743,9 +798,19 @@ class AsciiFramer(_Framer):
                 kind = int(Kind.RESPONSE)
         if kind == Kind.REQUEST:
             self.pending_unit, self.pending_fc = (unit, fc) if unit else (-1, -1)
-        elif unit == self.pending_unit:
+            self.pending_len = self._answer_length(body, fc)
+            self.pending_end = t1
+        elif awaited:
             self.pending_unit = -1
         return kind
+
+    def _answer_length(self, body: bytes, fc: int) -> int:
+        """The RTU length of the answer a request predicts (-1 when no rule says)."""
+        rule = self.answer_rules.get(fc)
+        if rule is None:
+            return -1
+        predicted = rule.length(body[:-1] + b"\0\0")  # the request as an RTU frame
+        return predicted if predicted is not None else -1
 
     def _row(self, start: int, end: int, kind: int, flags: int) -> None:
         tl = self.timeline

@@ -9,6 +9,7 @@ from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from sniffer.describe import Describer, FrameDetail
+from sniffer.model import Stamp
 from sniffer.store import NO_PARTNER
 from sniffer.vocab import STATUS_NAMES, Kind
 
@@ -37,6 +38,15 @@ CSV_COLUMNS = (
     "summary",
     "problems",
     "raw",
+)
+
+
+# JSONL `timing`: what the row times are (see sniffer.model.Stamp); "synthetic" when the
+# source had none and the times were made up from the baud rate
+TIMING_NAMES = {stamp: stamp.value for stamp in Stamp} | {Stamp.NONE: "synthetic"}
+SYNTHETIC_HEADER = (
+    "# timing: synthetic: the source has no timestamps; times below are one character "
+    "time per byte, and no latency is measured"
 )
 
 
@@ -90,6 +100,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
             "id": req,
             "role": "request" if v.kind == Kind.REQUEST else "response",
             "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
+            "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
             "status": STATUS_NAMES[v.status],
             "partner": None if v.partner == NO_PARTNER else v.partner,
         }
@@ -128,7 +139,12 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
     check = "ok " if v.check_ok else "BAD"
     fc = f"{v.function:02d}{'!' if v.exception else ' '}"
     status = STATUS_NAMES[v.status]
-    lat = f" {d.latency_ms:7.1f}ms" if d.latency_ms is not None and v.kind != Kind.REQUEST else ""
+    lat = ""
+    if v.kind != Kind.REQUEST:
+        if d.latency_ms is not None:
+            lat = f" {d.latency_ms:7.1f}ms"
+        elif d.latency_max_ms is not None:
+            lat = f" {'<' + format(d.latency_max_ms, '.0f'):>7}ms"
     line = f"{when}  {d.direction}  {unit} {fc} {d.name[:28]:<28} {len(v.raw):3d}B {check} "
     line += f"{status:<9}{lat}  {d.summary}"
     if d.problems:
@@ -159,11 +175,15 @@ class Lister:
         for i in rows:
             if self.origin is None:
                 self.origin = store.t[i]
+                if self.fmt == "text" and store.stamps == Stamp.NONE:
+                    self.out.write(SYNTHETIC_HEADER + "\n")
             d = self.describer.detail(i)
             if self.fmt == "text":
                 self.out.write(text_line(d, self.origin, self.absolute) + "\n")
             elif self.fmt == "jsonl":
-                self.out.write(json.dumps(record(d), ensure_ascii=False) + "\n")
+                rec = record(d)
+                rec["timing"] = TIMING_NAMES[store.stamps]
+                self.out.write(json.dumps(rec, ensure_ascii=False) + "\n")
             else:
                 assert self._csv is not None
                 v = d.view

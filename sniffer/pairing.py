@@ -8,7 +8,9 @@ became of each: answered, exception, timeout, orphan answer, broadcast, retry.
 
 from __future__ import annotations
 
-from sniffer.model import LineSettings
+from dataclasses import dataclass
+
+from sniffer.model import LineSettings, Stamp
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
@@ -135,9 +137,50 @@ class Pairer:
 
 
 def latency(store: FrameStore, i: int) -> float | None:
-    """Seconds from the end of a request to the start of its answer (either side's index)."""
+    """Seconds from the end of a request to the start of its answer (either side's index),
+    as the row times say; `measure` says what of it the timing can vouch for."""
     j = store.partner[i]
     if j == NO_PARTNER:
         return None
     req, resp = (i, j) if store.kind[i] == Kind.REQUEST else (j, i)
     return store.t[resp] - store.t_end[req]
+
+
+# Below this, an answer's start and its request's end are the same instant to the row
+# times: the framer placed both inside one read (or one print stamp) by the line speed.
+UNRESOLVED = 1e-6
+
+
+@dataclass(frozen=True, slots=True)
+class Latency:
+    """A latency the timing can vouch for: `seconds` exactly (within the source's
+    resolution), or, when `bound`, at most `seconds`."""
+
+    seconds: float
+    bound: bool = False
+
+
+def measure(store: FrameStore, i: int) -> Latency | None:
+    """The latency of row `i`'s transaction as far as the store's timing can measure it;
+    None when it cannot (no timestamps, or stamps that put the answer's bytes on the wire
+    before the line speed allows).
+
+    - exact stamps (logic analysers, RTAC records): the difference of the row times;
+    - host reads: a difference of zero means both ends fell in one read: the latency is
+      below the read's resolution (`<16ms`) if that is known, else unknown;
+    - frame or print stamps: a difference of zero means the framer had to squeeze the
+      answer's bytes in after the request because its stamp came sooner than the line
+      speed allows: unknown.
+    Larger differences are shown, good to about the resolution.
+    """
+    raw = latency(store, i)
+    stamps = store.stamps
+    if raw is None or stamps == Stamp.NONE:
+        return None
+    if stamps == Stamp.EXACT:
+        return Latency(raw) if raw >= 0 else None
+    if raw < UNRESOLVED:
+        if stamps == Stamp.READ_END and store.resolution > 0:
+            return Latency(store.resolution, bound=True)
+        return None
+    return Latency(raw)

@@ -3,16 +3,29 @@
 One framer per channel (a port or probe per direction is framed on its own); rows of
 several channels are merged by time before they reach the store. The same pipeline
 serves replay and live capture, so a recording frames exactly as the line did.
+
+What a source knows besides its bytes comes with it (`SourceInfo`):
+- `labels`: only CERTAIN labels (a port or probe per direction) narrow what a channel's
+  framer looks for. Any other label (a logger's sends and receives, EPB flags, dump
+  markers) is a hint: the channel is framed as a passive tap would frame it, and each
+  frame's direction follows from its content and order. Frames whose content contradicts
+  their label are counted and reported once (`source_notes`), never refused.
+- `stamps`: frame-start stamps are turned into chunk start times here; every row time
+  then means what it does for any source. The store is told the stamps' meaning and
+  resolution, so that latencies are shown only as far as they can be measured
+  (`pairing.measure`). Stamps that leave the bytes less time than the line speed needs
+  (print times, a wrong baud rate) are counted and reported once.
 """
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 from dissectors.functions import FUNCTIONS, Registry
 from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
-from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.pairing import Pairer, default_timeout
 from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind
@@ -32,6 +45,10 @@ class _Channel:
     read: int = 0  # next staging row to merge
     held: list[Chunk] | None = None  # chunks kept while the mode is being detected
     last_t: float = float("-inf")
+    # the direction labels of a hinted channel: stream offsets where the label changes
+    hint_at: list[int] | None = None
+    hint_dir: list[Direction] | None = None
+    fed: int = 0  # stream offset after the bytes fed so far (held ones included)
 
 
 class Pipeline:
@@ -46,13 +63,29 @@ class Pipeline:
         timeout: float | None = None,
         registry: Registry | None = None,
         merge_slack: float = MERGE_SLACK,
+        labels: Labels = Labels.CERTAIN,
+        stamps: Stamp = Stamp.READ_END,
+        resolution: float = 0.0,
     ) -> None:
         self.line = line
+        self.labels = labels
+        self.stamps = stamps
         self.merge_slack = merge_slack
         self.store = store if store is not None else FrameStore()
+        self.store.stamps = stamps
+        self.store.resolution = resolution
+        self._estimating = stamps == Stamp.READ_END and not resolution
+        self._read_gaps: list[float] = []  # for host reads of unknown resolution
+        self._resolution_from = 0  # gaps the estimate was made from
+        self._last_read: float | None = None
+        self.contradictions = 0  # frames whose content contradicts their label
+        self.first_contradiction = -1  # the row of the first
+        self._hint_checked = 0  # rows of the store checked against their labels
         self.exact_timing = exact_timing
         # the public registry, or one with the vendor codes of the devices on this bus
         self.registry: Registry = registry if registry is not None else FUNCTIONS
+        if stamps == Stamp.NONE:
+            timeout = float("inf")  # no time to measure a wait by: only order counts
         self.pairer = Pairer(
             self.store,
             timeout if timeout is not None else default_timeout(line),
@@ -70,6 +103,12 @@ class Pipeline:
     # -- input ---------------------------------------------------------------------------
 
     def feed(self, chunk: Chunk) -> None:
+        if self.stamps == Stamp.FRAME_START and chunk.data and chunk.t_start is None:
+            # the stamp is when the frame began: it ends when its bytes are through
+            end = chunk.t_end + len(chunk.data) * self.line.char_time
+            chunk = Chunk(chunk.data, end, chunk.t_end, chunk.channel, chunk.direction)
+        elif self.stamps == Stamp.READ_END and chunk.data and self._estimating:
+            self._note_read(chunk.t_end)
         ch = self.channels.get(chunk.channel)
         if ch is None:
             ch = self._add_channel(chunk.channel, chunk.direction)
@@ -87,6 +126,11 @@ class Pipeline:
             ch.last_t = max(ch.last_t, chunk.t_end)
             self._release(final=False)
             return
+        hints = ch.hint_dir
+        if hints is not None and ch.hint_at is not None and hints[-1:] != [chunk.direction]:
+            ch.hint_at.append(ch.fed)
+            hints.append(chunk.direction)
+        ch.fed += len(chunk.data)
         if ch.framer is None and not self._detect(ch, chunk):
             return
         assert ch.framer is not None
@@ -103,7 +147,9 @@ class Pipeline:
         """Bring the store up to date: complete the framers' rows, merge channels, pair.
         Readers of the store call this (Session.refresh does) before they look."""
         self._release(final=False)
+        self._estimate_resolution()
         self.pairer.update()
+        self._check_hints()
 
     def idle(self, now: float) -> None:
         """Live sources call this when the line has been quiet: bytes buffered in the
@@ -122,12 +168,99 @@ class Pipeline:
             assert ch.framer is not None
             ch.framer.finish()
         self._release(final=True)
+        self._estimate_resolution()
         self.pairer.finish()
+        self._check_hints()
+
+    # -- what the source's labels and stamps turned out to be worth ----------------------
+
+    def _note_read(self, t_end: float) -> None:
+        """Keep the first gaps between host reads: their median is the read resolution."""
+        if self._last_read is not None and len(self._read_gaps) < 4096:
+            gap = t_end - self._last_read
+            if 0 < gap < 0.1:  # reads of a busy line, not pauses between polls
+                self._read_gaps.append(gap)
+        self._last_read = t_end
+
+    def _estimate_resolution(self) -> None:
+        """Host reads of unknown resolution: the median gap between reads of a busy line
+        (an FTDI adapter's 16 ms latency timer shows as reads 16 ms apart)."""
+        gaps = self._read_gaps
+        if self._resolution_from == len(gaps) or len(gaps) < 16:
+            return
+        self._resolution_from = len(gaps)
+        self.store.resolution = sorted(gaps)[len(gaps) // 2]
+
+    def _check_hints(self) -> None:
+        """Compare each new frame's kind with the label of the bytes it starts in."""
+        store = self.store
+        n = len(store)
+        if self.labels != Labels.HINT:
+            self._hint_checked = n
+            return
+        kind, channel, offset = store.kind, store.channel, store.offset
+        for i in range(self._hint_checked, n):
+            k = kind[i]
+            if k not in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION):
+                continue
+            ch = self.channels.get(channel[i])
+            if ch is None or not ch.hint_at or ch.hint_dir is None:
+                continue
+            label = ch.hint_dir[max(0, bisect_right(ch.hint_at, offset[i]) - 1)]
+            if label == Direction.UNKNOWN:
+                continue
+            if (label == Direction.MASTER) != (k == Kind.REQUEST):
+                self.contradictions += 1
+                if self.first_contradiction < 0:
+                    self.first_contradiction = i
+        self._hint_checked = n
+
+    def too_fast(self) -> tuple[int, float | None]:
+        """How many chunks came sooner than the line speed allows, and the first's time."""
+        count, first = 0, None
+        for ch in self.channels.values():
+            if ch.framer is not None:
+                tl = ch.framer.timeline
+                count += tl.too_fast
+                if tl.first_too_fast is not None and (first is None or tl.first_too_fast < first):
+                    first = tl.first_too_fast
+        return count, first
+
+    def source_notes(self) -> list[str]:
+        """What the source's labels and timestamps turned out to be worth, said once."""
+        notes: list[str] = []
+        if self.contradictions:
+            notes.append(
+                f"direction labels: {self.contradictions} frame(s) are labelled against "
+                f"their content (the first is row {self.first_contradiction}); each was "
+                "taken for what its length, check and order say it is"
+            )
+        count, first = self.too_fast()
+        if count:
+            notes.append(
+                f"timestamps: {count} read(s) or line(s) came sooner than "
+                f"{self.line.baud} baud can carry their bytes (the first at {first:.6f}); "
+                "the stamps are print times or the baud rate is wrong: latencies that "
+                "depend on them are shown as unknown"
+            )
+        if self.stamps == Stamp.NONE:
+            notes.append(
+                "timing: the source has no timestamps; times are synthetic (one character "
+                "time per byte) and no latency or poll period is measured"
+            )
+        return notes
 
     # -- internals -----------------------------------------------------------------------
 
     def _add_channel(self, number: int, direction: Direction) -> _Channel:
-        ch = _Channel(number, direction)
+        if self.labels != Labels.CERTAIN:
+            # a hint never narrows framing; it is checked against the frames instead
+            ch = _Channel(number, Direction.UNKNOWN)
+            if self.labels == Labels.HINT:
+                ch.hint_at, ch.hint_dir = [], []
+        else:
+            ch = _Channel(number, direction)
+        ch.fed = len(self.store.streams.get(number, b""))
         self.channels[number] = ch
         if len(self.channels) == 2:
             # from now on every channel's rows wait in staging to be merged by time
@@ -168,6 +301,8 @@ class Pipeline:
         )
         if isinstance(ch.framer, RtuFramer):
             ch.framer.pair_inline = ch.staging is None
+        ch.framer.timeout = self.pairer.timeout
+        ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
         held, ch.held = ch.held or [], None
         for old in held:
             ch.framer.feed(old)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
-from sniffer.model import Chunk, LineSettings
+from sniffer.model import Chunk, Labels, LineSettings, Stamp
 from sniffer.pipeline import MERGE_SLACK, Pipeline
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.stats import Stats
@@ -44,6 +44,9 @@ class Session:
         timeout: float | None = None,
         source: str = "",
         merge_slack: float = MERGE_SLACK,
+        labels: Labels = Labels.CERTAIN,
+        stamps: Stamp = Stamp.READ_END,
+        resolution: float = 0.0,
     ) -> None:
         self.line = line
         self.source = source
@@ -56,6 +59,9 @@ class Session:
             timeout=timeout,
             registry=self.annotator.registry,
             merge_slack=merge_slack,
+            labels=labels,
+            stamps=stamps,
+            resolution=resolution,
         )
         self.stats = Stats(self.store)
         self.describer = Describer(self.store, self.annotator)
@@ -83,6 +89,8 @@ class Session:
     def finish(self) -> None:
         self.pipeline.finish()
         self.refresh()
+        # what the source's labels and stamps turned out to be worth, said once
+        self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
 
     def ingest(
         self,
@@ -127,6 +135,9 @@ def open_session(
         exact_timing=capture.info.exact_timing,
         timeout=timeout,
         source=str(path),
+        labels=capture.info.labels,
+        stamps=capture.info.stamps,
+        resolution=capture.info.resolution,
     )
     return session, capture
 

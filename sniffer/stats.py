@@ -7,6 +7,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from itertools import pairwise
 
+from sniffer.model import Stamp
+from sniffer.pairing import measure
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import BAD_CHECK, Kind, Status
 
@@ -22,6 +24,8 @@ class UnitStats:
     latencies: array[float] = field(default_factory=lambda: array("d"))  # seconds
     request_times: array[float] = field(default_factory=lambda: array("d"))
     last_seen: float = 0.0
+    below_resolution: int = 0  # answers faster than the timing resolves
+    unmeasured: int = 0  # answers whose latency the timing cannot give at all
 
     @property
     def exception_count(self) -> int:
@@ -108,9 +112,14 @@ class Stats:
                 if fc[i] & 0x80:
                     body = s.view(i).body()
                     st.exceptions[body[2] if len(body) > 2 else 0] += 1
-                j = partner[i]
-                if j != NO_PARTNER:
-                    st.latencies.append(t[i] - t_end[j])
+                if partner[i] != NO_PARTNER:
+                    lat = measure(s, i)
+                    if lat is None:
+                        st.unmeasured += 1
+                    elif lat.bound:
+                        st.below_resolution += 1
+                    else:
+                        st.latencies.append(lat.seconds)
         self.next = len(s)
 
     def table(self, labels: dict[int, str] | None = None) -> str:
@@ -127,7 +136,7 @@ class Stats:
 
         for u in sorted(self.units):
             st = self.units[u]
-            period = st.polling_period()
+            period = st.polling_period() if self.store.stamps != Stamp.NONE else None
             lines.append(
                 f"{u:>4}  {labels.get(u, '')[:16]:<16} {st.requests:>7} {st.responses:>7} "
                 f"{st.exception_count:>5} {st.timeouts:>5} {st.check_errors:>5} "
@@ -141,4 +150,36 @@ class Stats:
         lines.append(
             f"noise: {self.noise_spans} spans, {self.noise_bytes} bytes; events: {self.events}"
         )
+        lines.append(self.timing_line())
         return "\n".join(lines)
+
+    def timing_line(self) -> str:
+        """What the latencies and periods above are worth, given the source's stamps."""
+        s = self.store
+        below = sum(u.below_resolution for u in self.units.values())
+        unmeasured = sum(u.unmeasured for u in self.units.values())
+        if s.stamps == Stamp.NONE:
+            return (
+                "timing: synthetic (the source has no timestamps): "
+                "no latency or poll period is measured"
+            )
+        text = f"timing: {TIMING_WORDS[s.stamps]}"
+        if s.resolution > 0:
+            text += f", resolution about {s.resolution * 1000:.3g} ms"
+        if below:
+            text += f"; {below} answer(s) faster than that (<{s.resolution * 1000:.3g} ms)"
+        if unmeasured:
+            text += f"; {unmeasured} latency(ies) the stamps cannot give"
+        if below or unmeasured:
+            text += ", left out of the latency columns"
+        return text
+
+
+TIMING_WORDS = {
+    Stamp.EXACT: "exact (per character)",
+    Stamp.READ_END: "end of each host read",
+    Stamp.FRAME_START: "start of each frame",
+    Stamp.FRAME_END: "end of each frame",
+    Stamp.PRINT: "when each line was logged",
+    Stamp.NONE: "synthetic",
+}

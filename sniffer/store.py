@@ -11,6 +11,7 @@ from array import array
 from dataclasses import dataclass
 
 from dissectors.envelope import ascii_body
+from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 NO_PARTNER = -1
@@ -74,6 +75,10 @@ class FrameStore:
         self.status = array("B")
         self.notes: dict[int, str] = {}  # event texts and other per-row notes
         self.fill_channel = 0  # the channel of rows appended without one (see sync)
+        # what the row times mean (the source's stamps) and how fine they are, in
+        # seconds (0: not known); latencies are measured with them (pairing.measure)
+        self.stamps = Stamp.READ_END
+        self.resolution = 0.0
 
     def __len__(self) -> int:
         return len(self.t)

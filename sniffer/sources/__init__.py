@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sniffer.model import SourceInfo
+from sniffer.model import SourceInfo, Stamp
 from sniffer.sources import detect
 from sniffer.sources.base import Capture, CaptureError, ReadOptions
 from sniffer.sources.hexdump import open_hexdump, open_socat
@@ -67,5 +67,5 @@ def open_capture(path: str | Path, options: ReadOptions | None = None) -> Captur
     if kind == detect.HEXDUMP:
         return open_hexdump(path, options)
     line = options.line(None)
-    info = SourceInfo(path=str(path), format="raw", line=line)
+    info = SourceInfo(path=str(path), format="raw", line=line, stamps=Stamp.NONE)
     return Capture(info=info, _chunks=raw_chunks(path, line))

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
-from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.detect import SOCAT_HEADER
 
@@ -99,11 +99,16 @@ def _socat_microsecond_bug(text: str) -> bool:
 def open_socat(path: Path, options: ReadOptions) -> Capture:
     """Open a `socat -x -v` log."""
     text = _read_text(path)
-    directions = {m[1] for m in SOCAT_HEADER.finditer(text)}
-    channels = {0 if d == ">" else 1: _MASTER_LABEL[0 if d == ">" else 1] for d in directions}
     line = options.line(None)
+    # both directions pass through socat in turn: one stream, `>`/`<` as labels
     info = SourceInfo(
-        path=str(path), format="socat", line=line, channels=dict(sorted(channels.items()))
+        path=str(path),
+        format="socat",
+        line=line,
+        channels={0: "socat (> and < labels)"},
+        stamps=Stamp.PRINT,
+        resolution=1e-6,
+        labels=Labels.HINT,
     )
     warnings: list[str] = []
     chunks = _socat_chunks(text, _socat_microsecond_bug(text), warnings)
@@ -135,7 +140,7 @@ def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[C
         yield Chunk(
             data=bytes(rec.data),
             t_end=rec.t,
-            channel=0 if master else 1,
+            channel=0,
             direction=Direction.MASTER if master else Direction.SLAVE,
         )
 
@@ -184,6 +189,22 @@ def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[C
 # ---------------------------------------------------------------- text2pcap
 
 
+_DIRECTIONS = {"O": Direction.MASTER, "I": Direction.SLAVE}
+
+
+def _has_times(text: str) -> bool:
+    """Whether any preamble line of the dump carries a time text2pcap would read."""
+    for line in text.splitlines():
+        rest = line.strip()
+        if not rest or rest.startswith("#") or _OFFSET.match(line):
+            continue
+        if direction := _DIRECTION.match(rest):
+            rest = direction[2].strip()
+        if parse_time(rest) is not None:
+            return True
+    return False
+
+
 def _has_directions(text: str) -> bool:
     return any(
         _DIRECTION.match(line.strip()) and not _OFFSET.match(line) for line in text.splitlines()
@@ -195,8 +216,15 @@ def open_hexdump(path: Path, options: ReadOptions) -> Capture:
     text = _read_text(path)
     line = options.line(None)
     directions = _has_directions(text)
-    channels = {0: "O (outbound)", 1: "I (inbound)"} if directions else {0: "hexdump"}
-    info = SourceInfo(path=str(path), format="hexdump", line=line, channels=channels)
+    # O and I lines are one logger's sends and receives in turn: one stream, labelled
+    info = SourceInfo(
+        path=str(path),
+        format="hexdump",
+        line=line,
+        channels={0: "hexdump (O/I labels)" if directions else "hexdump"},
+        stamps=Stamp.PRINT if _has_times(text) else Stamp.NONE,
+        labels=Labels.HINT if directions else Labels.NONE,
+    )
     warnings: list[str] = []
     return Capture(info=info, _chunks=_hexdump_chunks(text, line, warnings), warnings=warnings)
 
@@ -236,15 +264,8 @@ def _hexdump_chunks(text: str, line: LineSettings, warnings: list[str]) -> Itera
         t = p.t if p.t is not None else t_prev + len(p.data) * char
         t_start = None if p.t is not None else t_prev
         t_prev = t
-        if p.direction == "O":
-            channel, direction = 0, Direction.MASTER
-        elif p.direction == "I":
-            channel, direction = 1, Direction.SLAVE
-        else:
-            channel, direction = 0, Direction.UNKNOWN
-        yield Chunk(
-            data=bytes(p.data), t_end=t, t_start=t_start, channel=channel, direction=direction
-        )
+        direction = _DIRECTIONS.get(p.direction, Direction.UNKNOWN)
+        yield Chunk(data=bytes(p.data), t_end=t, t_start=t_start, direction=direction)
 
     offset = 0
     for number, raw_line in enumerate(text.splitlines(keepends=True), start=1):

@@ -22,9 +22,9 @@ packet time (by less than a minute); RTAC events become event chunks ("framing e
 "parity error", "data lost", "break", "control lines" with the line states as note),
 after the data chunk when the record carries bytes too.
 
-Link type 252: each packet is one frame. Answers (inbound) go to their own channel,
-`SLAVE_CHANNEL` above their interface's, so that requests and answers are framed as two
-directions, the way a probe per direction is. `t_end` is the packet time and `t_start` one
+Link type 252: each packet is one frame; requests and answers stay on their interface's
+channel, in file order, their EPB flags a hint (see `sniffer.pipeline`). `t_end` is the
+packet time and `t_start` one
 frame length earlier, moved later where needed so that every frame starts at least t3.5
 after the previous one on its channel ends (and `t_end` no earlier than `t_start`): the
 framer then never joins two frames. Times move only where frames are closer than t3.5
@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
-from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
@@ -84,9 +84,6 @@ LINKTYPE_NAMES = {
 }
 SEPARATION_MARGIN = 1e-6  # beyond t3.5, so float rounding of Unix times cannot undo it
 RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
-
-
-SLAVE_CHANNEL = 128  # link type 252 answers: this far above their interface's channel
 
 
 def packet_direction(linktype: int, role: Direction, flags: int | None) -> Direction:
@@ -246,15 +243,19 @@ class _PacketDecoder:
         t_end = max(t, t_start)
         iface.last_end = t_end
         direction = packet_direction(iface.linktype, iface.note.role, flags)
-        channel = iface.channel + (SLAVE_CHANNEL if direction == Direction.SLAVE else 0)
         yield Chunk(
             data=record.pdu,
             t_end=t_end,
             t_start=t_start,
-            channel=channel,
+            channel=iface.channel,
             direction=direction,
             note=comment,
         )
+
+
+def _stamps(linktype: int) -> Stamp:
+    """What a packet time means: a frame's end for exported PDUs, a read's end otherwise."""
+    return Stamp.FRAME_END if linktype == LINKTYPE_WIRESHARK_UPPER_PDU else Stamp.READ_END
 
 
 def _file_size(handle: BinaryIO) -> int:
@@ -295,7 +296,14 @@ def open_pcap(path: Path, options: ReadOptions, head: bytes) -> Capture:
         snaplen=header.snaplen,
     )
     warnings: list[str] = []
-    info = SourceInfo(path=str(path), format="pcap", line=line, channels={0: label})
+    info = SourceInfo(
+        path=str(path),
+        format="pcap",
+        line=line,
+        channels={0: label},
+        stamps=_stamps(header.linktype),
+        resolution=1e-9 if header.nanoseconds else 1e-6,
+    )
     return Capture(
         info=info, _chunks=_pcap_chunks(path, header, iface, warnings), warnings=warnings
     )
@@ -538,12 +546,18 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
                 break
     line = options.line(section.file_line)
     channels = {iface.channel: iface.label for iface in section.all}
+    roles = [iface.note.role for iface in section.all]
+    first = section.all[0].linktype if section.all else 0
     info = SourceInfo(
         path=str(path),
         format="pcapng",
         line=line,
         channels=channels,
         recorded_line=section.file_line,
+        stamps=_stamps(first),
+        # interfaces with a modscope role are one port per direction; EPB flags and
+        # everything else are hints
+        labels=Labels.CERTAIN if roles and Direction.UNKNOWN not in roles else Labels.HINT,
     )
     warnings: list[str] = []
     return Capture(

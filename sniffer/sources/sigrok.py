@@ -30,7 +30,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, CaptureError, ReadOptions
 from sniffer.sources.zipscan import Archive, ArchiveError
 
@@ -333,6 +333,8 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         line=line,
         exact_timing=True,
         channels=channels,
+        stamps=Stamp.EXACT,
+        labels=Labels.CERTAIN,
         warnings=tuple(early),
     )
     warnings: list[str] = list(early)

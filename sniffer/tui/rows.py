@@ -56,8 +56,14 @@ class StoreReader(FrameStore):
         self.partner = store.partner
         self.status = store.status
         self.notes = store.notes
+        self._source = store
+        self.stamps = store.stamps
+        self.resolution = store.resolution
 
     def sync(self) -> None:
+        # read through what the ingest thread may refine (the read resolution)
+        self.stamps = self._source.stamps
+        self.resolution = self._source.resolution
         return None
 
 
