@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
-from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.detect import SOCAT_HEADER
 
@@ -44,6 +44,7 @@ _ISO = re.compile(
 _SLASHED = re.compile(r"^(\d{4})/(\d\d)/(\d\d)[ T](\d\d):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
 _TIME_OF_DAY = re.compile(r"^(\d{1,2}):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
 _SECONDS = re.compile(r"^(\d+)\.(\d+)(?:\s|$)")
+_TIME_FRACTION = re.compile(r"^[\d/:T -]*\d[.,](\d+)")
 _MASTER_LABEL = {0: "> (first address to second)", 1: "< (second address to first)"}
 
 
@@ -103,7 +104,13 @@ def open_socat(path: Path, options: ReadOptions) -> Capture:
     channels = {0 if d == ">" else 1: _MASTER_LABEL[0 if d == ">" else 1] for d in directions}
     line = options.line(None)
     info = SourceInfo(
-        path=str(path), format="socat", line=line, channels=dict(sorted(channels.items()))
+        path=str(path),
+        format="socat",
+        line=line,
+        channels=dict(sorted(channels.items())),
+        stamps=Stamp.PRINT,
+        resolution=1e-6,
+        labels=Labels.HINT,
     )
     warnings: list[str] = []
     chunks = _socat_chunks(text, _socat_microsecond_bug(text), warnings)
@@ -190,13 +197,39 @@ def _has_directions(text: str) -> bool:
     )
 
 
+def _packet_times(text: str) -> tuple[Stamp, float]:
+    """What the packet times are: print times with their coarsest resolution, or none."""
+    stamps, resolution = Stamp.NONE, 0.0
+    for raw_line in text.splitlines():
+        rest = raw_line.strip()
+        if not rest or rest.startswith("#") or _OFFSET.match(raw_line):
+            continue
+        if direction := _DIRECTION.match(rest):
+            rest = direction[2].strip()
+        if parse_time(rest) is None:
+            continue
+        fraction = _TIME_FRACTION.match(rest)
+        stamps = Stamp.PRINT
+        resolution = max(resolution, 10.0 ** -len(fraction[1]) if fraction else 1.0)
+    return stamps, resolution
+
+
 def open_hexdump(path: Path, options: ReadOptions) -> Capture:
     """Open a text2pcap-style hex dump."""
     text = _read_text(path)
     line = options.line(None)
     directions = _has_directions(text)
+    stamps, resolution = _packet_times(text)
     channels = {0: "O (outbound)", 1: "I (inbound)"} if directions else {0: "hexdump"}
-    info = SourceInfo(path=str(path), format="hexdump", line=line, channels=channels)
+    info = SourceInfo(
+        path=str(path),
+        format="hexdump",
+        line=line,
+        channels=channels,
+        stamps=stamps,
+        resolution=resolution,
+        labels=Labels.HINT if directions else Labels.NONE,
+    )
     warnings: list[str] = []
     return Capture(info=info, _chunks=_hexdump_chunks(text, line, warnings), warnings=warnings)
 

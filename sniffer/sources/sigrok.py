@@ -30,7 +30,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from sniffer.model import Chunk, Direction, LineSettings, SourceInfo
+from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, CaptureError, ReadOptions
 from sniffer.sources.zipscan import Archive, ArchiveError
 
@@ -334,6 +334,8 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         exact_timing=True,
         channels=channels,
         warnings=tuple(early),
+        stamps=Stamp.EXACT,
+        labels=Labels.CERTAIN if len(numbers) == 2 else Labels.NONE,
     )
     warnings: list[str] = list(early)
     chunks = _chunks(path, meta, probes, options.invert, warnings)
