@@ -7,8 +7,9 @@ damaged file gives every complete record and a warning naming the offset.
 
 Formats (see each module): pcap and pcapng with link types 147, 250 and 252 (`pcap`),
 sigrok `.sr` logic captures decoded as UART (`sigrok`), `socat -x -v` logs and
-text2pcap-style hex dumps (`hexdump`), and raw binary (`raw`). Recognition order is in
-`detect`. The pcapng writer is `pcapng_writer`.
+text2pcap-style hex dumps (`hexdump`), Saleae Logic CSV exports (`saleae`), text logs
+of ESPHome, pymodbus, libmodbus and serial monitors (`logs`), and raw binary (`raw`).
+Recognition order is in `detect`. The pcapng writer is `pcapng_writer`.
 """
 
 from __future__ import annotations
@@ -19,8 +20,10 @@ from sniffer.model import SourceInfo, Stamp
 from sniffer.sources import detect
 from sniffer.sources.base import Capture, CaptureError, ReadOptions
 from sniffer.sources.hexdump import open_hexdump, open_socat
+from sniffer.sources.logs import LOG_FORMATS, open_log
 from sniffer.sources.pcap import open_pcap, open_pcapng
 from sniffer.sources.raw import raw_chunks
+from sniffer.sources.saleae import open_saleae
 from sniffer.sources.sigrok import open_sigrok
 
 __all__ = ["Capture", "CaptureError", "ReadOptions", "open_capture"]
@@ -66,6 +69,10 @@ def open_capture(path: str | Path, options: ReadOptions | None = None) -> Captur
         return open_socat(path, options)
     if kind == detect.HEXDUMP:
         return open_hexdump(path, options)
+    if kind == detect.SALEAE:
+        return open_saleae(path, options)
+    if kind in LOG_FORMATS:
+        return open_log(path, options, kind)
     line = options.line(None)
     info = SourceInfo(path=str(path), format="raw", line=line, stamps=Stamp.NONE)
     return Capture(info=info, _chunks=raw_chunks(path, line))

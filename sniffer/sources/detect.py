@@ -2,8 +2,9 @@
 
 Order: pcapng (block type and byte-order magic), pcap (any of its magics with version 2),
 ZIP (a sigrok session if it holds `metadata`, decided by the sigrok reader), then text:
-a `socat -x -v` header line, a text2pcap-style offset line at offset 0; anything else is
-raw binary.
+a `socat -x -v` header line, a text2pcap-style offset line at offset 0, a Saleae CSV
+export header, then the text logs of `logs.sniff_log` (ESPHome, pymodbus, libmodbus,
+serial monitors); anything else is raw binary.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ PCAP = "pcap"
 SIGROK = "sigrok"
 SOCAT = "socat"
 HEXDUMP = "hexdump"
+SALEAE = "saleae"
 RAW = "raw"
 
 PCAP_MAGICS = {
@@ -81,4 +83,8 @@ def sniff(head: bytes) -> str:
         for match in OFFSET_LINE.finditer(text):
             if int(match[1], 16) == 0:
                 return HEXDUMP
-    return RAW
+    from sniffer.sources import logs, saleae  # here: they must not be loaded by detect's users
+
+    if saleae.sniff_saleae(head):
+        return SALEAE
+    return logs.sniff_log(head) or RAW

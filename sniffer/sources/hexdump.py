@@ -2,7 +2,8 @@
 
 socat: each transfer is a header line `> 2024/05/01 12:00:00.123456  length=8 from=0
 to=7` followed by lines of hex bytes (and an ASCII column), then `--`. `>` (first address
-to second) is channel 0, Direction.MASTER; `<` is channel 1, Direction.SLAVE. The header
+to second) is Direction.MASTER, `<` Direction.SLAVE: labels on one stream (channel 0) in
+the order socat relayed them, hints in the pipeline's sense. The header
 time is local wall-clock time and becomes the chunk's `t_end`. socat 1.7.4 prints the
 microseconds as nine digits (`.000821692` for .821692 s): a file whose nine-digit
 fractions are all below 1,000,000 is read that way.
@@ -12,8 +13,8 @@ more than two hex digits, a colon, space or tab, then bytes as two hex digits; o
 starts a packet; an offset smaller than expected cuts the previous line (its ASCII
 column looked like hex); any other unexpected offset ends the packet with a warning.
 Lines starting with `#` are comments. The text between packets may start with a
-direction (`I` inbound: Direction.SLAVE, channel 1; `O` outbound: Direction.MASTER,
-channel 0, the master's point of view, as text2pcap -D writes it) and a time, which
+direction (`I` inbound: Direction.SLAVE; `O` outbound: Direction.MASTER, the master's
+point of view, as text2pcap -D writes it; both on channel 0, as labels) and a time, which
 becomes the packet's `t_end`. Times understood: ISO 8601 (`2024-05-01T12:00:00.5Z`,
 a space instead of `T`, an optional UTC offset; none means local time),
 `2024/05/01 12:00:00.5`, a time of day `12:00:00.5` (seconds since midnight), and
@@ -44,6 +45,7 @@ _ISO = re.compile(
 _SLASHED = re.compile(r"^(\d{4})/(\d\d)/(\d\d)[ T](\d\d):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
 _TIME_OF_DAY = re.compile(r"^(\d{1,2}):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
 _SECONDS = re.compile(r"^(\d+)\.(\d+)(?:\s|$)")
+_TIME_FRACTION = re.compile(r"^[\d/:T -]*\d[.,](\d+)")
 _MASTER_LABEL = {0: "> (first address to second)", 1: "< (second address to first)"}
 
 
@@ -192,23 +194,27 @@ def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[C
 _DIRECTIONS = {"O": Direction.MASTER, "I": Direction.SLAVE}
 
 
-def _has_times(text: str) -> bool:
-    """Whether any preamble line of the dump carries a time text2pcap would read."""
-    for line in text.splitlines():
-        rest = line.strip()
-        if not rest or rest.startswith("#") or _OFFSET.match(line):
-            continue
-        if direction := _DIRECTION.match(rest):
-            rest = direction[2].strip()
-        if parse_time(rest) is not None:
-            return True
-    return False
-
-
 def _has_directions(text: str) -> bool:
     return any(
         _DIRECTION.match(line.strip()) and not _OFFSET.match(line) for line in text.splitlines()
     )
+
+
+def _packet_times(text: str) -> tuple[Stamp, float]:
+    """What the packet times are: print times with their coarsest resolution, or none."""
+    stamps, resolution = Stamp.NONE, 0.0
+    for raw_line in text.splitlines():
+        rest = raw_line.strip()
+        if not rest or rest.startswith("#") or _OFFSET.match(raw_line):
+            continue
+        if direction := _DIRECTION.match(rest):
+            rest = direction[2].strip()
+        if parse_time(rest) is None:
+            continue
+        fraction = _TIME_FRACTION.match(rest)
+        stamps = Stamp.PRINT
+        resolution = max(resolution, 10.0 ** -len(fraction[1]) if fraction else 1.0)
+    return stamps, resolution
 
 
 def open_hexdump(path: Path, options: ReadOptions) -> Capture:
@@ -217,12 +223,14 @@ def open_hexdump(path: Path, options: ReadOptions) -> Capture:
     line = options.line(None)
     directions = _has_directions(text)
     # O and I lines are one logger's sends and receives in turn: one stream, labelled
+    stamps, resolution = _packet_times(text)
     info = SourceInfo(
         path=str(path),
         format="hexdump",
         line=line,
         channels={0: "hexdump (O/I labels)" if directions else "hexdump"},
-        stamps=Stamp.PRINT if _has_times(text) else Stamp.NONE,
+        stamps=stamps,
+        resolution=resolution,
         labels=Labels.HINT if directions else Labels.NONE,
     )
     warnings: list[str] = []

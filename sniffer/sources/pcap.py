@@ -536,6 +536,7 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
     """Open a pcapng file: interfaces before the first packet describe the capture."""
     early: list[str] = []
     section = _Section(options, early)
+    stamps, labels = Stamp.READ_END, Labels.NONE
     with path.open("rb") as handle:
         for block in _blocks(handle, early):
             if block.type == BLOCK_SHB:
@@ -543,26 +544,51 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
             elif block.type == BLOCK_IDB:
                 section.add(block)
             elif block.type in (BLOCK_EPB, BLOCK_SPB, BLOCK_PB):
+                stamps, labels = _first_packet_says(block, section)
                 break
     line = options.line(section.file_line)
     channels = {iface.channel: iface.label for iface in section.all}
     roles = [iface.note.role for iface in section.all]
-    first = section.all[0].linktype if section.all else 0
     info = SourceInfo(
         path=str(path),
         format="pcapng",
         line=line,
         channels=channels,
         recorded_line=section.file_line,
-        stamps=_stamps(first),
-        # interfaces with a modscope role are one port per direction; EPB flags and
-        # everything else are hints
-        labels=Labels.CERTAIN if roles and Direction.UNKNOWN not in roles else Labels.HINT,
+        stamps=stamps,
+        # interfaces with a modscope role are one port per direction; EPB flags are hints
+        labels=Labels.CERTAIN if roles and Direction.UNKNOWN not in roles else labels,
     )
     warnings: list[str] = []
     return Capture(
         info=info, _chunks=_pcapng_chunks(path, options, info, warnings), warnings=warnings
     )
+
+
+def _first_packet_says(block: _Block, section: _Section) -> tuple[Stamp, Labels]:
+    """What a capture's timestamps mean and how far its directions hold, judged from its
+    first packet: link type 250 records that carry their start time are exact (else the
+    packet time is a read's end); EPB direction flags are a writer's hint (252 frames are
+    stamped at their end)."""
+    if block.type != BLOCK_EPB or len(block.body) < 20:
+        return Stamp.READ_END, Labels.NONE
+    index, high, low, caplen = struct.unpack_from(block.order + "IIII", block.body)
+    iface = section.current[index] if 0 <= index < len(section.current) else None
+    if iface is None or 20 + caplen > len(block.body):
+        return Stamp.READ_END, Labels.NONE
+    flags = _flags(_options(block.body, 20 + caplen + (-caplen % 4), block.order), block.order)
+    labelled = bool((flags or 0) & EPB_DIRECTION_MASK) or iface.note.role != Direction.UNKNOWN
+    labels = Labels.HINT if labelled else Labels.NONE
+    if iface.linktype == LINKTYPE_RTAC_SERIAL and iface.note.line is None:
+        # another tool's RTAC records: a header time before the packet's is the first
+        # byte's (modscope's own recordings estimate it from the read and the baud rate)
+        record = parse_rtac(block.body[20 : 20 + caplen])
+        t = ((high << 32) | low) / iface.ticks_per_second + iface.offset_seconds
+        lead = t - record.seconds if record is not None else -1.0
+        return (Stamp.EXACT if 0.0 < lead < RTAC_MAX_LEAD else Stamp.READ_END), labels
+    if iface.linktype == LINKTYPE_WIRESHARK_UPPER_PDU:
+        return Stamp.FRAME_END, labels
+    return Stamp.READ_END, labels
 
 
 def _pcapng_chunks(

@@ -333,9 +333,9 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         line=line,
         exact_timing=True,
         channels=channels,
-        stamps=Stamp.EXACT,
-        labels=Labels.CERTAIN,
         warnings=tuple(early),
+        stamps=Stamp.EXACT,
+        labels=Labels.CERTAIN if len(numbers) == 2 else Labels.NONE,
     )
     warnings: list[str] = list(early)
     chunks = _chunks(path, meta, probes, options.invert, warnings)
