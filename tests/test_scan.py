@@ -161,6 +161,7 @@ def test_live_command_is_exact() -> None:
     assert table.splitlines()[1].split()[1:3] == ["4800", "7E1"]
 
 
+@pytest.mark.slow
 @settings(max_examples=15, deadline=None)
 @given(
     baud=st.sampled_from(BAUDS),
