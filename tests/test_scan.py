@@ -4,23 +4,29 @@ it cannot, and never drive the line."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from sniffer.baud import estimate_baud, estimate_line, wrong_speed
 from sniffer.model import Chunk, LineSettings
+from sniffer.pipeline import Flag, Kind, frame_capture
 from sniffer.scan import (
     BAUDS,
     PortListener,
     Sample,
     candidates,
     decide,
+    format_of,
     live_command,
     parse_format,
     scan,
     score,
 )
+from sniffer.sources import ReadOptions, open_capture
 from tests.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
 
 REQUEST = with_crc(bytes.fromhex("010300000004"))
@@ -196,3 +202,99 @@ def test_port_listener_scans_through_a_passive_port_double() -> None:
         assert set(port.calls) <= {"open", "close", "low_latency=True"}
         assert (port.rts, port.dtr) == (False, False)
     assert len(ports.ports) >= len(result.trials)  # a quiet setting is reopened to listen longer
+
+
+# -- offline: the baud rate and format of a logic capture -------------------------------
+
+SIGROK = Path(__file__).parent / "captures" / "sigrok"
+
+
+@pytest.mark.parametrize(
+    ("path", "probes", "invert", "setting", "frames"),
+    [
+        # settings and frame counts as tests/captures/README.md gives them
+        (SIGROK / "brainchild_io_16do/brainchild-io-16do.sr", ("1", "0"), True, "19200 8E1", 30),
+        (SIGROK / "flowmeter/flowmeter_graph_tool.sr", ("RXTX",), False, "9600 8N1", 18),
+        (SIGROK / "flowmeter/flowmeter_target0_val0.sr", ("RXTX",), False, "9600 8N1", 74),
+        (SIGROK / "wizmodbus/wizmodbus.sr", ("RX", "TX"), False, "9600 8N1", 88),
+    ],
+    ids=lambda v: v.name if isinstance(v, Path) else None,
+)
+def test_sigrok_without_line_flags_measures_the_line(
+    path: Path, probes: tuple[str, ...], invert: bool, setting: str, frames: int
+) -> None:
+    capture = open_capture(path, ReadOptions(probes=probes, invert=invert))
+    line = capture.info.line
+    assert line is not None and f"{line.baud} {format_of(line)}" == setting
+    notes = [w for w in capture.warnings if "no --baud given" in w]
+    assert len(notes) == 1 and f"chose {setting}" in notes[0] and str(path) in notes[0]
+    store = frame_capture(capture.chunks(), line, exact_timing=True)
+    valid = sum(
+        1
+        for i in range(len(store))
+        if store.kind[i] not in (Kind.NOISE, Kind.EVENT) and not store.flags[i] & Flag.CHECK_BAD
+    )
+    assert valid == frames
+
+
+def test_sigrok_flags_given_are_kept() -> None:
+    path = SIGROK / "wizmodbus/wizmodbus.sr"
+    capture = open_capture(path, ReadOptions(probes=("RX", "TX"), baud=9600, parity="N"))
+    assert not [w for w in capture.warnings if "no --baud given" in w]
+    # the line is 8N1: told it is odd parity, the estimate keeps that and shows the cost
+    capture = open_capture(path, ReadOptions(probes=("RX", "TX"), parity="O"))
+    assert capture.info.line is not None
+    assert (capture.info.line.baud, capture.info.line.parity) == (9600, "O")
+    (note,) = [w for w in capture.warnings if "no --baud given" in w]
+    assert " 0 line errors" not in note and "line errors" in note
+
+
+def _levels(line: LineSettings, data: bytes, per_bit: int, gap_bits: int) -> bytes:
+    out = bytearray(b"\x01" * per_bit * 20)
+    for byte in data:
+        for b in character_bits(byte, line):
+            out += bytes([b]) * per_bit
+        out += b"\x01" * per_bit * gap_bits
+    return bytes(out + b"\x01" * per_bit * 20)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    baud=st.sampled_from([1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200]),
+    data=st.binary(min_size=12, max_size=40),
+    gap=st.integers(min_value=0, max_value=3),
+)
+def test_estimate_baud_finds_the_rate_of_any_bytes(baud: int, data: bytes, gap: int) -> None:
+    line = LineSettings(baud, 8, "E", 1)
+    samplerate = baud * 8.0  # 8 samples per bit
+    levels = _levels(line, data, 8, gap)
+    guess = estimate_baud(samplerate, [levels])
+    if guess is None:  # only when the bytes hold no lone bit at all
+        assert all(b in (0x00, 0xFF) for b in data)
+        return
+    assert guess.baud == baud and guess.common
+    assert guess.bit_samples == pytest.approx(8.0, rel=0.02)
+
+
+def test_estimate_line_picks_parity_from_the_characters() -> None:
+    for fmt in ("8E1", "8O1", "8N1", "7E1"):
+        bytesize, parity, stopbits = parse_format(fmt)
+        line = LineSettings(9600, bytesize, parity, stopbits)
+        body = bytes.fromhex("010300000004")
+        frame = with_crc(body) if bytesize == 8 else b":010300000004F8\r\n"
+        levels = _levels(line, frame * 3, 10, 0)
+        guess = estimate_line(96000.0, [levels], ReadOptions())
+        assert guess is not None, fmt
+        assert format_of(guess.line) == fmt, guess.note
+
+
+def test_wrong_speed_is_said_and_scan_suggested() -> None:
+    line = LineSettings(19200, 8, "E", 1)
+    wire = Wire(line, *modbus_cycle(line))
+    right, _f, _p = wire.receive(line, 0.003, 0.5)
+    wrong, _f, _p = wire.receive(LineSettings(9600, 8, "E", 1), 0.003, 0.5)
+    good = frame_capture([Chunk(bytes(v for _t, v in right), 0.5)], line)
+    bad = frame_capture([Chunk(bytes(v for _t, v in wrong), 0.5)], line)
+    assert wrong_speed(good) is None
+    warning = wrong_speed(bad)
+    assert warning is not None and "wrong speed" in warning and "modscope scan" in warning
