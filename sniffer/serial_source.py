@@ -37,6 +37,7 @@ from types import TracebackType
 
 import serial
 
+from sniffer.errors import UserError
 from sniffer.model import Chunk, Direction, LineSettings
 
 READ_SIZE = 1 << 16  # bytes asked of one read: whatever the port has, up to this
@@ -53,7 +54,7 @@ PortFactory = Callable[[str], serial.Serial]
 """Makes an unopened port object for a port name (a device path or a pyserial URL)."""
 
 
-class PortError(Exception):
+class PortError(UserError):
     """A port cannot be used. The message names the port and what to do."""
 
 
@@ -131,6 +132,11 @@ def explain(spec: PortSpec, exc: BaseException) -> str:
     name = spec.name
     code = exc.errno if isinstance(exc, OSError) else None
     text = str(exc)
+    if isinstance(exc, termios.error):
+        # pyserial lets the termios call's own error through: (errno, text)
+        args = exc.args
+        code = args[0] if args and isinstance(args[0], int) else None
+        text = str(args[1]) if len(args) > 1 else text
     if code in (errno.ENOENT, errno.ENODEV, errno.ENXIO) or "No such file" in text:
         return (
             f"{name}: no such serial port; `modscope ports` lists the ports this machine "
@@ -170,7 +176,9 @@ def open_passive(
         port = (factory or new_port)(spec.name)
         configure(port, spec)
         port.open()
-    except (serial.SerialException, OSError, ValueError) as exc:
+    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        # termios.error is not an OSError: pyserial raises it when the port refuses the
+        # line settings (a pseudo-terminal refusing even parity, a tunnel's remote end)
         raise PortError(explain(spec, exc)) from None
     fd = posix_fd(port)
     if fd is not None:
@@ -420,6 +428,8 @@ class LiveReader:
         self.clock = clock or WallClock()
         self.retry = retry
         self.warnings: list[str] = []
+        self.failure: str | None = None  # why a reading thread ended on its own (a bug)
+        self.error: Exception | None = None  # and the exception that ended it
         self.stats = [PortStats(s.name) for s in self.specs]
         self.feeds: list[ChunkFeed] = []
         self._ports: list[serial.Serial | None] = [None] * len(self.specs)
@@ -493,7 +503,14 @@ class LiveReader:
 
     @property
     def running(self) -> bool:
-        return self._started and not self._stop.is_set()
+        """True while started, not stopped, and every reading thread is alive (a thread
+        ends on its own only through a bug, which `failure` then describes)."""
+        return (
+            self._started
+            and not self._stop.is_set()
+            and self.failure is None
+            and all(t.is_alive() for t in self._threads)
+        )
 
     def __enter__(self) -> LiveReader:
         return self
@@ -533,6 +550,19 @@ class LiveReader:
         )
 
     def _run(self, n: int) -> None:
+        try:
+            self._read_until_stopped(n)
+        except Exception as exc:  # a bug: say so where the user looks, and stop running
+            spec = self.specs[n]
+            self.stats[n].connected = False
+            self.error = exc
+            self.failure = (
+                f"{spec.name}: reading stopped by an internal error "
+                f"({type(exc).__name__}: {exc}); this is a bug in modscope, please report it"
+            )
+            self._event(n, "reader stopped", self.failure)
+
+    def _read_until_stopped(self, n: int) -> None:
         spec = self.specs[n]
         while not self._stop.is_set():
             with self._lock:
@@ -573,11 +603,20 @@ class LiveReader:
                 )
 
     def _reopen(self, n: int) -> bool:
+        """Try to open the lost port every `retry` seconds until it opens or reading
+        stops. Why it cannot be opened is reported as an event whenever the reason
+        changes (the adapter is back but refuses the line settings, is busy, ...)."""
         spec = self.specs[n]
+        told = ""
         while not self._stop.wait(self.retry):
             try:
                 port, _warnings = open_passive(spec, self.factory)
-            except PortError:
+            except PortError as exc:
+                reason = str(exc)
+                missing = "no such serial port" in reason  # still unplugged: said already
+                if reason != told and not missing:
+                    self._event(n, "reopen failed", f"{reason}; trying again")
+                told = reason
                 continue
             with self._lock:
                 if self._stop.is_set():

@@ -15,16 +15,16 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
+from sniffer.capture import LiveCapture
 from sniffer.cli import main
-from sniffer.framing import Kind
-from sniffer.live import LiveCapture, parse_roles
+from sniffer.cli.lines import parse_roles
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.recorder import RecordError
 from sniffer.serial_source import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events
 from sniffer.serial_source import _Counters as Counters
 from sniffer.session import Session
 from sniffer.sources import open_capture
-from sniffer.store import Status
+from sniffer.vocab import Kind, Status
 from tests.virtual_bus import Made, VirtualBus, wait_ready
 
 LINE = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
