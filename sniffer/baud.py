@@ -18,11 +18,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import Flag, Kind
 from sniffer.scan import Sample, format_of, parse_format, score
 from sniffer.sources.base import ReadOptions
 from sniffer.sources.sigrok import UartDecoder, bit_levels
 from sniffer.store import FrameStore
+from sniffer.vocab import Flag, Kind
 
 COMMON_BAUDS = (
     300, 600, 1200, 2400, 4800, 9600, 14400, 19200, 28800, 38400, 56000, 57600,
@@ -112,7 +112,8 @@ def choose_format(
     results = []
     for rank, text in enumerate(formats):
         bytesize, parity, stopbits = parse_format(text)
-        line = LineSettings(baud, bytesize, parity, stopbits, mode)
+        # 7 data bits carry Modbus ASCII only
+        line = LineSettings(baud, bytesize, parity, stopbits, "ascii" if bytesize == 7 else mode)
         chunks, framing, parity_errors = decode(line)
         trial = score(line, Sample(tuple(chunks), 1.0, framing, parity_errors))
         rate = trial.error_rate

@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sniffer.draft import observe
-from sniffer.pipeline import Kind
 from sniffer.pollcycle import Poll, poll_cycles
 from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.vocab import Kind
 
 PERIOD_CHANGE = 0.2  # a period that moved by more than 20 % is reported
 LATENCY_CHANGE = 0.5  # a median latency that moved by more than 50 % (and 2 ms)

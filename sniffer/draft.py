@@ -18,8 +18,8 @@ from pathlib import Path
 
 from dissectors.dissect import dissect
 from dissectors.values import Dissection, Role
-from sniffer.pipeline import Flag, Kind
 from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.vocab import Flag, Kind
 
 REGISTER_TABLES = ("holding_registers", "input_registers")
 TABLE_WORDS = {

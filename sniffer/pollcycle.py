@@ -15,8 +15,8 @@ from itertools import pairwise
 
 from dissectors.dissect import dissect
 from dissectors.values import Role
-from sniffer.pipeline import Flag, Kind
 from sniffer.store import FrameStore
+from sniffer.vocab import Flag, Kind
 
 GAP_FACTOR = 2.0  # a wait longer than this many periods is a gap
 MIN_REPEATS = 3  # sendings before a request counts as part of the cycle

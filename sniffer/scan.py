@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import serial
 
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import Flag, Kind, frame_capture
+from sniffer.pipeline import frame_capture
 from sniffer.serial_source import (
     PortError,
     PortFactory,
@@ -39,6 +39,7 @@ from sniffer.serial_source import (
     read_icount,
 )
 from sniffer.store import NO_PARTNER
+from sniffer.vocab import Flag, Kind
 
 BAUDS = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)
 FORMATS = ("8N1", "8E1", "8O1", "8N2", "7E1", "7O1")  # 7-bit: Modbus ASCII only

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from dissectors.checks import with_crc
 from sniffer.baud import estimate_baud, estimate_line, wrong_speed
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import Flag, Kind, frame_capture
+from sniffer.pipeline import frame_capture
 from sniffer.scan import (
     BAUDS,
     PortListener,
@@ -27,6 +27,7 @@ from sniffer.scan import (
     score,
 )
 from sniffer.sources import ReadOptions, open_capture
+from sniffer.vocab import Flag, Kind
 from tests.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
 
 REQUEST = with_crc(bytes.fromhex("010300000004"))
