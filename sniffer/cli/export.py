@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
+from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.options import (
     SubParsers,
     add_device_options,
@@ -59,6 +60,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
     if args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
+    query = query_of(args)
     bindings = bindings_for(args)
     session, capture = open_session(
         source, read_options(args), bindings=bindings, timeout=args.timeout
@@ -67,7 +69,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     session.warnings.extend(capture.warnings)
     for w in session.warnings:
         err.write(f"modscope: warning: {plain(w)}\n")
-    rows = range(len(session.store))
+    rows = Selection(session, query, args.count).take(len(session.store), final=True)
     describer = session.describer
     if fmt == "pcapng":
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
@@ -81,7 +83,9 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     text = out if args.output == "-" else _open_text(args.output)
     try:
         if what == "frames":
-            n = Lister(text, fmt, describer, absolute=args.time == "abs").write(rows, flush=False)
+            lister = Lister(text, fmt, describer, absolute=args.time == "abs")
+            lister.origin = session.store.t[0] if len(session.store) else None
+            n = lister.write(rows, flush=False)
         elif what == "transactions":
             n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
         else:
@@ -141,4 +145,5 @@ def register(sub: SubParsers) -> None:
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
     g.add_argument("--invert", action="store_true", help="idle-low levels")
     add_device_options(p)
+    add_filter_options(p)
     p.set_defaults(func=cmd_export)

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import TextIO
 
 from sniffer.capture import LiveCapture
+from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
@@ -100,7 +101,14 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             lister = Lister(
                 out, args.format or "text", session.describer, absolute=args.time == "abs"
             )
-        return stream(capture, lister, exporter, deadline)
+        selection = Selection(session, query_of(args), args.count)
+        if lister is not None and selection.query is not None:
+            lister.origin = None  # counted from the first row listed, as without a filter
+        labels = {u: b.label for u, b in bindings.items()}
+        every = args.stats if args.stats and args.stats > 0 else None
+        return stream(
+            capture, lister, exporter, deadline, selection, Summary(session, err, labels, every)
+        )
     finally:
         capture.stop()
         if pcap_file is not None and pcap_file is not sys.stdout.buffer:
@@ -114,20 +122,61 @@ def _tui_available() -> bool:
         return False
 
 
+class Summary:
+    """The --stats table (and poll cycle) on standard error: every `every` seconds while
+    capturing, and once when the capture ends."""
+
+    def __init__(
+        self, session: Session, err: TextIO, labels: dict[int, str], every: float | None
+    ) -> None:
+        self.session = session
+        self.err = err
+        self.labels = labels
+        self.every = every
+        self.next = time.monotonic() + every if every else None
+
+    def tick(self) -> None:
+        if self.next is not None and time.monotonic() >= self.next:
+            assert self.every is not None
+            self.next = time.monotonic() + self.every
+            self.write()
+
+    def write(self) -> None:
+        from sniffer.pollcycle import cycle_table, poll_cycles
+
+        session = self.session
+        session.store.sync()
+        session.stats.update()
+        self.err.write(f"\n{session.source} ({session.line.describe()})\n")
+        self.err.write(session.stats.table(self.labels) + "\n")
+        self.err.write(cycle_table(poll_cycles(session.store), self.labels) + "\n")
+        self.err.flush()
+
+
 def stream(
     capture: LiveCapture,
     lister: Lister | None,
     exporter: PcapExporter | None,
     duration: float | None,
+    selection: Selection | None = None,
+    summary: Summary | None = None,
 ) -> int:
-    """The listing loop: rows out as they are framed, each flushed, until stopped."""
+    """The listing loop: rows out as they are framed, each flushed, until stopped (Ctrl-C,
+    --duration, -c N frames listed, or the port gone for good); then the summary."""
     end = None if duration is None else time.monotonic() + duration
     assert capture.session is not None
     store = capture.session.store
     waiting: list[int] = []  # requests listed while they waited for their answer
 
-    def emit(rows: range) -> None:
+    def emit(rows: range, final: bool = False) -> None:
         nonlocal waiting
+        if selection is not None and (selection.query is not None or selection.left is not None):
+            chosen = selection.take(rows.stop, final=final) if rows.stop else []
+            if lister is not None:
+                lister.write(chosen)
+            if exporter is not None:
+                exporter.write(chosen)
+            return
         if lister is not None:
             store.sync()
             status = store.status
@@ -145,12 +194,18 @@ def stream(
             while capture.running and not stop.is_set():
                 if end is not None and time.monotonic() >= end:
                     break
+                if selection is not None and selection.done:
+                    break
                 emit(capture.pump())
-            emit(capture.stop())
+                if summary is not None:
+                    summary.tick()
+            emit(capture.stop(), final=True)
     except BrokenPipeError:
         quiet_stdout()
         capture.stop()
         return 0
+    if summary is not None:
+        summary.write()
     check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
@@ -179,4 +234,14 @@ def register(sub: SubParsers) -> None:
         "standard output, which then carries nothing else",
     )
     add_recording_options(p, required=False)
+    add_filter_options(p)
+    p.add_argument(
+        "--stats",
+        type=float,
+        nargs="?",
+        const=10.0,
+        metavar="S",
+        help="print the statistics and poll cycle to stderr every S seconds (default 10); "
+        "they are printed once anyway when the capture ends",
+    )
     p.set_defaults(func=cmd_live)
