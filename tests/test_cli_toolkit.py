@@ -180,3 +180,47 @@ def test_unknown_model_in_a_bus_file(
     bus.write_text('format = 1\n\n[[unit]]\naddress = 5\nmodel = "pump-x"\n', encoding="utf-8")
     code, _out, err = run(["replay", str(capture), "--bus", str(bus)], capsys)
     assert code == 2 and f"{bus}:3: no dictionary for model 'pump-x'" in err
+
+
+@pytest.mark.peer
+def test_bash_completion_completes_commands_options_and_choices(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, script, _err = run(["completion", "bash"], capsys)
+    assert code == 0
+    path = tmp_path / "modscope.bash"
+    path.write_text(script, encoding="utf-8")
+
+    def complete(*words: str) -> list[str]:
+        quoted = " ".join(f'"{w}"' for w in ("modscope", *words))
+        probe = (
+            f"source {path}; COMP_WORDS=({quoted}); COMP_CWORD={len(words)}; _modscope; "
+            'printf "%s\\n" "${COMPREPLY[@]}"'
+        )
+        done = subprocess.run(["bash", "-c", probe], capture_output=True, text=True, check=True)
+        return done.stdout.split()
+
+    assert complete("sc") == ["scan"]
+    assert complete("replay", "--fil") == ["--filter"]
+    assert complete("dict", "dr") == ["draft"]
+    assert complete("dict", "draft", "x", "--fo") == ["--force"]
+    assert complete("replay", "-P", "") == ["E", "N", "O"]
+    code, zsh, _err = run(["completion", "zsh"], capsys)
+    assert zsh.startswith("#compdef modscope") and "bashcompinit" in zsh
+
+
+@pytest.mark.peer
+def test_man_page_renders_without_warnings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, page, _err = run(["man"], capsys)
+    assert code == 0
+    for command in ("replay", "live", "scan", "diff", "dict draft", "export"):
+        assert f".SS {command}\n" in page
+    assert "\\fB\\-\\-filter\\fR \\fIQUERY\\fR" in page
+    path = tmp_path / "modscope.1"
+    path.write_text(page, encoding="utf-8")
+    done = subprocess.run(
+        ["groff", "-man", "-Tutf8", "-ww", "-z", str(path)], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and done.stderr == ""

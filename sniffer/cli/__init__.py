@@ -19,7 +19,19 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from sniffer import __version__
-from sniffer.cli import dictcmd, diff, export, live, ports, record, replay, scan, serve, tui
+from sniffer.cli import (
+    dictcmd,
+    diff,
+    export,
+    live,
+    manual,
+    ports,
+    record,
+    replay,
+    scan,
+    serve,
+    tui,
+)
 from sniffer.cli.options import Command
 from sniffer.errors import USER_ERRORS
 from sniffer.text import plain
@@ -61,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"modscope {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve):
+    for module in (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve, manual):
         module.register(sub)
     return parser
 
