@@ -133,9 +133,7 @@ class Annotator:
         tracks = self.windows_of.get(unit)
         if tracks and not store.flags[i] & Flag.CHECK_BAD:
             # what the request writes, as the dissector reads it (FC 6, 16, 23)
-            for data in dissect(
-                store.view(i).body(), Role.REQUEST, registry=self.registry
-            ).data:
+            for data in dissect(store.view(i).body(), Role.REQUEST, registry=self.registry).data:
                 if not data.write or data.address is None or data.table != "holding_registers":
                     continue
                 for track in tracks:
