@@ -19,7 +19,7 @@ from dissectors.dictionary import (
     RegisterValue,
     UnitBinding,
     load_bus,
-    load_dictionary,
+    load_dictionaries,
     load_model,
     parse_unit_binding,
 )
@@ -54,29 +54,33 @@ def load_bindings(
     units: Sequence[str] = (),
     extra_dicts: Sequence[str | Path] = (),
 ) -> dict[int, Binding]:
-    """Bindings from a bus file and `--unit 3=rvs-dn[:label]` options (which win)."""
-    extra = [Path(p) for p in extra_dicts]
+    """Bindings from a bus file and `--unit 3=rvs-dn[:label]` options (which win).
+
+    Dictionary files (TOML, Home Assistant YAML, CSV) come from `extra_dicts` and the bus
+    file's `dictionaries`; one that says its slave address (an import, a draft) binds
+    there unless the bus file or --unit binds that address.
+    """
+    bus = load_bus(bus_file) if bus_file is not None else None
+    extra = [Path(p) for p in extra_dicts] + list(bus.dictionaries if bus else ())
     own: dict[str, DeviceDictionary] = {}
     for path in extra:
-        d = load_dictionary(path)
-        own[d.model] = d
+        for d in load_dictionaries(path):
+            own.setdefault(d.model, d)
 
-    def model(name: str) -> DeviceDictionary:
-        if name in own:
-            return own[name]
-        return load_model(name, extra)
-
-    found: list[UnitBinding] = []
-    if bus_file is not None:
-        found.extend(load_bus(bus_file).units.values())
+    found: list[tuple[UnitBinding, str | None]] = []
+    if bus is not None:
+        found.extend((b, bus.path) for b in bus.units.values())
     for text in units:
         try:
-            found.append(parse_unit_binding(text))
+            found.append((parse_unit_binding(text), None))
         except ValueError as exc:
             raise DictionaryError("--unit", None, str(exc), "write --unit ADDRESS=MODEL") from exc
     out: dict[int, Binding] = {}
-    for b in found:
-        d = model(b.model)
+    for d in own.values():
+        if d.unit_hint is not None and 1 <= d.unit_hint <= 247:
+            out.setdefault(d.unit_hint, Binding(d.unit_hint, d.name, d))
+    for b, named_in in found:
+        d = own.get(b.model) or load_model(b.model, extra, named_in=named_in, line=b.line)
         out[b.address] = Binding(b.address, b.label or d.name, d)
     return out
 

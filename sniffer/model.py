@@ -130,4 +130,5 @@ class SourceInfo:
     stamps: Stamp = Stamp.READ_END
     resolution: float = 0.0
     labels: Labels = Labels.NONE
+    notes: tuple[str, ...] = ()  # what the reader decided for the user (not warnings)
     recorded_line: LineSettings | None = None

@@ -227,7 +227,7 @@ class Pipeline:
         return count, first
 
     def source_notes(self) -> list[str]:
-        """What the source's labels and timestamps turned out to be worth, said once."""
+        """Warnings: what the source's labels and timestamps turned out to be worth."""
         notes: list[str] = []
         if self.contradictions:
             notes.append(
@@ -243,12 +243,16 @@ class Pipeline:
                 "the stamps are print times or the baud rate is wrong: latencies that "
                 "depend on them are shown as unknown"
             )
+        return notes
+
+    def timing_notes(self) -> list[str]:
+        """What the user should know about the times shown (not a fault of the source)."""
         if self.stamps == Stamp.NONE:
-            notes.append(
+            return [
                 "timing: the source has no timestamps; times are synthetic (one character "
                 "time per byte) and no latency or poll period is measured"
-            )
-        return notes
+            ]
+        return []
 
     # -- internals -----------------------------------------------------------------------
 

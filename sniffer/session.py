@@ -66,6 +66,7 @@ class Session:
         self.stats = Stats(self.store)
         self.describer = Describer(self.store, self.annotator)
         self.warnings: list[str] = []
+        self.notes: list[str] = []  # what the user should know, not faults
         self.chunks = 0
 
     @property
@@ -91,6 +92,7 @@ class Session:
         self.refresh()
         # what the source's labels and stamps turned out to be worth, said once
         self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
+        self.notes.extend(n for n in self.pipeline.timing_notes() if n not in self.notes)
 
     def ingest(
         self,

@@ -157,3 +157,58 @@ def test_line_scanner_finds_every_entry_and_key(path: Path) -> None:
             assert line is not None, (index, key)
             source = lines[line - 1]
             assert key in source or source.lstrip().startswith("[entry."), (index, key, source)
+
+
+# -- fixes found by reading the seed dictionaries against their manuals --------------------
+
+
+def _entry(d: DeviceDictionary, name: str) -> Entry:
+    found = [e for e in d.entries if e.name == name]
+    assert len(found) == 1, name
+    return found[0]
+
+
+def test_rvs_dn_insulation_setpoints_name_raw_1_off() -> None:
+    d = load_model("rvs-dn")
+    for name in ("Insulation Alarm", "Insulation Trip"):
+        e = _entry(d, name)
+        off = d.decode(e.table, e.address, [1])[0]
+        assert off.text == f"{name} = off" and off.problems == ()
+        low = d.decode(e.table, e.address, [2])[0]
+        assert low.text == f"{name} = 0.2 MOhm" and low.problems == ()
+        high = d.decode(e.table, e.address, [51], write=True)[0]
+        assert high.problems == ("written value 5.1 MOhm above the documented maximum 5.0 MOhm",)
+        assert e.spec.default == "off"
+
+
+def test_rvs_dn_last_trip_number_0_is_not_undocumented() -> None:
+    d = load_model("rvs-dn")
+    e = _entry(d, "Last Trip Number")
+    none = d.decode(e.table, e.address, [0])[0]
+    assert none.problems == () and "undocumented" not in none.text
+    assert d.decode(e.table, e.address, [5])[0].value == "Under Voltage"
+    assert d.decode(e.table, e.address, [18])[0].problems != ()
+
+
+def test_ved903b_fail_flags_list_the_active_ones() -> None:
+    d = load_model("ved903b")
+    e = _entry(d, "L26: Fail flags")
+    assert e.ref == "%R20"
+    # %R20.2 (L26/B) and %R20.14 (L26/M) set: bits 1 and 13
+    shown = d.decode(e.table, e.address, [(1 << 1) | (1 << 13)])[0]
+    assert shown.text == "L26: Fail flags = L26/B Load Overvoltage, L26/M Exciter Overtemperature"
+    assert d.decode(e.table, e.address, [0])[0].text == "L26: Fail flags = none"
+    second = _entry(d, "L26: Fail flags (second word)")
+    assert d.decode(second.table, second.address, [0b1000])[0].value == 8
+    assert "L26/C Under/Over Frequency" in d.decode(second.table, second.address, [8])[0].text
+
+
+def test_special_values_need_no_enum(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(
+        'format = 1\n[device]\nmodel = "s"\n\n[[entry]]\ntable = "holding"\npdu = 0\n'
+        'name = "A"\nscale = 0.1\nenum = { "0" = "x" }\nspecial = { "1" = "off" }\n',
+        encoding="utf-8",
+    )
+    (error,) = check_dictionary(path)
+    assert error.line == 11 and "special" in error.message

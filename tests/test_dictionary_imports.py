@@ -9,9 +9,14 @@ import pytest
 from dissectors.dictionary import (
     DeviceDictionary,
     DictionaryError,
+    check_dictionary,
     import_csv,
     import_home_assistant,
+    load_dictionaries,
+    load_dictionary,
+    load_model,
 )
+from sniffer.annotate import load_bindings
 
 FIXTURES = Path(__file__).parent / "fixtures" / "dictionaries"
 
@@ -184,3 +189,115 @@ def test_csv_errors(tmp_path: Path, text: str, line: int | None, message: str, f
     assert error.line == line, str(error)
     assert message in error.message, str(error)
     assert fix in error.fix, str(error)
+
+
+# -- every place that takes a dictionary takes all three formats ---------------------------
+
+
+def test_load_dictionaries_reads_each_format_by_name() -> None:
+    ha = load_dictionaries(FIXTURES / "home_assistant.yaml")
+    assert [d.model for d in ha] == ["Boiler-room-unit3", "hub2-unit0"]
+    (csv_dict,) = load_dictionaries(FIXTURES / "registers.csv")
+    assert csv_dict.model == "registers"
+    (toml_dict,) = load_dictionaries(FIXTURES / "every_type.toml")
+    assert toml_dict.model == "every-type"
+
+
+def test_load_model_finds_models_in_yaml_and_csv() -> None:
+    extra = [FIXTURES / "home_assistant.yaml", FIXTURES / "registers.csv"]
+    assert load_model("Boiler-room-unit3", extra).unit_hint == 3
+    assert load_model("registers", extra).decode("holding", 10, [1])[0].value == "Run"
+
+
+def test_load_dictionary_of_a_file_with_several_devices_names_them() -> None:
+    with pytest.raises(DictionaryError) as info:
+        load_dictionary(FIXTURES / "home_assistant.yaml")
+    assert "Boiler-room-unit3, hub2-unit0" in info.value.message
+
+
+def test_bindings_from_ha_yaml_bind_its_slave_addresses() -> None:
+    bindings = load_bindings(None, [], [FIXTURES / "home_assistant.yaml"])
+    assert bindings[3].dictionary.model == "Boiler-room-unit3"
+    assert 0 not in bindings  # slave 0 is a broadcast: never bound by itself
+    # --unit wins over the address the file names
+    bindings = load_bindings(None, ["3=registers"], [FIXTURES / "registers.csv"])
+    assert bindings[3].dictionary.model == "registers"
+
+
+def test_bus_file_names_dictionaries_beside_it(tmp_path: Path) -> None:
+    (tmp_path / "regs.csv").write_text(
+        (FIXTURES / "registers.csv").read_text(encoding="utf-8"), encoding="utf-8"
+    )
+    bus = tmp_path / "bus.toml"
+    bus.write_text(
+        'format = 1\ndictionaries = ["regs.csv"]\n\n[[unit]]\naddress = 7\nmodel = "regs"\n',
+        encoding="utf-8",
+    )
+    bindings = load_bindings(bus)
+    assert bindings[7].dictionary.decode("holding", 10, [2])[0].value == "Fault"
+
+
+def test_bus_file_with_a_missing_dictionary_file(tmp_path: Path) -> None:
+    bus = tmp_path / "bus.toml"
+    bus.write_text('format = 1\ndictionaries = ["gone.yaml"]\n', encoding="utf-8")
+    with pytest.raises(DictionaryError) as info:
+        load_bindings(bus)
+    assert info.value.path == str(bus) and info.value.line == 2
+    assert "gone.yaml does not exist" in info.value.message
+
+
+def test_unknown_model_in_a_bus_file_names_the_bus_file_and_line(tmp_path: Path) -> None:
+    bus = tmp_path / "site.toml"
+    bus.write_text(
+        'format = 1\n\n[[unit]]\naddress = 2\nmodel = "rvs-dn"\n\n'
+        '[[unit]]\naddress = 5\nmodel = "no-such-pump"\n',
+        encoding="utf-8",
+    )
+    with pytest.raises(DictionaryError) as info:
+        load_bindings(bus)
+    assert info.value.path == str(bus)
+    assert info.value.line == 7
+    assert "no-such-pump" in info.value.message
+    assert str(info.value).startswith(f"{bus}:7: ")
+
+
+def test_csv_reports_every_bad_row(tmp_path: Path) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(
+        "table,address,name,scale\n"
+        "holding,x1,A,\n"  # line 2: address
+        "holding,3,B,\n"
+        "holding,4,C,fast\n"  # line 4: scale
+        "holdng,5,D,\n",  # line 5: table (found by the builder)
+        encoding="utf-8",
+    )
+    errors = check_dictionary(path)
+    assert [e.line for e in errors] == [2, 4, 5], [str(e) for e in errors]
+
+
+def test_ha_reports_every_bad_item(tmp_path: Path) -> None:
+    path = tmp_path / "ha.yaml"
+    path.write_text(
+        "modbus:\n"
+        "  - name: hub\n"
+        "    sensors:\n"
+        "      - name: A\n"
+        "        address: -1\n"  # item at line 4
+        "        slave: 1\n"
+        "      - name: B\n"
+        "        address: 3\n"
+        "        slave: 1\n"
+        "      - name: C\n"
+        "        address: 4\n"
+        "        slave: 999\n",  # item at line 10
+        encoding="utf-8",
+    )
+    errors = check_dictionary(path)
+    assert [e.line for e in errors] == [4, 10], [str(e) for e in errors]
+
+
+def test_csv_header_problems_are_all_reported(tmp_path: Path) -> None:
+    path = tmp_path / "head.csv"
+    path.write_text("table,adress,nam\nholding,1,A\n", encoding="utf-8")
+    messages = [e.message for e in check_dictionary(path)]
+    assert any("'adress'" in m for m in messages) and any("'nam'" in m for m in messages)

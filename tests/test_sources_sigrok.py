@@ -18,7 +18,7 @@ SIGROK = Path(__file__).parent / "captures" / "sigrok"
 BRAINCHILD = SIGROK / "brainchild_io_16do" / "brainchild-io-16do.sr"
 WIZMODBUS = SIGROK / "wizmodbus" / "wizmodbus.sr"
 FLOWMETER = SIGROK / "flowmeter"
-BRAINCHILD_OPTIONS = ReadOptions(probes=("1", "0"), invert=True)  # requests on probe "1"
+BRAINCHILD_OPTIONS = ReadOptions(probes=("1", "0"), invert=True, baud=19200)  # requests on "1"
 FLOWMETER_OPTIONS = ReadOptions(probes=("RXTX",), baud=9600, parity="N")
 WIZMODBUS_OPTIONS = ReadOptions(probes=("RX", "TX"), baud=9600, parity="N")
 

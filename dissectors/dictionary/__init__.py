@@ -12,7 +12,14 @@ from .device import DeviceDictionary, Window
 from .errors import DictionaryError
 from .imports_csv import import_csv
 from .imports_ha import import_home_assistant
-from .loader import builtin_models, check_dictionary, load_dictionary, load_model
+from .loader import (
+    builtin_models,
+    check_dictionary,
+    file_format,
+    load_dictionaries,
+    load_dictionary,
+    load_model,
+)
 from .model import (
     TABLES,
     Entry,
@@ -49,9 +56,11 @@ __all__ = [
     "canonical_table",
     "check_dictionary",
     "describe",
+    "file_format",
     "import_csv",
     "import_home_assistant",
     "load_bus",
+    "load_dictionaries",
     "load_dictionary",
     "load_model",
     "parse_unit_binding",

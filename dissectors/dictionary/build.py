@@ -35,7 +35,7 @@ TOP_KEYS = (
     "report_server_id",
     "exceptions",
 )
-DEVICE_KEYS = ("model", "name", "manual", "word_order", "default_space", "notes")
+DEVICE_KEYS = ("model", "name", "manual", "word_order", "default_space", "unit", "notes")
 TIMING_KEYS = (
     "response_ms",
     "long_response_ms",
@@ -66,6 +66,7 @@ class DeviceHead:
     name: str
     manual: str
     notes: tuple[str, ...]
+    unit: int | None = None  # the slave address this dictionary was made for (a draft)
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,7 +154,7 @@ class Builder:
             exceptions=MappingProxyType(exceptions or {}),
             windows=tuple(windows),
             report_server_id=report,
-            unit_hint=unit_hint,
+            unit_hint=unit_hint if unit_hint is not None else device.unit,
         )
 
     def format(self, top: Table) -> None:
@@ -189,7 +190,8 @@ class Builder:
         if order is not None:
             self.word_order = word_order_name(table, order)
         self.default_space = table.opt_text("default_space")
-        return DeviceHead(model, name, manual, table.texts("notes"))
+        unit = table.integer("unit", 1, 247)
+        return DeviceHead(model, name, manual, table.texts("notes"), unit)
 
     def check_default_space(self, top: Table) -> None:
         if self.default_space is not None and self.default_space not in self.spaces:

@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 
-from .loader import parse_toml, read_text
 from .model import MODEL_PATTERN
 from .reader import Source, Table
+from .textfile import parse_toml, read_text
 
-BUS_KEYS = ("format", "line", "unit")
+BUS_KEYS = ("format", "line", "dictionaries", "unit")
 LINE_KEYS = ("baud", "parity", "stopbits", "bytesize", "mode")
 UNIT_KEYS = ("address", "model", "label", "notes")
 PARITY_WORDS = {"n": "N", "none": "N", "e": "E", "even": "E", "o": "O", "odd": "O", "m": "M",
@@ -38,6 +38,7 @@ class Bus:
     units: Mapping[int, UnitBinding]
     line: Mapping[str, int | str]
     path: str = ""
+    dictionaries: tuple[Path, ...] = ()  # own files (TOML, HA YAML, CSV), beside the bus file
 
 
 def parse_unit_binding(text: str) -> UnitBinding:
@@ -100,6 +101,15 @@ def load_bus(path: str | Path) -> Bus:
             "format", f"format = {version} is not a bus format modscope reads", "write format = 1"
         )
     settings = _line_settings(src, top.get("line")) if top.has("line") else {}
+    here = Path(path).parent
+    own = tuple(here / Path(name).expanduser() for name in top.texts("dictionaries"))
+    for file in own:
+        if not file.is_file():
+            raise top.error(
+                "dictionaries",
+                f"dictionary file {file} does not exist",
+                'give paths relative to the bus file, e.g. dictionaries = ["pump.yaml"]',
+            )
     units: dict[int, UnitBinding] = {}
     for index, raw in enumerate(top.tables("unit", "[[unit]]")):
         at = ("unit", index)
@@ -125,4 +135,4 @@ def load_bus(path: str | Path) -> Bus:
                 "give each address one [[unit]]",
             )
         units[address] = UnitBinding(address, model, table.label("label") or "", line)
-    return Bus(MappingProxyType(units), MappingProxyType(settings), name)
+    return Bus(MappingProxyType(units), MappingProxyType(settings), name, own)

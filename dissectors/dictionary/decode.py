@@ -200,6 +200,9 @@ def decode_spec(spec: ValueSpec, words: Sequence[int]) -> Decoded:
         if spec.enum:
             return Decoded(bool(number), f"{state} (undocumented)", None, undocumented=number)
         return Decoded(bool(number), state, None)
+    special = spec.special.get(number)
+    if special is not None:
+        return Decoded(special, f"{special}{tail}", None)
     value, text = scaled(spec, number, is_float=False)
     name = spec.enum.get(number)
     if name is not None:

@@ -24,6 +24,8 @@ def _limits(spec: ValueSpec) -> str:
 
 
 def _meaning(spec: ValueSpec) -> str:
+    if spec.special:
+        return "; ".join(f"raw {key}={name}" for key, name in sorted(spec.special.items()))
     if spec.enum:
         return "; ".join(f"{key}={name}" for key, name in sorted(spec.enum.items()))
     if spec.bits:

@@ -38,6 +38,18 @@ class DictionaryError(Exception):
         return (self, *self.more)
 
 
+def raise_all(errors: Iterable[DictionaryError]) -> None:
+    """Raise the first of `errors` in line order with the others in its `more`; nothing
+    when there are none. Errors that carry their own `more` are flattened."""
+    flat = [each for error in errors for each in error.all]
+    if not flat:
+        return
+    ordered = sorted(flat, key=lambda e: (e.line is None, e.line or 0))
+    first = ordered[0]
+    first.more = tuple(ordered[1:])
+    raise first
+
+
 def nearest(word: str, known: Iterable[str]) -> str | None:
     """The known word closest to `word`, if any is close enough to be a likely typo."""
     choices = list(known)

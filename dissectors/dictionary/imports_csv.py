@@ -12,9 +12,9 @@ from pathlib import Path
 
 from .build import FORMAT, Builder
 from .device import DeviceDictionary
-from .errors import DictionaryError, nearest
-from .loader import read_text
+from .errors import DictionaryError, nearest, raise_all
 from .reader import Source
+from .textfile import read_text
 from .tomlpos import LineMap
 
 CSV_REQUIRED = ("table", "address", "name")
@@ -70,6 +70,57 @@ def _csv_enum(path: str, line: int, text: str) -> dict[str, str]:
     return names
 
 
+def _csv_row(
+    name: str, header: list[str], line: int, row_text: str, dialect: type[csv.Dialect] | csv.Dialect
+) -> dict[str, object] | None:
+    """One register row as the entry a TOML dictionary would hold (None: an empty row)."""
+    decimal_comma = dialect.delimiter != ","
+    cells = next(csv.reader([row_text], dialect), [])
+    if not any(cell.strip() for cell in cells):
+        return None
+    if len(cells) > len(header):
+        raise DictionaryError(
+            name,
+            line,
+            f"{len(cells)} cells for {len(header)} columns",
+            "quote cells that hold the delimiter",
+        )
+    entry: dict[str, object] = {}
+    for column, cell in zip(header, cells, strict=False):
+        cell = cell.strip()
+        if not cell:
+            continue
+        if column == "address":
+            number = _csv_number(cell)
+            if not isinstance(number, int):
+                raise DictionaryError(
+                    name,
+                    line,
+                    f"address '{cell}' is not an integer",
+                    "write the PDU address, e.g. 12 or 0x0C",
+                )
+            entry["pdu"] = number
+        elif column in _CSV_INTEGERS or column in _CSV_NUMBERS:
+            number = _csv_number(cell, decimal_comma)
+            if number is None or (column in _CSV_INTEGERS and not isinstance(number, int)):
+                wanted = "an integer" if column in _CSV_INTEGERS else "a number"
+                raise DictionaryError(
+                    name,
+                    line,
+                    f"{column} '{cell}' is not {wanted}",
+                    f"write {column} as {wanted}",
+                )
+            entry[column] = number
+        elif column == "enum":
+            entry["enum"] = _csv_enum(name, line, cell)
+        elif column == "default":
+            number = _csv_number(cell, decimal_comma)
+            entry["default"] = cell if number is None else number
+        else:
+            entry[column] = cell
+    return entry
+
+
 def import_csv(path: str | Path) -> DeviceDictionary:
     """A dictionary from a CSV register list (columns in docs/dictionaries.md).
 
@@ -93,73 +144,43 @@ def import_csv(path: str | Path) -> DeviceDictionary:
         )
     except csv.Error:
         dialect = csv.excel
-    decimal_comma = dialect.delimiter != ","
     header = [cell.strip().lower() for cell in next(csv.reader([header_text], dialect))]
+    problems: list[DictionaryError] = []
     for index, column in enumerate(header):
         if column in header[:index]:
-            raise DictionaryError(
-                name, header_line, f"the header has '{column}' twice", "keep one of the columns"
+            problems.append(
+                DictionaryError(
+                    name, header_line, f"the header has '{column}' twice", "keep one of the columns"
+                )
             )
-        if column not in CSV_COLUMNS:
+        elif column not in CSV_COLUMNS:
             close = nearest(column, CSV_COLUMNS)
             fix = f"rename it '{close}'" if close else f"use columns from {', '.join(CSV_COLUMNS)}"
-            raise DictionaryError(name, header_line, f"unknown CSV column '{column}'", fix)
+            problems.append(
+                DictionaryError(name, header_line, f"unknown CSV column '{column}'", fix)
+            )
     for column in CSV_REQUIRED:
         if column not in header:
-            raise DictionaryError(
-                name,
-                header_line,
-                f"the header has no '{column}' column",
-                "the header needs table,address,name",
+            problems.append(
+                DictionaryError(
+                    name,
+                    header_line,
+                    f"the header has no '{column}' column",
+                    "the header needs table,address,name",
+                )
             )
+    raise_all(problems)  # the rows cannot be read without a sound header
     entries: list[dict[str, object]] = []
     lines = LineMap({(): 1, ("device",): header_line})
     for line, row_text in rows[1:]:
-        cells = next(csv.reader([row_text], dialect), [])
-        if not any(cell.strip() for cell in cells):
+        try:
+            entry = _csv_row(name, header, line, row_text, dialect)
+        except DictionaryError as error:
+            problems.append(error)
             continue
-        if len(cells) > len(header):
-            raise DictionaryError(
-                name,
-                line,
-                f"{len(cells)} cells for {len(header)} columns",
-                "quote cells that hold the delimiter",
-            )
-        entry: dict[str, object] = {}
-        for column, cell in zip(header, cells, strict=False):
-            cell = cell.strip()
-            if not cell:
-                continue
-            if column == "address":
-                number = _csv_number(cell)
-                if not isinstance(number, int):
-                    raise DictionaryError(
-                        name,
-                        line,
-                        f"address '{cell}' is not an integer",
-                        "write the PDU address, e.g. 12 or 0x0C",
-                    )
-                entry["pdu"] = number
-            elif column in _CSV_INTEGERS or column in _CSV_NUMBERS:
-                number = _csv_number(cell, decimal_comma)
-                if number is None or (column in _CSV_INTEGERS and not isinstance(number, int)):
-                    wanted = "an integer" if column in _CSV_INTEGERS else "a number"
-                    raise DictionaryError(
-                        name,
-                        line,
-                        f"{column} '{cell}' is not {wanted}",
-                        f"write {column} as {wanted}",
-                    )
-                entry[column] = number
-            elif column == "enum":
-                entry["enum"] = _csv_enum(name, line, cell)
-            elif column == "default":
-                number = _csv_number(cell, decimal_comma)
-                entry["default"] = cell if number is None else number
-            else:
-                entry[column] = cell
-        lines.set(("entry", len(entries)), line)
-        entries.append(entry)
+        if entry is not None:
+            lines.set(("entry", len(entries)), line)
+            entries.append(entry)
     model = re.sub(r"[^A-Za-z0-9._+-]+", "-", Path(path).stem).strip("-") or "csv"
     data: dict[str, object] = {
         "format": FORMAT,
@@ -170,4 +191,11 @@ def import_csv(path: str | Path) -> DeviceDictionary:
         },
         "entry": entries,
     }
-    return Builder(Source(name, lines)).build(data)
+    built: DeviceDictionary | None = None
+    try:
+        built = Builder(Source(name, lines)).build(data)
+    except DictionaryError as error:
+        problems.append(error)
+    raise_all(problems)
+    assert built is not None
+    return built

@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING, Any
 
 from .build import FORMAT, Builder
 from .device import DeviceDictionary
-from .errors import DictionaryError, nearest
-from .loader import read_text
+from .errors import DictionaryError, nearest, raise_all
 from .model import TYPES
 from .reader import Source, kind
+from .textfile import read_text
 from .tomlpos import LineMap
 
 if TYPE_CHECKING:
@@ -174,6 +174,7 @@ class _HomeAssistant:
         return data
 
     def run(self, data: object) -> list[DeviceDictionary]:
+        problems: list[DictionaryError] = []
         for number, hub in enumerate(self.hubs(data)):
             if not isinstance(hub, _LineDict):
                 raise self.error(None, f"modbus hub #{number + 1} is not a mapping", "see HA docs")
@@ -191,14 +192,25 @@ class _HomeAssistant:
                             f"hub '{name}': an item of {platform} is not a mapping",
                             "fix it",
                         )
-                    self.item(name, hub.line, platform, item)
+                    try:
+                        self.item(name, hub.line, platform, item)
+                    except DictionaryError as error:
+                        problems.append(error)  # report every item, not only the first
+        raise_all(problems)
         if not self.units:
             raise self.error(
                 1,
                 "no Home Assistant modbus sensors, switches or the like found",
                 "give a file whose modbus: hubs list sensors, binary_sensors, switches, ...",
             )
-        return [self.dictionary(unit) for unit in self.units.values()]
+        out: list[DeviceDictionary] = []
+        for unit in self.units.values():
+            try:
+                out.append(self.dictionary(unit))
+            except DictionaryError as error:
+                problems.append(error)
+        raise_all(problems)
+        return out
 
     def unit(self, hub: str, hub_line: int, item: _LineDict) -> _Unit:
         slave = item.get("slave", item.get("device_address", item.get("unit", 0)))

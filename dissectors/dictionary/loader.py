@@ -1,8 +1,14 @@
-"""Provides dictionary files: loading and checking TOML, and the models modscope ships."""
+"""Provides dictionary files: loading and checking TOML, Home Assistant YAML and CSV, and
+the models modscope ships.
+
+Every place that takes a dictionary file (--dict, a bus file's `dictionaries`, `dict
+show`, `dict check`) comes through `load_dictionaries`, which tells the formats apart by
+the file name: `.yaml`/`.yml` is a Home Assistant `modbus:` configuration (one dictionary
+per hub and slave), `.csv` a register list, anything else a modscope TOML dictionary.
+"""
 
 from __future__ import annotations
 
-import re
 import tomllib
 from collections.abc import Sequence
 from functools import lru_cache
@@ -11,67 +17,61 @@ from pathlib import Path
 from .build import Builder
 from .device import DeviceDictionary
 from .errors import DictionaryError
+from .imports_csv import import_csv
+from .imports_ha import import_home_assistant
 from .reader import Source
-from .tomlpos import LineMap, scan_toml
+from .textfile import parse_toml, read_text
+
+__all__ = [
+    "DEVICES_DIR",
+    "builtin_models",
+    "check_dictionary",
+    "file_format",
+    "load_dictionaries",
+    "load_dictionary",
+    "load_model",
+    "parse_toml",
+    "read_text",
+]
 
 DEVICES_DIR = Path(__file__).resolve().parent.parent / "devices"
-_TOML_WHERE = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
+FORMAT_NAMES = {
+    "toml": "TOML dictionary",
+    "yaml": "Home Assistant YAML",
+    "csv": "CSV register list",
+}
 
 
-def read_text(path: Path) -> str:
-    """A file's text, or a DictionaryError saying why it cannot be read."""
-    try:
-        data = path.read_bytes()
-    except OSError as error:
-        reason = error.strerror or str(error)
-        raise DictionaryError(
-            str(path), None, f"cannot read the file ({reason})", "check the path and permissions"
-        ) from None
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        line = data[: error.start].count(b"\n") + 1
-        raise DictionaryError(
-            str(path), line, "the file is not UTF-8 text", "save it as UTF-8"
-        ) from None
+def file_format(path: str | Path) -> str:
+    """`toml`, `yaml` or `csv`: how a dictionary file is read, from its name."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".yaml", ".yml"):
+        return "yaml"
+    if suffix == ".csv":
+        return "csv"
+    return "toml"
 
 
-def parse_toml(path: str, text: str) -> tuple[dict[str, object], LineMap]:
-    """tomllib's data and the lines of its keys; syntax errors carry tomllib's line."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        message = str(error)
-        where = _TOML_WHERE.search(message)
-        line = int(where.group(1)) if where else None
-        column = where.group(2) if where else None
-        message = _TOML_WHERE.sub("", message) if where else message
-        fix = "correct the TOML syntax"
-        if column is not None:
-            fix += f" at column {column}"
-        fix += (
-            " (strings in double quotes, [table] and [[array]] headers, key = value, each key once)"
-        )
-        raise DictionaryError(path, line, f"TOML syntax: {message}", fix) from None
-    lines = scan_toml(text)
-    lines.set((), 1)
-    return data, lines
-
-
-def _build(path: Path) -> DeviceDictionary:
+def _build(path: Path) -> tuple[DeviceDictionary, ...]:
+    kind = file_format(path)
+    if kind == "yaml":
+        return tuple(import_home_assistant(path))
+    if kind == "csv":
+        return (import_csv(path),)
     text = read_text(path)
     data, lines = parse_toml(str(path), text)
-    return Builder(Source(str(path), lines)).build(data)
+    return (Builder(Source(str(path), lines)).build(data),)
 
 
 @lru_cache(maxsize=64)
-def _load_cached(path: str, stamp: tuple[int, ...]) -> DeviceDictionary:
+def _load_cached(path: str, stamp: tuple[int, ...]) -> tuple[DeviceDictionary, ...]:
     """One load per file version (`stamp`: its mtime, ctime, size and inode)."""
     return _build(Path(path))
 
 
-def load_dictionary(path: str | Path) -> DeviceDictionary:
-    """Load and check one dictionary file. Raises DictionaryError (with `.more`)."""
+def load_dictionaries(path: str | Path) -> tuple[DeviceDictionary, ...]:
+    """Every dictionary one file holds (TOML and CSV: one; Home Assistant YAML: one per
+    hub and slave). Raises DictionaryError (with `.more` for further problems)."""
     file = Path(path)
     try:
         stat = file.stat()
@@ -81,8 +81,22 @@ def load_dictionary(path: str | Path) -> DeviceDictionary:
     return _load_cached(str(file), stamp)
 
 
+def load_dictionary(path: str | Path) -> DeviceDictionary:
+    """The one dictionary of a file; a file holding several is a DictionaryError naming them."""
+    found = load_dictionaries(path)
+    if len(found) != 1:
+        models = ", ".join(d.model for d in found)
+        raise DictionaryError(
+            str(path),
+            None,
+            f"the file holds {len(found)} device dictionaries ({models})",
+            "name the one you mean by its model, e.g. --unit 3=MODEL with --dict FILE",
+        )
+    return found[0]
+
+
 def check_dictionary(path: str | Path) -> list[DictionaryError]:
-    """Every problem in a dictionary file, in line order; empty when it is fine."""
+    """Every problem in a dictionary file of any format, in line order; empty when fine."""
     try:
         _build(Path(path))
     except DictionaryError as error:
@@ -112,22 +126,32 @@ def builtin_models() -> dict[str, Path]:
     return out
 
 
-def load_model(model: str, extra: Sequence[Path] = ()) -> DeviceDictionary:
-    """The dictionary of `model`: from `extra` files first (--dict), then the shipped ones."""
+def load_model(
+    model: str,
+    extra: Sequence[str | Path] = (),
+    *,
+    named_in: str | None = None,
+    line: int | None = None,
+) -> DeviceDictionary:
+    """The dictionary of `model`: from `extra` files first (--dict), then the shipped ones.
+
+    `named_in` and `line` say where the model was asked for (a bus file and its line), so
+    an unknown model is reported there.
+    """
     known: list[str] = []
     for file in extra:
-        loaded = load_dictionary(file)
-        if loaded.model == model:
-            return loaded
-        known.append(loaded.model)
+        for loaded in load_dictionaries(file):
+            if loaded.model == model:
+                return loaded
+            known.append(loaded.model)
     shipped = builtin_models()
     if model in shipped:
         return load_dictionary(shipped[model])
     known.extend(shipped)
     names = ", ".join(sorted(set(known))) or "(none)"
     raise DictionaryError(
-        model,
-        None,
+        named_in or model,
+        line,
         f"no dictionary for model '{model}'",
         f"use one of {names}, or give your own file with --dict FILE",
     )

@@ -122,6 +122,7 @@ class ValueSpec:
     sign_bit: int | None = None
     flag_bits: Mapping[int, FlagBit] = field(default_factory=lambda: MappingProxyType({}))
     enum: Mapping[int, str] = field(default_factory=no_names)
+    special: Mapping[int, str] = field(default_factory=no_names)  # named raw values, no enum
     bits: Mapping[int, str] = field(default_factory=no_names)
     min: int | float | None = None
     max: int | float | None = None

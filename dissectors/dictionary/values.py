@@ -37,6 +37,7 @@ VALUE_KEYS = (
     "sign_bit",
     "flag_bits",
     "enum",
+    "special",
     "bits",
     "min",
     "max",
@@ -59,11 +60,22 @@ NOT_FOR_BITS = (
     "sign_bit",
     "flag_bits",
     "bits",
+    "special",
     "min",
     "max",
 )
 NOT_FOR_FIELDS = ("byte", "length", "word_order", "sign_bit", "flag_bits", "bits")
-NOT_WITH_BITS = ("enum", "scale", "offset", "precision", "sign_bit", "flag_bits", "min", "max")
+NOT_WITH_BITS = (
+    "enum",
+    "special",
+    "scale",
+    "offset",
+    "precision",
+    "sign_bit",
+    "flag_bits",
+    "min",
+    "max",
+)
 UNSIGNED = ("u8", "u16", "u32", "u64")
 TYPE_ALIASES: Mapping[str, str] = MappingProxyType(
     {
@@ -212,6 +224,7 @@ class ValueReader:
         scale, offset, precision = self.read_scaling()
         sign_bit, flag_bits = self.read_sign_and_flags()
         enum = self.read_enum(sign_bit, bool(flag_bits))
+        special = self.read_special(sign_bit, bool(flag_bits), enum)
         bits = self.read_bits()
         low, high = self.read_limits()
         return ValueSpec(
@@ -228,10 +241,11 @@ class ValueReader:
             sign_bit=sign_bit,
             flag_bits=MappingProxyType(flag_bits),
             enum=MappingProxyType(enum),
+            special=MappingProxyType(special),
             bits=MappingProxyType(bits),
             min=low,
             max=high,
-            default=self.read_default(enum, low, high),
+            default=self.read_default({**enum, **special}, low, high),
             access=self.read_access(),
             description=table.text("description"),
             notes=table.texts("notes"),
@@ -433,11 +447,25 @@ class ValueReader:
             out[number] = FlagBit(clear=clear, set=set_)
         return out
 
-    def read_enum(self, sign_bit: int | None, flagged: bool) -> dict[int, str]:
-        if not self.table.has("enum"):
+    def read_special(
+        self, sign_bit: int | None, flagged: bool, enum: Mapping[int, str]
+    ) -> dict[int, str]:
+        """Named raw values of a number that is otherwise scaled (raw 1 = "off")."""
+        if not self.table.has("special"):
+            return {}
+        if enum:
+            raise self.fail(
+                "special",
+                "special names raw values of a number; with an enum every value is named",
+                "move the special values into the enum, or remove the enum",
+            )
+        return self.read_enum(sign_bit, flagged, "special")
+
+    def read_enum(self, sign_bit: int | None, flagged: bool, key: str = "enum") -> dict[int, str]:
+        if not self.table.has(key):
             return {}
         if self.info.kind in ("float", "str"):
-            raise self.fail("enum", f"enum does not apply to {self.type}", "remove enum")
+            raise self.fail(key, f"{key} does not apply to {self.type}", f"remove {key}")
         bits = self.info.bits
         if self.bit is not None:
             low, high = 0, (1 << self.width) - 1
@@ -448,7 +476,7 @@ class ValueReader:
             low, high = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
         else:
             low, high = 0, (1 << bits) - 1
-        return names(self.table, "enum", low, high, f"a {self.type}")
+        return names(self.table, key, low, high, f"a {self.type}")
 
     def read_bits(self) -> dict[int, str]:
         if not self.table.has("bits"):

@@ -19,7 +19,19 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from sniffer import __version__
-from sniffer.cli import dictcmd, export, live, ports, record, replay, serve, tui
+from sniffer.cli import (
+    dictcmd,
+    diff,
+    export,
+    live,
+    manual,
+    ports,
+    record,
+    replay,
+    scan,
+    serve,
+    tui,
+)
 from sniffer.cli.options import Command
 from sniffer.errors import USER_ERRORS
 from sniffer.text import plain
@@ -36,6 +48,10 @@ examples:
   modscope replay log.txt --format jsonl   one JSON object per frame
   modscope live /dev/ttyUSB0 --baud 19200  watch a line (never transmits)
   modscope dict show rvs-dn                what a device dictionary knows
+  modscope scan /dev/ttyUSB0               find the line's baud rate and format
+  modscope dict draft bus.pcapng --unit 7 -o unit7.toml   a dictionary to start from
+  modscope diff monday.pcapng friday.pcapng               what changed on the bus
+  modscope replay bus.pcapng --filter 'unit:3 kind:exception'
 
 exit status: 0 done; 1 done with findings; 2 a user error (one line says what
 to fix); 70 a bug in modscope (with a traceback to report); 130 interrupted
@@ -57,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"modscope {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (replay, live, record, ports, export, dictcmd, tui, serve):
+    for module in (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve, manual):
         module.register(sub)
     return parser
 

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
+from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -62,15 +63,18 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
     if args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
+    query = query_of(args)
     bindings = bindings_for(args)
     options = read_options(args)
     session, capture = open_session(source, options, bindings=bindings, timeout=args.timeout)
     told = line_warnings(options, capture.info.recorded_line, str(source))
     session.ingest(capture.chunks())
     session.warnings.extend(capture.warnings)
+    for note in [*capture.info.notes, *session.notes]:
+        err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    rows = range(len(session.store))
+    rows = Selection(session, query, args.count).take(len(session.store), final=True)
     status = read_status(capture.warnings, len(rows))
     describer = session.describer
     if fmt == "pcapng":
@@ -85,7 +89,9 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     text = out if args.output == "-" else _open_text(args.output)
     try:
         if what == "frames":
-            n = Lister(text, fmt, describer, absolute=args.time == "abs").write(rows, flush=False)
+            lister = Lister(text, fmt, describer, absolute=args.time == "abs")
+            lister.origin = session.store.t[0] if len(session.store) else None
+            n = lister.write(rows, flush=False)
         elif what == "transactions":
             n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
         else:
@@ -147,4 +153,5 @@ def register(sub: SubParsers) -> None:
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
     g.add_argument("--invert", action="store_true", help="idle-low levels")
     add_device_options(p)
+    add_filter_options(p)
     p.set_defaults(func=cmd_export)

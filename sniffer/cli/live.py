@@ -15,6 +15,7 @@ from typing import TextIO
 
 from sniffer.capture import PUMP_SECONDS, LiveCapture, Notify
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
+from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
@@ -108,7 +109,21 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 io.StringIO(), args.format or "text", session.describer, absolute=args.time == "abs"
             )
         backlog = None if lister is None else Backlog(out, args.backlog)
-        return stream(capture, lister, exporter, deadline, backlog, notify)
+        selection = Selection(session, query_of(args), args.count)
+        if lister is not None and selection.query is not None:
+            lister.origin = None  # counted from the first row listed, as without a filter
+        labels = {u: b.label for u, b in bindings.items()}
+        every = args.stats if args.stats and args.stats > 0 else None
+        return stream(
+            capture,
+            lister,
+            exporter,
+            deadline,
+            backlog,
+            notify,
+            selection,
+            Summary(session, err, labels, every),
+        )
     finally:
         capture.stop()
         if pcap_file is not None and pcap_file is not sys.stdout.buffer:
@@ -130,6 +145,37 @@ def _tui_available() -> bool:
         return False
 
 
+class Summary:
+    """The --stats table (and poll cycle) on standard error: every `every` seconds while
+    capturing, and once when the capture ends."""
+
+    def __init__(
+        self, session: Session, err: TextIO, labels: dict[int, str], every: float | None
+    ) -> None:
+        self.session = session
+        self.err = err
+        self.labels = labels
+        self.every = every
+        self.next = time.monotonic() + every if every else None
+
+    def tick(self) -> None:
+        if self.next is not None and time.monotonic() >= self.next:
+            assert self.every is not None
+            self.next = time.monotonic() + self.every
+            self.write()
+
+    def write(self) -> None:
+        from sniffer.pollcycle import cycle_table, poll_cycles
+
+        session = self.session
+        session.store.sync()
+        session.stats.update()
+        self.err.write(f"\n{session.source} ({session.line.describe()})\n")
+        self.err.write(session.stats.table(self.labels) + "\n")
+        self.err.write(cycle_table(poll_cycles(session.store), self.labels) + "\n")
+        self.err.flush()
+
+
 def stream(
     capture: LiveCapture,
     lister: Lister | None,
@@ -137,8 +183,11 @@ def stream(
     duration: float | None,
     backlog: Backlog | None = None,
     notify: Notify | None = None,
+    selection: Selection | None = None,
+    summary: Summary | None = None,
 ) -> int:
-    """The listing loop: rows out as they are framed, until stopped. The listing goes
+    """The listing loop: rows out as they are framed, until stopped (Ctrl-C, --duration,
+    -c N frames listed, or the port gone for good); then the summary. The listing goes
     through `backlog` (see `sniffer.cli.backlog`): a slow reader of the output never
     stops the capture, rows it cannot take are dropped and reported, and Ctrl-C ends
     the loop within about a second whatever the output does."""
@@ -158,16 +207,21 @@ def stream(
     said = 0
     last_said = 0.0
 
-    def emit(rows: range, deadline: float | None = None) -> None:
+    def emit(rows: range, deadline: float | None = None, final: bool = False) -> None:
         nonlocal waiting, said, last_said
+        picked: list[int] | None = None  # the rows a filter or -c lets through
+        if selection is not None and (selection.query is not None or selection.left is not None):
+            picked = selection.take(rows.stop, final=final) if rows.stop else []
+        todo = picked
         if lister is not None and backlog is not None:
-            store.sync()
-            status = store.status
-            # a request listed as open that then got no answer is listed again
-            again = [i for i in waiting if status[i] == Status.TIMEOUT]
-            waiting = [i for i in waiting if status[i] == Status.OPEN]
-            waiting += [i for i in rows if status[i] == Status.OPEN]
-            todo = [*again, *rows]
+            if todo is None:
+                store.sync()
+                status = store.status
+                # a request listed as open that then got no answer is listed again
+                again = [i for i in waiting if status[i] == Status.TIMEOUT]
+                waiting = [i for i in waiting if status[i] == Status.OPEN]
+                waiting += [i for i in rows if status[i] == Status.OPEN]
+                todo = [*again, *rows]
             for k in range(0, len(todo), RENDER_ROWS):
                 late = deadline is not None and time.monotonic() >= deadline
                 if backlog.full or late:
@@ -184,19 +238,23 @@ def stream(
                     notify(_dropped_text(backlog.dropped))
                     said, last_said = backlog.dropped, now
         if exporter is not None:
-            exporter.write(rows)
+            exporter.write(rows if picked is None else picked)
 
     try:
         with stop_requests() as stop:
             while capture.running and not stop.is_set():
                 if end is not None and time.monotonic() >= end:
                     break
+                if selection is not None and selection.done:
+                    break
                 behind = backlog is not None and bool(backlog.pending)
                 emit(capture.pump(0.0 if behind else PUMP_SECONDS))
                 if backlog is not None:
                     backlog.send(PUMP_SECONDS if behind else 0.0)
+                if summary is not None:
+                    summary.tick()
             deadline = time.monotonic() + STOP_GRACE
-            emit(capture.stop(), deadline)
+            emit(capture.stop(), deadline, final=True)
             if backlog is not None:
                 lost = backlog.finish(max(0.0, deadline - time.monotonic()))
                 if lost and notify is not None:
@@ -207,6 +265,8 @@ def stream(
         quiet_stdout()
         capture.stop()
         return 0
+    if summary is not None:
+        summary.write()
     check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
@@ -243,4 +303,14 @@ def register(sub: SubParsers) -> None:
     )
     add_recording_options(p, required=False)
     p.add_argument("--backlog", type=parse_backlog, default=BACKLOG_BYTES, help=argparse.SUPPRESS)
+    add_filter_options(p)
+    p.add_argument(
+        "--stats",
+        type=float,
+        nargs="?",
+        const=10.0,
+        metavar="S",
+        help="print the statistics and poll cycle to stderr every S seconds (default 10); "
+        "they are printed once anyway when the capture ends",
+    )
     p.set_defaults(func=cmd_live)

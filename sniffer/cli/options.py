@@ -26,9 +26,11 @@ Command = Callable[[argparse.Namespace, TextIO, TextIO], int]
 def add_line_options(p: argparse.ArgumentParser) -> None:
     """The line settings every command takes (a file's own settings are the default)."""
     g = p.add_argument_group("line settings (default: what the capture recorded, else 19200 8E1)")
-    g.add_argument("--baud", type=int, metavar="N", help="baud rate")
+    g.add_argument("-b", "--baud", type=int, metavar="N", help="baud rate (-b as in mbpoll)")
     g.add_argument("--bytesize", type=int, choices=(7, 8), help="data bits")
-    g.add_argument("--parity", type=str.upper, choices=("N", "E", "O"), help="parity")
+    g.add_argument(
+        "-P", "--parity", type=str.upper, choices=("N", "E", "O"), help="parity (-P as in mbpoll)"
+    )
     g.add_argument("--stopbits", type=int, choices=(1, 2), help="stop bits")
     g.add_argument(
         "--mode", choices=("rtu", "ascii", "auto"), help="framing (default auto: from the traffic)"

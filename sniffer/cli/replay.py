@@ -4,10 +4,15 @@ statistics or the TUI."""
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
+from sniffer.cli.filtering import add_filter_options
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -27,14 +32,48 @@ from sniffer.text import plain
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    if args.read is not None:
+        if args.file is not None:
+            raise UsageError("give the capture once: as FILE or as -r FILE")
+        args.file = args.read
+    if args.file == "-":
+        with stdin_copy() as path:
+            args.file = str(path)
+            return _replay(args, out, err, "standard input")
+    return _replay(args, out, err, None)
+
+
+@contextmanager
+def stdin_copy() -> Iterator[Path]:
+    """Standard input kept in a temporary file (readers look at a file's content)."""
+    with tempfile.TemporaryDirectory(prefix="modscope-") as folder:
+        path = Path(folder) / "stdin"
+        with path.open("wb") as f:
+            shutil.copyfileobj(sys.stdin.buffer, f, 1 << 20)
+        yield path
+
+
+def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | None) -> int:
+    from sniffer.baud import wrong_speed
+    from sniffer.cli.filtering import Selection, query_of
+    from sniffer.pollcycle import cycle_table, poll_cycles
     from sniffer.session import DEMO_BUS, DEMO_CAPTURE, open_session
 
+    query = query_of(args)
     path = Path(args.file) if args.file else DEMO_CAPTURE
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
     if not args.file and not DEMO_CAPTURE.exists():
         raise UsageError(f"the demo capture {DEMO_CAPTURE} is missing; give a capture FILE")
     options = read_options(args)
-    use_tui = args.format is None and not args.stats and out.isatty() and sys.stdin.isatty()
+    use_tui = (
+        args.format is None
+        and not args.stats
+        and query is None
+        and args.count is None
+        and shown is None
+        and out.isatty()
+        and sys.stdin.isatty()
+    )
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
     told = line_warnings(options, capture.info.recorded_line, str(path))
     if use_tui:
@@ -48,23 +87,31 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     def progress(done: int, frames: int) -> None:
         if show_progress:
-            err.write(f"\rindexing {path.name}: {done / 1e6:.1f} MB, {frames:,} rows")
+            err.write(f"\rindexing {shown or path.name}: {done / 1e6:.1f} MB, {frames:,} rows")
             err.flush()
 
     session.ingest(capture.chunks(), progress)
     if show_progress:
         err.write("\r\x1b[K")
     session.warnings.extend(capture.warnings)
+    slow = wrong_speed(session.store)
+    if slow is not None:
+        session.warnings.append(f"{shown or path}: {slow}")
+    for note in [*capture.info.notes, *session.notes]:
+        err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     status = read_status(capture.warnings, len(session.store))
     if args.stats:
         labels = {u: b.label for u, b in bindings.items()}
-        out.write(f"{path} ({session.line.describe()}, mode {session.mode})\n")
-        out.write(session.stats.table(labels) + "\n")
+        out.write(f"{shown or path} ({session.line.describe()}, mode {session.mode})\n")
+        out.write(session.stats.table(labels) + "\n\n")
+        out.write(cycle_table(poll_cycles(session.store), labels) + "\n")
         return status
     lister = Lister(out, args.format or "text", session.describer, absolute=args.time == "abs")
-    lister.write(range(len(session.store)), flush=False)
+    selection = Selection(session, query, args.count)
+    lister.origin = selection.origin()
+    lister.write(selection.take(len(session.store), final=True), flush=False)
     out.flush()
     return status
 
@@ -83,7 +130,10 @@ def register(sub: SubParsers) -> None:
         epilog=READ_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("file", nargs="?", help="capture file (default: the bundled demo)")
+    p.add_argument(
+        "file", nargs="?", help="capture file, - for standard input (default: the bundled demo)"
+    )
+    p.add_argument("-r", "--read", metavar="FILE", help="the capture file (as tcpdump -r)")
     add_line_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument(
@@ -96,5 +146,8 @@ def register(sub: SubParsers) -> None:
     g.add_argument("--invert", action="store_true", help="idle-low levels (RS-232 side)")
     add_device_options(p)
     add_output_options(p)
-    p.add_argument("--stats", action="store_true", help="print the per-unit statistics table")
+    add_filter_options(p)
+    p.add_argument(
+        "--stats", action="store_true", help="print the per-unit statistics and poll cycle"
+    )
     p.set_defaults(func=cmd_replay)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import configparser
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -302,13 +302,23 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
             early = [archive.warning] if archive.warning else []
     except ArchiveError as exc:
         raise CaptureError(f"{path}: {exc}; expected a sigrok session (.sr)") from None
+    numbers = _choose_probes(path, meta, options)
     line = options.line(None)
+    notes: list[str] = []
+    if options.baud is None:  # measure it (sniffer/baud.py) and say what was chosen
+        from sniffer.baud import estimate_sigrok
+
+        guess = estimate_sigrok(
+            path, meta.samplerate, meta.unitsize, meta.members, numbers, options
+        )
+        if guess is not None:
+            line = guess.line
+            notes.append(f"{path}: {guess.note}")
     if meta.samplerate / line.baud < MIN_SAMPLES_PER_BIT:
         raise CaptureError(
             f"{path}: {meta.samplerate:g} samples/s is too slow for {line.baud} baud "
             f"(needs {MIN_SAMPLES_PER_BIT:g} samples per bit)"
         )
-    numbers = _choose_probes(path, meta, options)
     for token, number in zip(options.probes, numbers, strict=False):
         if text := ambiguity(token, number, meta.probes):
             early.append(text)
@@ -334,6 +344,7 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         exact_timing=True,
         channels=channels,
         warnings=tuple(early),
+        notes=tuple(notes),
         stamps=Stamp.EXACT,
         labels=Labels.CERTAIN if len(numbers) == 2 else Labels.NONE,
     )
@@ -358,6 +369,39 @@ def _choose_probes(path: Path, meta: SigrokMetadata, options: ReadOptions) -> li
     if len(numbers) == 2 and numbers[0] == numbers[1]:
         raise CaptureError(f"{path}: the two probes given are the same probe")
     return numbers
+
+
+def bit_levels(
+    path: Path,
+    unitsize: int,
+    members: Sequence[str],
+    numbers: Sequence[int],
+    invert: bool,
+    limit: int,
+) -> list[bytes]:
+    """The levels (0/1 bytes) of probes `numbers` over the first `limit` samples."""
+    out = [bytearray() for _ in numbers]
+    tables = [_bit_table((n - 1) % 8, invert) for n in numbers]
+    taken = 0
+    carry = b""
+    try:
+        with Archive(path) as archive:
+            for name in members:
+                for block in archive.blocks(name, READ_BLOCK):
+                    data = carry + block
+                    usable = len(data) - len(data) % unitsize
+                    carry = data[usable:]
+                    data = data[: min(usable, (limit - taken) * unitsize)]
+                    taken += len(data) // unitsize
+                    for k, n in enumerate(numbers):
+                        byte = (n - 1) // 8
+                        column = data if unitsize == 1 else data[byte::unitsize]
+                        out[k] += column.translate(tables[k])
+                    if taken >= limit:
+                        return [bytes(b) for b in out]
+    except ArchiveError:
+        pass  # what was read is used; the full read reports the problem
+    return [bytes(b) for b in out]
 
 
 def _decode(probes: list[_Probe], unitsize: int, data: bytes, final: bool) -> list[Chunk]:

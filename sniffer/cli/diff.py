@@ -1,0 +1,45 @@
+"""Provides `modscope diff`: what changed on a bus between two captures of it."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TextIO
+
+from sniffer.cli.options import SubParsers, add_line_options, read_options
+from sniffer.text import plain
+
+
+def cmd_diff(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from sniffer.diff import diff_stores
+    from sniffer.session import open_session
+
+    stores = []
+    for name in (args.a, args.b):
+        session, capture = open_session(Path(name), read_options(args))
+        session.ingest(capture.chunks())
+        for w in capture.warnings:
+            err.write(f"modscope: warning: {plain(w)}\n")
+        stores.append(session.store)
+    result = diff_stores(stores[0], stores[1], args.a, args.b)
+    for line in result.text().splitlines():
+        out.write(plain(line, 2000) + "\n")
+    return 0 if result.same else 1
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "diff",
+        help="compare two captures of the same bus",
+        description=(
+            "Compare two captures of one bus: units and repeating requests that appeared "
+            "or vanished, poll periods and answer times that changed, and registers whose "
+            "values in B left the range they kept in A. Exit status 1 when they differ."
+        ),
+        epilog="example:\n  modscope diff monday.pcapng friday.pcapng",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("a", metavar="A", help="the earlier capture")
+    p.add_argument("b", metavar="B", help="the later capture")
+    add_line_options(p)
+    p.set_defaults(func=cmd_diff)

@@ -1,0 +1,87 @@
+"""Provides --filter QUERY and -c/--count N for the commands that list frames (replay,
+live, export): the TUI's filter language and matcher, so a query means the same on the
+command line as in the frame list's filter bar, with the same error messages."""
+
+from __future__ import annotations
+
+import argparse
+from array import array
+
+from sniffer.errors import UsageError
+from sniffer.query import Query, QueryError, parse_query
+from sniffer.session import Session
+from sniffer.tui.rows import FilterJob, Options  # Textual-free: the TUI's row matcher
+
+FILTER_HELP = (
+    "only frames matching QUERY, in the TUI's filter language: unit:3 fc:3,16 "
+    'kind:exception status:timeout reg:"Under Voltage" t:10-20 and plain words; '
+    "-fc:3 excludes (see docs/tui.md)"
+)
+
+
+def add_filter_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("selecting frames")
+    g.add_argument("--filter", metavar="QUERY", help=FILTER_HELP)
+    g.add_argument("-c", "--count", type=int, metavar="N", help="stop after N frames")
+
+
+def query_of(args: argparse.Namespace) -> Query | None:
+    """The parsed --filter, or None; a bad query is a UsageError with the TUI's message."""
+    text = getattr(args, "filter", None)
+    count = getattr(args, "count", None)
+    if count is not None and count < 1:
+        raise UsageError(f"-c/--count must be at least 1, not {count}")
+    if not text:
+        return None
+    try:
+        query = parse_query(text)
+    except QueryError as exc:
+        raise UsageError(f"--filter: {exc}") from None
+    return None if query.empty else query
+
+
+class Selection:
+    """Rows to show, in order: all of them, or those a query matches; at most `count`.
+
+    `take(upto, final)` returns the rows below `upto` not handed out before. With a query,
+    rows whose request still waits for its answer are held until it is decided (as the
+    TUI does), unless `final`.
+    """
+
+    def __init__(self, session: Session, query: Query | None, count: int | None) -> None:
+        self.session = session
+        self.query = query
+        self.left = count
+        self.given = 0  # rows (or matches) handed out so far
+        self.job: FilterJob | None = None
+
+    @property
+    def done(self) -> bool:
+        return self.left is not None and self.left <= 0
+
+    def origin(self) -> float | None:
+        """The capture's first time: filtered listings count time from it, as the TUI."""
+        store = self.session.store
+        return store.t[0] if len(store) else None
+
+    def take(self, upto: int, final: bool = False) -> list[int]:
+        if self.done:
+            return []
+        store = self.session.store
+        if self.query is None:
+            rows = list(range(self.given, upto))
+            self.given = max(self.given, upto)
+        else:
+            if self.job is None:
+                origin = store.t[0] if len(store) else 0.0
+                bound = Options(bound=self.session.annotator.bindings)
+                self.job = FilterJob(store, self.query, bound, self.session.annotator, origin)
+            while self.job.advance(upto, budget=1.0, final=final):
+                pass
+            found: array[int] = self.job.rows
+            rows = list(found[self.given :])
+            self.given = len(found)
+        if self.left is not None:
+            rows = rows[: self.left]
+            self.left -= len(rows)
+        return rows
