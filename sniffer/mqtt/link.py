@@ -138,16 +138,17 @@ class MqttLink:
     ) -> bool:
         """Queue one QoS 1 message. False if it was dropped (the buffer is full)."""
         with self._cond:
-            self.counts.offered += 1
-            if self.counts.pending > self.limit and block and self.connected.is_set():
+            c = self.counts
+            if c.pending >= self.limit and block and self.connected.is_set():
                 end = time.monotonic() + BLOCK_SECONDS
-                while self.counts.pending > self.limit and self.connected.is_set():
+                while c.pending >= self.limit and self.connected.is_set():
                     left = end - time.monotonic()
                     if left <= 0:
                         break
                     self._cond.wait(min(left, 0.05))
-            if self.counts.pending > self.limit:
-                self.counts.dropped += 1
+            c.offered += 1
+            if c.pending > self.limit:
+                c.dropped += 1
                 if not self._dropping:
                     self._dropping = True
                     self._tell(
@@ -156,8 +157,9 @@ class MqttLink:
                     )
                 return False
         info = self.client.publish(topic, payload, qos=1, retain=retain)
-        if info.rc not in (self._paho.MQTT_ERR_SUCCESS, self._paho.MQTT_ERR_NO_CONN):
-            # kept by paho only when the result is success or "no connection" (queued)
+        if info.rc == self._paho.MQTT_ERR_QUEUE_SIZE:
+            # any other result (no connection, connection lost) leaves a QoS 1 message
+            # in paho's store, sent again after reconnecting
             with self._cond:
                 self.counts.dropped += 1
             return False

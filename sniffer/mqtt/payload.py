@@ -131,7 +131,7 @@ def chunk_from_raw(payload: bytes) -> Chunk:
             comment = value.decode("utf-8", errors="replace")
         pos += length + (-length % 4)
     ticks = (high << 32) | low
-    t_end = ticks // NS + (ticks % NS) / NS
+    t_end = ticks / NS  # int / int: correctly rounded, so whole-ns times come back equal
     t_start = record.seconds if record.seconds > 0 else None
     direction = _DIRECTIONS.get(flags & EPB_DIRECTION_MASK, Direction.UNKNOWN)
     if record.event == RTAC_DATA_RX_START:

@@ -89,6 +89,7 @@ class BusPublisher:
         self.values = 0
         self.events = 0
         self.raw = 0
+        self.raw_dropped = 0
         self._slugs = Slugs()
         self._entries: dict[int, dict[tuple[str, int, str], Entry]] = {}
         self._params: dict[int, dict[str, ValueSpec]] = {}
@@ -171,8 +172,11 @@ class BusPublisher:
     def chunk(self, chunk: Chunk) -> None:
         """Publish one read (or source event) as it was recorded."""
         self._resend_retained()
-        self._send(self.target.topic("raw"), raw_payload(chunk))
         self.raw += 1
+        if not self.link.publish(
+            self.target.topic("raw"), raw_payload(chunk), block=self.options.block
+        ):
+            self.raw_dropped += 1
 
     def rows(self, final: bool = False) -> None:
         """Publish what the session's new rows say. Call after `session.refresh()`."""
