@@ -13,9 +13,9 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import LINE, arguments, file_reads, peak_rss_mb, timed, usb_reads, workload
-from sniffer.framing import Flag, Kind
 from sniffer.pipeline import Pipeline
 from sniffer.store import FrameStore
+from sniffer.vocab import Flag, Kind
 
 
 def index(chunks: list) -> FrameStore:  # type: ignore[type-arg]

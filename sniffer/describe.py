@@ -11,13 +11,13 @@ from dataclasses import dataclass
 from dissectors.dictionary import RegisterValue, Timing
 from dissectors.dissect import dissect
 from dissectors.functions import function_name
-from dissectors.values import Dissection, Field, Role
+from dissectors.values import Dissection, Field, Problem, Role
 from sniffer.annotate import Annotator
-from sniffer.framing import Flag, Kind
 from sniffer.pairing import latency
 from sniffer.problems import frame_problems
-from sniffer.store import NO_PARTNER, FrameStore, FrameView, Status
+from sniffer.store import NO_PARTNER, FrameStore, FrameView
 from sniffer.text import plain
+from sniffer.vocab import FLAG_MEANINGS, STATUS_NAMES, WARNING, Flag, Kind
 
 DIRECTION = {Kind.REQUEST: "M>S", Kind.RESPONSE: "S>M", Kind.EXCEPTION: "S>M"}
 
@@ -31,9 +31,14 @@ class FrameDetail:
     summary: str  # one line, register names included
     dissection: Dissection | None
     registers: tuple[RegisterValue, ...]
-    problems: tuple[str, ...]
+    problems: tuple[Problem, ...]
     latency_ms: float | None
     label: str  # the device label from the bus bindings
+
+    @property
+    def problem_texts(self) -> tuple[str, ...]:
+        """The problems as the one-line listing and JSONL `problems` say them."""
+        return tuple(p.text for p in self.problems)
 
     @property
     def direction(self) -> str:
@@ -41,7 +46,7 @@ class FrameDetail:
 
     @property
     def status(self) -> str:
-        return Status.NAMES[self.view.status]
+        return STATUS_NAMES[self.view.status]
 
     @property
     def fields(self) -> tuple[Field, ...]:
@@ -60,6 +65,26 @@ def _slow_text(ms: float, timing: Timing | None) -> str:
             )
         text += f" (long answers up to {timing.long_response_ms:g} ms)"
     return text
+
+
+def register_span(dissection: Dissection | None, reg: RegisterValue) -> tuple[int, int] | None:
+    """Where the words of a named register lie in the body, if the dissection shows it."""
+    if dissection is None:
+        return None
+    for data in dissection.data:
+        if data.table != reg.table or data.address is None:
+            continue
+        first = reg.address - data.address
+        count = max(1, len(reg.raw))
+        if not 0 <= first < len(data.values):
+            continue
+        for f in dissection.fields:
+            if f.children and len(f.children) == len(data.values):
+                last = min(len(f.children), first + count) - 1
+                return f.children[first].span[0], f.children[last].span[1]
+            if f.name == "value" and len(data.values) == 1:
+                return f.span
+    return None
 
 
 class Describer:
@@ -109,29 +134,19 @@ class Describer:
         request: bytes | None = None
         if role == Role.RESPONSE and view.partner != NO_PARTNER:
             request = store.view(view.partner).body()
-        d = dissect(body, role, request=request)
-        registers: list[RegisterValue] = []
+        # the annotator's registry holds the bound devices' own codes: one path for all
+        d = dissect(body, role, request=request, registry=self.annotator.registry)
+        registers = self.annotator.registers(view.unit, i, d)
         extra_summary = ""
         name = d.name
         binding = self.annotator.bindings.get(view.unit)
-        if binding is not None and view.function in binding.dictionary.functions:
-            vendor = binding.dictionary.functions[view.function]
-            name = vendor.name
-            decoded = (
-                vendor.decode_response(body[2:])
-                if role == Role.RESPONSE
-                else vendor.decode_request(body[2:])
-            )
-            extra_summary = ", ".join(plain(f.text) for f in decoded.fields)
-            problems.extend(decoded.problems)
-        else:
-            registers = self.annotator.registers(view.unit, i, d)
-        for p in d.problems:
-            problems.append(p.text)
+        problems.extend(d.problems)
         for r in registers:
-            problems.extend(f"{r.name}: {p}" for p in r.problems)
+            span = register_span(d, r) if r.problems or r.partial else None
+            problems.extend(Problem("value", WARNING, f"{r.name}: {p}", span) for p in r.problems)
             if r.partial:
-                problems.append(f"{r.name}: the read cuts this value in half")
+                text = f"{r.name}: the read cuts this value in half"
+                problems.append(Problem("cut-value", WARNING, text, span))
         if d.exception:
             code = d.field("exception_code")
             if code is not None and isinstance(code.value, int):
@@ -156,8 +171,12 @@ class Describer:
         elif extra_summary:
             summary += ": " + extra_summary
         lat = latency(store, i)
-        if view.flags & Flag.DEVICE_SLOW and lat is not None and binding is not None:
-            problems.append(_slow_text(lat * 1000, binding.dictionary.timing))
+        if view.flags & Flag.DEVICE_SLOW:
+            slow = FLAG_MEANINGS[Flag.DEVICE_SLOW]
+            text = slow.text
+            if lat is not None and binding is not None:
+                text = _slow_text(lat * 1000, binding.dictionary.timing)
+            problems.append(Problem(slow.kind, slow.severity, text, None))
         if view.flags & Flag.SILENCE_FRAMED and name.startswith(("Unknown", "User", "Reserved")):
             name = function_name(view.function)
         return FrameDetail(
@@ -166,7 +185,7 @@ class Describer:
             plain(summary),
             d,
             tuple(registers),
-            tuple(plain(p) for p in problems),
+            tuple(Problem(p.kind, p.severity, plain(p.text), p.span) for p in problems),
             None if lat is None else lat * 1000,
             label,
         )

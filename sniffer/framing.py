@@ -13,13 +13,13 @@ Every byte fed in leaves in exactly one frame or one noise span, in order.
 
 from __future__ import annotations
 
-import enum
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dissectors.checks import crc16, lrc
+from dissectors.envelope import ascii_body
 from dissectors.functions import (
     EXCEPTION_LENGTH,
     FUNCTIONS,
@@ -31,6 +31,7 @@ from dissectors.functions import (
     fixed,
 )
 from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.vocab import Flag, Kind
 
 if TYPE_CHECKING:
     from sniffer.store import FrameStore
@@ -44,43 +45,6 @@ MAX_ASCII = 513
 MAX_NOISE = 256  # bytes in one noise row; longer noise is shown in pieces
 MIN_RTU = 4
 
-
-class Kind(enum.IntEnum):
-    NOISE = 0
-    REQUEST = 1
-    RESPONSE = 2
-    EXCEPTION = 3
-    UNKNOWN = 4  # a frame whose check is right but whose direction cannot be told
-    EVENT = 5  # no bus bytes: something the source reported (reconnect, data lost)
-
-
-class Flag(enum.IntFlag):
-    """Problems and facts found while framing; stored per frame as one integer."""
-
-    NONE = 0
-    CHECK_BAD = 1 << 0  # CRC or LRC does not match
-    GAP_INSIDE = 1 << 1  # silence longer than t1.5 inside an RTU frame (exact timing only)
-    SHORT_SILENCE = 1 << 2  # less than t3.5 of silence before the frame (exact timing only)
-    LINE_ERROR = 1 << 3  # a byte of the frame had a framing or parity error
-    NON_HEX = 1 << 4  # ASCII: characters other than hex digits between ':' and CR LF
-    ABORTED = 1 << 5  # ASCII: a new ':' arrived before CR LF
-    UNTERMINATED = 1 << 6  # ASCII: the capture ended (or the line went idle) inside a frame
-    TOO_LONG = 1 << 7  # longer than the mode's maximum frame
-    LONG_GAP = 1 << 8  # ASCII: more than 1 s between two characters of one frame
-    SILENCE_FRAMED = 1 << 9  # framed by silence alone (no length rule knows this code)
-    NO_CR = 1 << 10  # ASCII: LF without CR before it
-    # set by pairing and annotation, on stored frames
-    RETRY = 1 << 11  # a request repeating one that got no answer
-    LATE = 1 << 12  # an answer that came after the response timeout
-    ANSWERED_BROADCAST = 1 << 13  # an answer to a broadcast, which must get none
-    DEVICE_SLOW = 1 << 14  # slower than the device's documented response time
-    QUIET_VIOLATED = 1 << 15  # traffic inside the device's quiet time after a write
-    LINE_EVENT = 1 << 16  # the source reported something here (reconnect, data lost)
-    ASCII = 1 << 24  # the frame was sent in ASCII mode (a fact, not a problem)
-
-
-# Pairing and device-timing flags are set later, on stored frames.
-PROBLEM_MASK = (1 << 24) - 1 - Flag.SILENCE_FRAMED
 
 # A length rule and the kind of frame it describes (the fast paths use their own tables)
 _Rule = tuple[LengthRule, int]
@@ -677,19 +641,6 @@ class RtuFramer(_Framer):
 
 # preference of a length rule's kind when it is not the answer the open request predicts
 PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
-
-
-def ascii_body(raw: bytes) -> bytes | None:
-    """The binary body (unit, PDU, LRC) of an ASCII frame, or None if it is not hex."""
-    text = raw[1:]
-    if text.endswith(b"\r\n"):
-        text = text[:-2]
-    elif text.endswith(b"\n") or text.endswith(b"\r"):
-        text = text[:-1]
-    try:
-        return bytes.fromhex(text.decode("ascii"))
-    except ValueError:
-        return None
 
 
 class AsciiFramer(_Framer):

@@ -9,8 +9,8 @@ from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from sniffer.describe import Describer, FrameDetail
-from sniffer.framing import Kind
-from sniffer.store import NO_PARTNER, Status
+from sniffer.store import NO_PARTNER
+from sniffer.vocab import STATUS_NAMES, Kind
 
 FORMATS = ("text", "jsonl", "csv")
 KIND_NAMES = {
@@ -61,12 +61,22 @@ def record(d: FrameDetail) -> dict[str, Any]:
         "unit": v.unit if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
         "function": v.function if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
         "check_ok": v.check_ok,
-        "problems": list(d.problems),
+        "problems": list(d.problem_texts),
         "channel": v.channel,
         "direction": d.direction,
         "name": d.name,
         "summary": d.summary,
     }
+    if d.problems:
+        rec["problem_details"] = [
+            {
+                "kind": p.kind,
+                "severity": p.severity,
+                "text": p.text,
+                "span": None if p.span is None else list(p.span),
+            }
+            for p in d.problems
+        ]
     if d.label:
         rec["device"] = d.label
     if d.dissection is not None:
@@ -80,7 +90,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
             "id": req,
             "role": "request" if v.kind == Kind.REQUEST else "response",
             "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
-            "status": Status.NAMES[v.status],
+            "status": STATUS_NAMES[v.status],
             "partner": None if v.partner == NO_PARTNER else v.partner,
         }
     if d.registers:
@@ -117,12 +127,12 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
     unit = f"u{v.unit:<3d}"
     check = "ok " if v.check_ok else "BAD"
     fc = f"{v.function:02d}{'!' if v.exception else ' '}"
-    status = Status.NAMES[v.status]
+    status = STATUS_NAMES[v.status]
     lat = f" {d.latency_ms:7.1f}ms" if d.latency_ms is not None and v.kind != Kind.REQUEST else ""
     line = f"{when}  {d.direction}  {unit} {fc} {d.name[:28]:<28} {len(v.raw):3d}B {check} "
     line += f"{status:<9}{lat}  {d.summary}"
     if d.problems:
-        line += "  [" + "; ".join(d.problems) + "]"
+        line += "  [" + "; ".join(d.problem_texts) + "]"
     return line
 
 
@@ -172,7 +182,7 @@ class Lister:
                         d.status,
                         "" if d.latency_ms is None else f"{d.latency_ms:.3f}",
                         d.summary,
-                        "; ".join(d.problems),
+                        "; ".join(d.problem_texts),
                         v.raw.hex(),
                     )
                 )

@@ -8,9 +8,9 @@ became of each: answered, exception, timeout, orphan answer, broadcast, retry.
 
 from __future__ import annotations
 
-from sniffer.framing import Flag, Kind
 from sniffer.model import LineSettings
-from sniffer.store import NO_PARTNER, FrameStore, Status
+from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 
 def default_timeout(line: LineSettings) -> float:
@@ -96,7 +96,7 @@ class Pairer:
         s = self.store
         s.partner[req] = resp
         s.partner[resp] = req
-        if s.flags[resp] & (Flag.CHECK_BAD | Flag.NON_HEX):
+        if s.flags[resp] & BAD_CHECK:
             status = Status.BAD_ANSWER
         elif s.fc[resp] & 0x80:
             status = Status.EXCEPTION

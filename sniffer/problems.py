@@ -1,67 +1,71 @@
-"""Provides the plain-text problems of a stored frame: checks, timing, pairing, source events."""
+"""Provides the problems of a stored row as structured values: checks, timing, pairing, events.
+
+Each problem is a `dissectors.values.Problem` (kind, severity, text, span), the same type
+the dissector gives, so a view can colour by severity and highlight the bytes. Spans are
+offsets in the frame's body (unit byte and PDU, decoded for ASCII), as field spans are;
+the check's span runs past the body over the CRC or LRC. Meanings come from
+`sniffer.vocab`; this module only fills in the numbers.
+"""
 
 from __future__ import annotations
 
-from dissectors.checks import crc16, lrc
-from sniffer.framing import Flag, Kind, ascii_body
-from sniffer.store import FrameView, Status
-
-_FLAG_TEXT: tuple[tuple[int, str], ...] = tuple(
-    (int(flag), text)
-    for flag, text in (
-        (Flag.GAP_INSIDE, "silence longer than 1.5 characters inside the frame"),
-        (Flag.SHORT_SILENCE, "less than 3.5 characters of silence before the frame"),
-        (Flag.LINE_ERROR, "framing or parity error on the line"),
-        (Flag.NON_HEX, "characters other than hex digits between ':' and CR LF"),
-        (Flag.ABORTED, "aborted: a new ':' came before CR LF"),
-        (Flag.UNTERMINATED, "no CR LF before the capture ended"),
-        (Flag.TOO_LONG, "longer than the mode's longest frame"),
-        (Flag.LONG_GAP, "more than 1 s between two characters of the frame"),
-        (Flag.NO_CR, "LF without CR"),
-        (Flag.RETRY, "retry of a request that got no answer"),
-        (Flag.LATE, "answer came after the response timeout"),
-        (Flag.ANSWERED_BROADCAST, "answer to a broadcast, which must get none"),
-        (Flag.QUIET_VIOLATED, "sent during the device's quiet time after a write"),
-    )
+from dissectors.envelope import open_ascii, open_rtu
+from dissectors.values import Problem
+from sniffer.store import FrameView
+from sniffer.vocab import (
+    EVENT_MEANING,
+    FLAGS,
+    NOISE_MEANING,
+    PROBLEM_MASK,
+    STATUS_PROBLEMS,
+    Flag,
+    Kind,
+    Status,
 )
+
+# flags whose sentence has numbers in it: the check's here, the device's timing in the
+# describer (which knows the dictionary); an event row says its own note
+_SAID_ELSEWHERE = Flag.CHECK_BAD | Flag.DEVICE_SLOW | Flag.LINE_EVENT
+_LISTED = tuple(
+    (int(flag), m) for flag, m in FLAGS if flag & PROBLEM_MASK and not flag & _SAID_ELSEWHERE
+)
+_CHECK = dict(FLAGS)[Flag.CHECK_BAD]
 
 
 def check_text(frame: FrameView) -> str:
     """`CRC 0x1234 wrong, expected 0x5678` for a bad check; empty when it is right."""
     if frame.kind in (Kind.NOISE, Kind.EVENT) or not frame.flags & Flag.CHECK_BAD:
         return ""
+    envelope = open_ascii(frame.raw) if frame.ascii else open_rtu(frame.raw)
+    return envelope.check_text
+
+
+def _check_span(frame: FrameView) -> tuple[int, int] | None:
+    """Body offsets of the CRC (two bytes) or LRC (one decoded byte) after the body."""
+    n = len(frame.body())
     if frame.ascii:
-        body = ascii_body(frame.raw)
-        if not body or len(body) < 2:
-            return "too short for an LRC"
-        return f"LRC 0x{body[-1]:02X} wrong, expected 0x{lrc(body[:-1]):02X}"
-    raw = frame.raw
-    if len(raw) < 3:
-        return "too short for a CRC"
-    sent = raw[-2] | raw[-1] << 8
-    want = crc16(raw[:-2])
-    return (
-        f"CRC {raw[-2]:02X} {raw[-1]:02X} wrong, expected {want & 0xFF:02X} {want >> 8:02X}"
-        f" (0x{sent:04X} vs 0x{want:04X})"
-    )
+        return (n, n + 1) if n else None
+    return (n, n + 2) if len(frame.raw) >= 3 else None
 
 
-def frame_problems(frame: FrameView, note: str = "") -> list[str]:
-    """Every problem framing, pairing and device rules found on this row, as text."""
-    out: list[str] = []
+def frame_problems(frame: FrameView, note: str = "") -> list[Problem]:
+    """Every problem framing, pairing and the source found on this row."""
+    out: list[Problem] = []
     if frame.kind == Kind.NOISE:
-        out.append(f"noise: {len(frame.raw)} bytes no frame claims")
+        m = NOISE_MEANING
+        text = f"noise: {len(frame.raw)} {m.text}"
+        out.append(Problem(m.kind, m.severity, text, None))
     if frame.kind == Kind.EVENT:
-        out.append(note or "event")
+        m = EVENT_MEANING
+        out.append(Problem(m.kind, m.severity, note or "event", None))
         return out
     text = check_text(frame)
     if text:
-        out.append(text)
+        out.append(Problem(_CHECK.kind, _CHECK.severity, text, _check_span(frame)))
     flags = frame.flags
     if flags:
-        out.extend(words for flag, words in _FLAG_TEXT if flags & flag)
-    if frame.status == Status.TIMEOUT:
-        out.append("no answer (timeout)")
-    elif frame.status == Status.ORPHAN:
-        out.append("answer without a request")
+        out.extend(Problem(m.kind, m.severity, m.text, None) for f, m in _LISTED if flags & f)
+    meaning = STATUS_PROBLEMS.get(Status(frame.status))
+    if meaning is not None:
+        out.append(Problem(meaning.kind, meaning.severity, meaning.text, None))
     return out

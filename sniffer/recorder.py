@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from sniffer import __version__
+from sniffer.errors import UserError
 from sniffer.model import Chunk
 from sniffer.serial_source import PortSpec
 from sniffer.sources.linktypes import RTAC_CAPTURE_COMPLETE
@@ -64,19 +65,25 @@ def epb_size(data: int, comment: int = 0) -> int:
     return 12 + 20 + data + (-data % 4) + options
 
 
-class RecordError(Exception):
+class RecordError(UserError):
     """The recording cannot be written. The message names the file and what to do."""
 
 
-def parse_size(text: str) -> int:
-    """`10M` -> 10,000,000 bytes; `10MiB` -> 10,485,760; `500k`; a plain number is bytes."""
+MIN_RING_FILE = 1000  # bytes: `1k`, the smallest ring buffer file the help promises
+
+
+def parse_size(text: str, minimum: int = MIN_RING_FILE) -> int:
+    """`10M` -> 10,000,000 bytes; `10MiB` -> 10,485,760; `500k`; a plain number is bytes.
+    Sizes are decimal (k = 1000) unless written with `i` (KiB = 1024), so the smallest
+    ring buffer file, `1k`, is 1000 bytes."""
     m = _SIZE.match(text)
     if not m:
         raise ValueError(f"not a size: {text!r} (write e.g. 500k, 10M, 1G)")
     base = 1024 if m[3] else 1000
     size = int(float(m[1]) * base ** _POWERS[m[2].lower()])
-    if size < 1024:
-        raise ValueError(f"a ring buffer file needs at least 1k, not {text!r}")
+    if size < minimum:
+        least = "1k (1,000 bytes)" if minimum == MIN_RING_FILE else f"{minimum:,} bytes"
+        raise ValueError(f"needs at least {least}, not {text!r}")
     return size
 
 

@@ -37,6 +37,7 @@ from types import TracebackType
 
 import serial
 
+from sniffer.errors import UserError
 from sniffer.model import Chunk, Direction, LineSettings
 
 READ_SIZE = 1 << 16  # bytes asked of one read: whatever the port has, up to this
@@ -44,6 +45,7 @@ POLL_SECONDS = 0.2  # longest wait of a reader before it looks at its stop flag
 RETRY_SECONDS = 0.5  # how often a lost port is tried again
 ICOUNT_SECONDS = 1.0  # how often the driver's error counters are read
 DEFAULT_QUEUE = 100_000  # chunks a feed holds before it drops (and counts)
+QUEUE_BYTES = 8 << 20  # bytes a feed holds before it drops: 90 s of a 921600 baud line
 URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 TIOCGICOUNT = 0x545D  # Linux: struct serial_icounter_struct
 TIOCEXCL = getattr(termios, "TIOCEXCL", 0x540C)
@@ -53,7 +55,7 @@ PortFactory = Callable[[str], serial.Serial]
 """Makes an unopened port object for a port name (a device path or a pyserial URL)."""
 
 
-class PortError(Exception):
+class PortError(UserError):
     """A port cannot be used. The message names the port and what to do."""
 
 
@@ -131,6 +133,11 @@ def explain(spec: PortSpec, exc: BaseException) -> str:
     name = spec.name
     code = exc.errno if isinstance(exc, OSError) else None
     text = str(exc)
+    if isinstance(exc, termios.error):
+        # pyserial lets the termios call's own error through: (errno, text)
+        args = exc.args
+        code = args[0] if args and isinstance(args[0], int) else None
+        text = str(args[1]) if len(args) > 1 else text
     if code in (errno.ENOENT, errno.ENODEV, errno.ENXIO) or "No such file" in text:
         return (
             f"{name}: no such serial port; `modscope ports` lists the ports this machine "
@@ -170,7 +177,9 @@ def open_passive(
         port = (factory or new_port)(spec.name)
         configure(port, spec)
         port.open()
-    except (serial.SerialException, OSError, ValueError) as exc:
+    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        # termios.error is not an OSError: pyserial raises it when the port refuses the
+        # line settings (a pseudo-terminal refusing even parity, a tunnel's remote end)
         raise PortError(explain(spec, exc)) from None
     fd = posix_fd(port)
     if fd is not None:
@@ -265,14 +274,22 @@ class _Loss:
 
 class ChunkFeed:
     """One consumer's bounded, thread-safe queue of chunks. `offer` never blocks: when
-    the queue is full the chunk is dropped and counted, and a "data lost" event chunk
-    with the count is queued ahead of the next chunk that fits."""
+    the queue holds `maxsize` chunks or `max_bytes` bytes the chunk is dropped and
+    counted, and a "data lost" event chunk with the count is queued ahead of the next
+    chunk that fits. Both bounds matter: a busy line gives few big reads."""
 
-    def __init__(self, maxsize: int = DEFAULT_QUEUE, clock: WallClock | None = None) -> None:
+    def __init__(
+        self,
+        maxsize: int = DEFAULT_QUEUE,
+        clock: WallClock | None = None,
+        max_bytes: int = QUEUE_BYTES,
+    ) -> None:
         if maxsize < 1:
             raise ValueError(f"a feed holds at least one chunk, not {maxsize}")
         self.maxsize = maxsize
+        self.max_bytes = max_bytes
         self.clock = clock or WallClock()
+        self._bytes = 0
         self._items: deque[Chunk] = deque()
         self._cond = threading.Condition()
         self._closed = False
@@ -285,7 +302,9 @@ class ChunkFeed:
         with self._cond:
             if self._closed:
                 return
-            if len(self._items) >= self.maxsize:
+            if len(self._items) >= self.maxsize or (
+                self._bytes + len(chunk.data) > self.max_bytes and self._items
+            ):
                 loss = self._loss.get(chunk.channel)
                 if loss is None:
                     loss = self._loss[chunk.channel] = _Loss(since=chunk.t_end)
@@ -301,6 +320,7 @@ class ChunkFeed:
             if self._loss:
                 self._mark_losses(chunk.t_end)
             self._items.append(chunk)
+            self._bytes += len(chunk.data)
             self._cond.notify()
 
     def _mark_losses(self, t: float) -> None:
@@ -322,6 +342,7 @@ class ChunkFeed:
                 self._cond.wait(timeout)
             items = list(self._items)
             self._items.clear()
+            self._bytes = 0
             if not items and self._closed and self._loss:
                 self._mark_losses(self.clock.now())
                 items = list(self._items)
@@ -420,6 +441,8 @@ class LiveReader:
         self.clock = clock or WallClock()
         self.retry = retry
         self.warnings: list[str] = []
+        self.failure: str | None = None  # why a reading thread ended on its own (a bug)
+        self.error: Exception | None = None  # and the exception that ended it
         self.stats = [PortStats(s.name) for s in self.specs]
         self.feeds: list[ChunkFeed] = []
         self._ports: list[serial.Serial | None] = [None] * len(self.specs)
@@ -493,7 +516,14 @@ class LiveReader:
 
     @property
     def running(self) -> bool:
-        return self._started and not self._stop.is_set()
+        """True while started, not stopped, and every reading thread is alive (a thread
+        ends on its own only through a bug, which `failure` then describes)."""
+        return (
+            self._started
+            and not self._stop.is_set()
+            and self.failure is None
+            and all(t.is_alive() for t in self._threads)
+        )
 
     def __enter__(self) -> LiveReader:
         return self
@@ -533,6 +563,19 @@ class LiveReader:
         )
 
     def _run(self, n: int) -> None:
+        try:
+            self._read_until_stopped(n)
+        except Exception as exc:  # a bug: say so where the user looks, and stop running
+            spec = self.specs[n]
+            self.stats[n].connected = False
+            self.error = exc
+            self.failure = (
+                f"{spec.name}: reading stopped by an internal error "
+                f"({type(exc).__name__}: {exc}); this is a bug in modscope, please report it"
+            )
+            self._event(n, "reader stopped", self.failure)
+
+    def _read_until_stopped(self, n: int) -> None:
         spec = self.specs[n]
         while not self._stop.is_set():
             with self._lock:
@@ -573,11 +616,20 @@ class LiveReader:
                 )
 
     def _reopen(self, n: int) -> bool:
+        """Try to open the lost port every `retry` seconds until it opens or reading
+        stops. Why it cannot be opened is reported as an event whenever the reason
+        changes (the adapter is back but refuses the line settings, is busy, ...)."""
         spec = self.specs[n]
+        told = ""
         while not self._stop.wait(self.retry):
             try:
                 port, _warnings = open_passive(spec, self.factory)
-            except PortError:
+            except PortError as exc:
+                reason = str(exc)
+                missing = "no such serial port" in reason  # still unplugged: said already
+                if reason != told and not missing:
+                    self._event(n, "reopen failed", f"{reason}; trying again")
+                told = reason
                 continue
             with self._lock:
                 if self._stop.is_set():

@@ -7,8 +7,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from itertools import pairwise
 
-from sniffer.framing import Flag, Kind
-from sniffer.store import NO_PARTNER, FrameStore, Status
+from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.vocab import BAD_CHECK, Kind, Status
 
 
 @dataclass
@@ -46,7 +46,6 @@ class UnitStats:
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)
 EXCEPTION, EVENT = int(Kind.EXCEPTION), int(Kind.EVENT)
-BAD_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX)
 TIMEOUT, OPEN = Status.TIMEOUT, Status.OPEN
 
 

@@ -10,24 +10,10 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass
 
-from sniffer.framing import Flag, Kind, ascii_body
+from dissectors.envelope import ascii_body
+from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 NO_PARTNER = -1
-
-
-class Status:
-    """What became of a transaction (stored per frame, for requests and answers alike)."""
-
-    NONE = 0  # noise, events, frames not (yet) part of a transaction
-    OK = 1
-    EXCEPTION = 2
-    TIMEOUT = 3  # a request that got no answer
-    ORPHAN = 4  # an answer with no request
-    BROADCAST = 5  # a request to address 0: no answer expected
-    OPEN = 6  # a request still waiting (live), or the capture ended first
-    BAD_ANSWER = 7  # the answer came with a wrong CRC or LRC (the master drops it)
-
-    NAMES = ("", "ok", "exception", "timeout", "orphan", "broadcast", "open", "bad answer")
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +39,7 @@ class FrameView:
 
     @property
     def check_ok(self) -> bool:
-        return self.kind != Kind.NOISE and not self.flags & (Flag.CHECK_BAD | Flag.NON_HEX)
+        return self.kind != Kind.NOISE and not self.flags & BAD_CHECK
 
     def body(self) -> bytes:
         """Unit byte and PDU, without the CRC or LRC (empty for noise and events)."""

@@ -10,10 +10,9 @@ import pytest
 
 from dissectors.dictionary import load_dictionary, load_model
 from sniffer.annotate import Binding, load_bindings
-from sniffer.framing import Flag, Kind
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
-from sniffer.store import Status
+from sniffer.vocab import Flag, Kind, Status
 from tests.seedvectors import MODELS, by_id, load_examples, wire_bytes
 
 TUTORIAL = Path(__file__).parent / "fixtures" / "tutorial" / "ved903b-tutorial.toml"
@@ -157,7 +156,7 @@ def test_demo_write_outside_the_range_is_flagged_and_explains_the_exception(demo
     assert len(refused) == 1
     request = demo.describer.detail(refused[0])
     assert "Under Voltage Trip: written value 700 V above the documented maximum 600 V" in (
-        request.problems
+        request.problem_texts
     )
     answer = demo.describer.detail(store.partner[refused[0]])
     assert "exception 03 illegal data value" in answer.summary
@@ -170,7 +169,7 @@ def test_demo_device_timing_rules(demo: Session) -> None:
     store = demo.store
     slow = [i for i in range(len(store)) if store.flags[i] & Flag.DEVICE_SLOW]
     assert slow and all(store.unit[i] == 3 for i in slow)
-    text = demo.describer.detail(slow[0]).problems
+    text = demo.describer.detail(slow[0]).problem_texts
     assert any("the device normally answers within 40 ms" in p for p in text)
     quiet = [i for i in range(len(store)) if store.flags[i] & Flag.QUIET_VIOLATED]
     assert quiet and all(store.unit[i] == 3 and store.kind[i] == Kind.REQUEST for i in quiet)

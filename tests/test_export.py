@@ -16,14 +16,13 @@ import pytest
 
 from dissectors.checks import ascii_frame, with_crc
 from sniffer.cli import main
+from sniffer.cli.export import output_format
 from sniffer.export import (
     PcapExporter,
-    output_format,
     packet_for,
     register_records,
     transaction_records,
 )
-from sniffer.framing import Kind
 from sniffer.model import Chunk, LineSettings
 from sniffer.recorder import Recorder
 from sniffer.serial_source import PortSpec
@@ -35,6 +34,7 @@ from sniffer.sources.linktypes import (
     EPB_FLAG_OUTBOUND,
     parse_upper_pdu,
 )
+from sniffer.vocab import Kind
 
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
 ASCII = LineSettings(baud=9600, parity="E", stopbits=1, bytesize=7, mode="ascii")

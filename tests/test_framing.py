@@ -10,12 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import ascii_frame, crc16, with_crc
-from sniffer.framing import Flag, Kind
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pipeline import Pipeline, frame_capture
 from sniffer.problems import check_text
 from sniffer.store import FrameStore
 from sniffer.synth import polling_frames, stress_stream
+from sniffer.vocab import Flag, Kind
 from tests.seedvectors import load_examples, wire_bytes
 
 RTU = LineSettings(baud=19200, parity="E", mode="rtu")

@@ -4,6 +4,8 @@ ports shown as events, two ports merged by time, the command line's streaming li
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import threading
@@ -15,16 +17,16 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
+from sniffer.capture import LiveCapture
 from sniffer.cli import main
-from sniffer.framing import Kind
-from sniffer.live import LiveCapture, parse_roles
+from sniffer.cli.lines import parse_roles
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.recorder import RecordError
 from sniffer.serial_source import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events
 from sniffer.serial_source import _Counters as Counters
 from sniffer.session import Session
 from sniffer.sources import open_capture
-from sniffer.store import Status
+from sniffer.vocab import Kind, Status
 from tests.virtual_bus import Made, VirtualBus, wait_ready
 
 LINE = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
@@ -82,10 +84,15 @@ def test_feed_never_blocks_the_reader_and_wakes_its_consumer() -> None:
 
     thread = threading.Thread(target=consume)
     thread.start()
-    started = time.monotonic()
-    for k in range(1000):
-        feed.offer(Chunk(b"x", float(k)))
-    assert time.monotonic() - started < 0.5
+
+    def produce() -> None:
+        for k in range(1000):
+            feed.offer(Chunk(b"x", float(k)))
+
+    producer = threading.Thread(target=produce)
+    producer.start()
+    producer.join(10)
+    assert not producer.is_alive()  # a full feed drops; it never waits for its consumer
     thread.join(5)
     assert got and got[0].data == b"x"
     feed.close()
@@ -344,3 +351,97 @@ def test_recording_starts_and_stops_while_listening(bus: VirtualBus, tmp_path: P
     recorded = open_capture(path)
     assert b"".join(c.data for c in recorded.chunks() if not c.event) == during
     assert recorded.info.line == LINE
+
+
+# -- a reader of the listing that falls behind (issue 15, item 7) ------------------------------
+
+
+def test_backlog_never_blocks_on_a_pipe_that_is_not_read() -> None:
+    from sniffer.cli.backlog import Backlog
+
+    read_end, write_end = os.pipe()
+    block = '{"index": 1, "raw": "0103"}\n' * 100
+    added = 0
+    try:
+        with os.fdopen(write_end, "w", closefd=False) as out:
+            backlog = Backlog(out, limit=100_000)
+            while not backlog.full:  # would hang in write() if the backlog blocked
+                backlog.add(block)
+                added += len(block)
+                backlog.send()
+            held = len(backlog.pending)
+            assert backlog.written > 0 and backlog.written + held == added
+            assert held < 100_000 + len(block)  # bounded by the limit, not by the input
+            assert backlog.finish(0.05) == held  # the reader took nothing more: given up
+            assert backlog.pending == bytearray()
+        taken = os.read(read_end, 1 << 20)
+        assert len(taken) == backlog.written and taken.startswith(block.encode()[:100])
+    finally:
+        os.close(read_end)
+        os.close(write_end)
+
+
+def readline_within(stream: Any, seconds: float) -> str:
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(stream.readline()), daemon=True)
+    reader.start()
+    reader.join(seconds)
+    return got[0] if got else f"(nothing within {seconds} s)"
+
+
+def test_a_listing_nobody_reads_drops_rows_counted_and_stops_at_ctrl_c(bus: VirtualBus) -> None:
+    """`modscope live ... | consumer` where the consumer stops reading: the capture goes
+    on, the rows the pipe cannot take are dropped and reported with their count, and the
+    first Ctrl-C ends it (the issue saw 100 s and 238 MB of writing after it)."""
+    tap = bus.attach("tap")
+    bus.attach("master")
+    read_end, write_end = os.pipe()  # stdout: read by nobody until the end
+    proc = subprocess.Popen(
+        [MODSCOPE, "live", str(tap), *LINE_ARGS, "--format", "jsonl", "--backlog", "64k"],
+        stdout=write_end,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    os.close(write_end)
+    try:
+        assert proc.stderr is not None
+        wait_ready(proc.stderr)
+        pairs = 4000
+        for k in range(pairs):
+            bus.inject(req(1, 3, k % 100, 8) + answer(1, 3, list(range(k, k + 8))), source="master")
+        said = readline_within(proc.stderr, 10)  # the loss is reported while it runs
+        assert said.startswith("modscope: data lost: the listing fell behind"), said
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=10)  # the pipe is still not read
+        rest = proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    listed = b""
+    while chunk := os.read(read_end, 1 << 20):
+        listed += chunk
+    os.close(read_end)
+    assert code == 0, rest
+    assert "Traceback" not in rest
+    rows = [json.loads(line) for line in listed.decode().splitlines()]
+    indexes = [r["index"] for r in rows]
+    assert indexes == sorted(indexes) and len(indexes) < 2 * pairs  # gaps where rows dropped
+    final = [line for line in rest.splitlines() if "rows not listed" in line]
+    assert final, rest
+    dropped = int(final[-1].split("; ")[1].split(" rows")[0].replace(",", ""))
+    assert dropped > 0
+
+
+def test_feed_is_bounded_in_bytes_as_well_as_chunks() -> None:
+    feed = ChunkFeed(maxsize=1000, max_bytes=100)
+    for k in range(5):
+        feed.offer(Chunk(bytes([k]) * 60, float(k)))
+    assert (feed.lost_reads, feed.lost_bytes) == (4, 240)
+    got = feed.get(0)
+    assert [c.data[:1] for c in got] == [b"\x00"]
+    feed.offer(Chunk(b"\x09" * 60, 9.0))  # room again: the loss is marked ahead of it
+    got = feed.get(0)
+    assert [c.event for c in got] == ["data lost", ""]
+    assert got[0].note.startswith("240 bytes in 4 reads dropped")

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.live import LiveCapture
+from sniffer.capture import LiveCapture
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.recorder import Recorder, RecordError, Ring, parse_duration, parse_size
 from sniffer.serial_source import LiveReader, PortSpec
@@ -184,7 +184,14 @@ def test_ring_options_are_checked(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("text", "size"),
-    [("10M", 10_000_000), ("10MiB", 10 * 2**20), ("500k", 500_000), ("4096", 4096)],
+    [
+        ("10M", 10_000_000),
+        ("10MiB", 10 * 2**20),
+        ("500k", 500_000),
+        ("4096", 4096),
+        ("1k", 1000),  # the smallest ring file: `--rotate-size 1k` was refused (issue 15)
+        ("1KiB", 1024),
+    ],
 )
 def test_sizes(text: str, size: int) -> None:
     assert parse_size(text) == size
@@ -202,6 +209,8 @@ def test_bad_sizes_and_durations() -> None:
         parse_size("ten megs")
     with pytest.raises(ValueError, match="at least 1k"):
         parse_size("100")
+    with pytest.raises(ValueError, match="at least 1k"):
+        parse_size("0.9k")
     with pytest.raises(ValueError, match="not a duration"):
         parse_duration("soon")
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.framing import Flag, Kind
 from sniffer.model import Chunk, LineSettings
 from sniffer.pairing import latency
 from sniffer.pipeline import Pipeline, frame_capture
-from sniffer.store import FrameStore, Status
+from sniffer.store import FrameStore
+from sniffer.vocab import STATUS_NAMES, Flag, Kind, Status
 
 LINE = LineSettings(baud=19200, parity="E", mode="rtu")
 REQ = with_crc(bytes.fromhex("0103000a0002"))
@@ -26,7 +26,7 @@ def capture(*frames: tuple[float, bytes], timeout: float = 0.5) -> FrameStore:
 
 
 def statuses(store: FrameStore) -> list[str]:
-    return [Status.NAMES[s] for s in store.status]
+    return [STATUS_NAMES[s] for s in store.status]
 
 
 def test_answer_pairs_with_its_request_and_latency_is_end_to_start() -> None:

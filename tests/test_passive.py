@@ -308,3 +308,189 @@ def test_missing_port_and_non_serial_file_are_explained(tmp_path: Path) -> None:
     plain_file.write_text("hello")
     with pytest.raises(PortError, match="is not a serial port"):
         open_passive(PortSpec(str(plain_file), LINE))
+
+
+# -- a port that refuses the line settings (issue 15, items 1 and 2) --------------------------
+
+
+class Refusing(Tripwire):
+    """A port that opens at the OS level but refuses the line settings, as pyserial
+    reports it: `termios.error` from tcsetattr (not an OSError). A pseudo-terminal on
+    some systems, or the far end of a serial tunnel, refuses even parity this way."""
+
+    def open(self) -> None:
+        import termios
+
+        self.calls.append("open")
+        raise termios.error(errno.EINVAL, "Invalid argument")
+
+
+class Flaky:
+    """A factory handing out working ports, except the opens listed in `refuse` (0-based
+    count of opens), which refuse the settings, and `crash`, which hits a bug."""
+
+    def __init__(self, refuse: range = range(0), crash: int = -1) -> None:
+        self.refuse = refuse
+        self.crash = crash
+        self.ports: list[Tripwire] = []
+
+    def __call__(self, name: str) -> serial.Serial:
+        k = len(self.ports)
+        if k == self.crash:
+            raise RuntimeError("a bug in the port factory")
+        port = Refusing(name) if k in self.refuse else Tripwire(name)
+        self.ports.append(port)
+        return port
+
+    @property
+    def working(self) -> list[Tripwire]:
+        return [p for p in self.ports if not isinstance(p, Refusing)]
+
+
+def test_refused_line_settings_are_explained_not_a_traceback() -> None:
+    spec = PortSpec("/dev/ttyDOUBLE0", LineSettings())  # the default, 19200 8E1
+    with pytest.raises(PortError) as caught:
+        open_passive(spec, Flaky(refuse=range(1)))
+    text = str(caught.value)
+    assert text.startswith("/dev/ttyDOUBLE0: the port refused the line settings 19200 8E1")
+    assert "Invalid argument" in text and "--parity" in text
+
+
+@pytest.mark.parametrize("command", ["live", "record"])
+def test_live_and_record_say_the_port_refused_in_one_line(
+    command: str,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+) -> None:
+    import sniffer.serial_source
+    from sniffer.cli import main
+
+    monkeypatch.setattr(sniffer.serial_source, "new_port", Flaky(refuse=range(99)))
+    argv = [command, "/dev/ttyDOUBLE0", "--format", "text"]
+    if command == "record":
+        argv = [command, "/dev/ttyDOUBLE0", "-w", str(tmp_path / "rec.pcapng")]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "Traceback" not in err
+    assert err == (
+        "modscope: error: /dev/ttyDOUBLE0: the port refused the line settings 19200 8E1 "
+        "auto (Invalid argument); check --baud, --parity and --stopbits (a pseudo-terminal "
+        "may refuse even parity)\n"
+    )
+    assert not (tmp_path / "rec.pcapng").exists()
+
+
+def test_a_lost_port_that_refuses_on_reopen_is_retried_and_reported() -> None:
+    factory = Flaky(refuse=range(1, 4))  # the first open works, three reopens refuse
+    reader = LiveReader([PortSpec("/dev/ttyDOUBLE0", LINE)], factory=factory, retry=0.02)
+    feed = reader.subscribe()
+    reader.start()
+    try:
+        factory.working[0].push(REQUEST)
+        got = wait_for(feed, lambda c: data_of(c) == REQUEST)
+        factory.working[0].unplug()
+        got += wait_for(feed, lambda c: any(x.event == "port lost" for x in c))
+        assert reader.running  # retrying, not dead
+        got += wait_for(feed, lambda c: any(x.event == "reconnect" for x in c))
+        assert reader.running and reader.stats[0].connected
+        factory.working[-1].push(ANSWER)
+        got += wait_for(feed, lambda c: data_of(c).endswith(ANSWER))
+    finally:
+        reader.stop()
+    events = [(c.event, c.note) for c in got if c.event]
+    assert [e for e, _ in events] == ["port lost", "reopen failed", "reconnect"]
+    assert "refused the line settings" in events[1][1] and events[1][1].endswith("trying again")
+    assert len(factory.ports) == 5 and len(factory.working) == 2
+    assert not reader.running and reader.failure is None
+
+
+def test_a_reader_thread_ended_by_a_bug_says_so_and_stops_running() -> None:
+    factory = Flaky(crash=1)  # the reopen after the loss hits a bug
+    reader = LiveReader([PortSpec("/dev/ttyDOUBLE0", LINE)], factory=factory, retry=0.02)
+    feed = reader.subscribe()
+    reader.start()
+    try:
+        factory.working[0].unplug()
+        got = wait_for(feed, lambda c: any(x.event == "reader stopped" for x in c))
+        end = time.monotonic() + 3
+        while reader._threads[0].is_alive() and time.monotonic() < end:
+            time.sleep(0.01)
+        assert not reader.running
+    finally:
+        reader.stop()
+    assert (
+        reader.failure is not None and "RuntimeError: a bug in the port factory" in reader.failure
+    )
+    assert isinstance(reader.error, RuntimeError)
+    assert [c.event for c in got if c.event] == ["port lost", "reader stopped"]
+
+
+def test_live_ends_as_a_bug_when_its_reader_thread_dies(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sniffer.serial_source
+    from sniffer.cli import main
+
+    factory = Flaky(crash=1)
+    monkeypatch.setattr(sniffer.serial_source, "new_port", factory)
+
+    def unplug_soon() -> None:
+        end = time.monotonic() + 3
+        while not factory.working and time.monotonic() < end:
+            time.sleep(0.01)
+        time.sleep(0.2)
+        factory.working[0].unplug()
+
+    import threading
+
+    threading.Thread(target=unplug_soon, daemon=True).start()
+    assert main(["live", "/dev/ttyDOUBLE0", "--format", "text", "--duration", "10s"]) == 70
+    err = capsys.readouterr().err
+    assert "modscope: reader stopped: /dev/ttyDOUBLE0: reading stopped by an internal error" in err
+    assert "RuntimeError: a bug in the port factory" in err and "Traceback" in err
+
+
+@pytest.mark.peer
+def test_live_on_a_socat_pty_with_the_default_8e1(tmp_path: Path) -> None:
+    """The issue's recipe: `socat pty,raw,echo=0,link=A pty,raw,echo=0,link=B`, then
+    `modscope live A` with the default settings. Where the pty takes 8E1 (Linux) the
+    frames come through; where it refuses, the one-line message comes, never a traceback."""
+    import shutil
+
+    if shutil.which("socat") is None:
+        pytest.skip("socat is not installed (apt-get install socat)")
+    a, b = tmp_path / "A", tmp_path / "B"
+    socat = subprocess.Popen(
+        ["socat", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        end = time.monotonic() + 5
+        while not (a.exists() and b.exists()) and time.monotonic() < end:
+            time.sleep(0.02)
+        live = subprocess.Popen(
+            [MODSCOPE, "live", str(a), "--format", "jsonl", "--duration", "3s"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=ROOT,
+        )
+        assert live.stderr is not None
+        from tests.virtual_bus import wait_ready
+
+        said = wait_ready(live.stderr)
+        assert "(19200 8E1 auto)" in said[-1]
+        with open(b, "wb", buffering=0) as far:
+            far.write(REQUEST)
+            time.sleep(0.05)
+            far.write(ANSWER)
+        out, rest = live.communicate(timeout=20)
+    finally:
+        socat.terminate()
+        socat.wait(5)
+    assert live.returncode == 0, rest
+    assert "Traceback" not in rest
+    raws = [line.split('"raw": "')[1].split('"')[0] for line in out.splitlines()]
+    assert raws[:2] == [REQUEST.hex(), ANSWER.hex()]

@@ -10,11 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from sniffer.framing import Flag, Kind
 from sniffer.pairing import latency
 from sniffer.session import replay_file
 from sniffer.sources import ReadOptions
-from sniffer.store import Status
+from sniffer.vocab import Flag, Kind, Status
 
 SIGROK = Path(__file__).parent / "captures" / "sigrok"
 FLOW = ReadOptions(probes=("RXTX",), baud=9600, parity="N")

@@ -12,11 +12,10 @@ import pytest
 from rich.style import Style
 
 from dissectors.values import Dissection
-from sniffer.describe import FrameDetail
-from sniffer.framing import PROBLEM_MASK, Flag, Kind
+from sniffer.describe import FrameDetail, register_span
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import Session
-from sniffer.store import NO_PARTNER, FrameStore, Status
+from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.synth import polling_frames, stress_stream
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture, feed_live, live_status
 from sniffer.tui.model import ViewModel
@@ -29,13 +28,13 @@ from sniffer.tui.render import (
     hex_dump,
     plot,
     raw_span,
-    register_span,
     row_state,
     row_text,
     sparkline,
 )
 from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
 from sniffer.tui.watch import HISTORY, Sample, Series, Watch
+from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 from tests.test_tui_support import (
     DEVICE_STRING,
     HOSTILE,

@@ -1,4 +1,8 @@
-"""Provides vendor function layouts and Report Server ID fields, and their byte decoding."""
+"""Provides vendor function layouts and Report Server ID fields, and their byte decoding.
+
+Frames on the bus are not decoded here: `dissectors.pdu.vendor` compiles a dictionary's
+functions into the registry, and `dissect()` takes vendor frames apart like any other.
+`decode_fields` serves the dictionary's own checks and Report Server ID layouts."""
 
 from __future__ import annotations
 

@@ -10,12 +10,12 @@ from __future__ import annotations
 from rich.text import Text
 
 from sniffer.describe import Describer, FrameDetail
-from sniffer.framing import Kind
 from sniffer.session import Session
 from sniffer.store import NO_PARTNER
 from sniffer.tui.query import Query
 from sniffer.tui.render import Columns, Styles, delta_text, row_text, time_text
 from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
+from sniffer.vocab import Kind
 
 
 class ViewModel:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from sniffer.framing import Kind
+from sniffer.vocab import Kind
 
 KEYS = ("unit", "fc", "kind", "status", "reg", "t")
 EXAMPLES = {

@@ -16,37 +16,20 @@ from rich.style import Style
 from rich.text import Text
 
 from dissectors.dictionary import RegisterValue
-from dissectors.values import Dissection
 from sniffer.describe import FrameDetail
-from sniffer.framing import PROBLEM_MASK, Flag, Kind
-from sniffer.store import FrameView, Status
+from sniffer.store import FrameView
 from sniffer.text import plain
+from sniffer.vocab import BAD_CHECK, FLAGS, PROBLEM_MASK, STATUS_NAMES, Flag, Kind, Status
 
 Styles = Mapping[str, Style]
 
 # what colours a row: the first that applies
 ROW_STATES = ("noise", "event", "check", "timeout", "exception", "orphan", "problem", "open")
-_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX)
 SPARK = "▁▂▃▄▅▆▇█"
 
 
 # short tags for the flags a row's summary starts with (the detail pane says it in full)
-FLAG_TAGS: tuple[tuple[Flag, str], ...] = (
-    (Flag.GAP_INSIDE, "gap"),
-    (Flag.SHORT_SILENCE, "short-silence"),
-    (Flag.LINE_ERROR, "line-error"),
-    (Flag.NON_HEX, "non-hex"),
-    (Flag.ABORTED, "aborted"),
-    (Flag.UNTERMINATED, "unterminated"),
-    (Flag.TOO_LONG, "too-long"),
-    (Flag.LONG_GAP, "long-gap"),
-    (Flag.NO_CR, "no-cr"),
-    (Flag.RETRY, "retry"),
-    (Flag.LATE, "late"),
-    (Flag.ANSWERED_BROADCAST, "answered-broadcast"),
-    (Flag.DEVICE_SLOW, "slow"),
-    (Flag.QUIET_VIOLATED, "quiet-time"),
-)
+FLAG_TAGS: tuple[tuple[Flag, str], ...] = tuple((flag, m.tag) for flag, m in FLAGS if m.tag)
 
 
 def flag_tags(flags: int) -> str:
@@ -60,7 +43,7 @@ def row_state(v: FrameView) -> str:
         return "noise"
     if v.kind == Kind.EVENT:
         return "event"
-    if v.flags & _CHECK:
+    if v.flags & BAD_CHECK:
         return "check"
     if v.status == Status.TIMEOUT:
         return "timeout"
@@ -228,13 +211,13 @@ def row_text(
     text.append(_fit(short_name(name, cols.name), cols.name), styles.get(state or "name"))
     text.append(" " + latency_text(latency).rjust(cols.latency - 1), styles.get("dim"))
     text.append(" ")
-    if v.flags & _CHECK:
+    if v.flags & BAD_CHECK:
         text.append("BAD CHECK ", styles.get("check"))
     tags = flag_tags(v.flags | (answer.view.flags if answer is not None else 0))
     if tags:
         text.append(tags, styles.get("problem"))
     if v.status in (Status.TIMEOUT, Status.ORPHAN) and answer is None:
-        text.append(Status.NAMES[v.status] + " ", styles.get(row_state(v)))
+        text.append(STATUS_NAMES[v.status] + " ", styles.get(row_state(v)))
     text.append(plain(summary, 600), styles.get(state) if state in ("noise", "event") else None)
     text.truncate(cols.width, overflow="ellipsis")
     return text
@@ -286,26 +269,6 @@ def hex_dump(raw: bytes, highlight: tuple[int, int] | None, per_line: int, style
 
 
 # -- registers -------------------------------------------------------------------------------
-
-
-def register_span(dissection: Dissection | None, reg: RegisterValue) -> tuple[int, int] | None:
-    """Where the words of a named register lie in the body, if the dissection shows it."""
-    if dissection is None:
-        return None
-    for data in dissection.data:
-        if data.table != reg.table or data.address is None:
-            continue
-        first = reg.address - data.address
-        count = max(1, len(reg.raw))
-        if not 0 <= first < len(data.values):
-            continue
-        for f in dissection.fields:
-            if f.children and len(f.children) == len(data.values):
-                last = min(len(f.children), first + count) - 1
-                return f.children[first].span[0], f.children[last].span[1]
-            if f.name == "value" and len(data.values) == 1:
-                return f.span
-    return None
 
 
 def register_text(r: RegisterValue) -> str:

@@ -21,17 +21,16 @@ from itertools import compress
 
 from sniffer.annotate import Annotator
 from sniffer.describe import Describer, FrameDetail
-from sniffer.framing import PROBLEM_MASK, Flag, Kind
-from sniffer.store import NO_PARTNER, FrameStore, Status
+from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.tui.query import Query, TimePoint
+from sniffer.vocab import BAD_CHECK, PROBLEM_MASK, STATUS_NAMES, Kind, Status
 
 BLOCK = 1 << 18  # rows per column scan step
 _LITTLE = sys.byteorder == "little"
 _NOT = bytes([1, 0]) + bytes(254)  # 0 -> 1, 1 -> 0
 _PAIRED = b"\x01" * 255 + b"\x00"  # a partner's top byte: 0xFF only for -1
-_STATUS_CODES = {name: code for code, name in enumerate(Status.NAMES) if name}
+_STATUS_CODES = {name: code for code, name in enumerate(STATUS_NAMES) if name}
 _PROBLEM_STATUS = (Status.EXCEPTION, Status.TIMEOUT, Status.ORPHAN)
-_CHECK_FLAGS = int(Flag.CHECK_BAD | Flag.NON_HEX)
 _OPEN_LOOKBACK = 64
 
 
@@ -136,7 +135,7 @@ def status_mask(store: FrameStore, lo: int, hi: int, names: Iterable[str]) -> by
         out = _or(out, _bytes_mask(store.status, lo, hi, codes))
     names = set(names)
     if "check" in names:
-        out = _or(out, flag_mask(store, lo, hi, _CHECK_FLAGS))
+        out = _or(out, flag_mask(store, lo, hi, BAD_CHECK))
     if "noise" in names:
         out = _or(out, _bytes_mask(store.kind, lo, hi, (Kind.NOISE,)))
     if "event" in names:
@@ -257,7 +256,14 @@ def time_bounds(store: FrameStore, query: Query, origin: float, count: int) -> t
 
 def row_words(d: FrameDetail) -> str:
     """What free text is matched against: name, summary, device, problems, register texts."""
-    parts = [d.name, d.summary, d.label, d.direction, *d.problems, *(r.text for r in d.registers)]
+    parts = [
+        d.name,
+        d.summary,
+        d.label,
+        d.direction,
+        *d.problem_texts,
+        *(r.text for r in d.registers),
+    ]
     return "\n".join(parts).lower()
 
 

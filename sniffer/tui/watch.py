@@ -16,14 +16,13 @@ from dataclasses import dataclass, field
 from dissectors.dictionary import RegisterValue
 from sniffer.annotate import Annotator
 from sniffer.describe import Describer
-from sniffer.framing import Flag, Kind
 from sniffer.store import FrameStore
 from sniffer.text import plain
+from sniffer.vocab import BAD_CHECK, Kind
 
 HISTORY = 2048
 MAX_SERIES = 4096
 _ECHO_FUNCTIONS = (5, 6, 15, 16)  # answers that repeat what the request wrote
-_BAD = int(Flag.CHECK_BAD | Flag.NON_HEX)
 
 SeriesKey = tuple[int, str, int, str]  # unit, table, address, name
 
@@ -116,7 +115,7 @@ class Watch:
             k = kind[i]
             if (
                 unit[i] in bound
-                and not flags[i] & _BAD
+                and not flags[i] & BAD_CHECK
                 and (k == Kind.REQUEST or (k == Kind.RESPONSE and fc[i] not in _ECHO_FUNCTIONS))
             ):
                 d = self.describer.detail(i)

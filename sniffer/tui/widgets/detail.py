@@ -18,19 +18,17 @@ from textual.widgets import Static, Tree
 from textual.widgets.tree import TreeNode
 
 from dissectors.values import Field
-from sniffer.describe import FrameDetail
-from sniffer.framing import Kind
+from sniffer.describe import FrameDetail, register_span
 from sniffer.listing import KIND_NAMES
-from sniffer.store import Status
 from sniffer.text import plain
 from sniffer.tui.render import (
     bytes_per_line,
     hex_dump,
     latency_text,
     raw_span,
-    register_span,
     register_text,
 )
+from sniffer.vocab import STATUS_NAMES, WARNING, Kind
 
 Span = tuple[int, int]
 
@@ -76,6 +74,8 @@ class FieldTree(Tree[Span | None]):
 
     COMPONENT_CLASSES: ClassVar[set[str]] = {
         "field-tree--problem",
+        "field-tree--error",
+        "field-tree--info",
         "field-tree--name",
         "field-tree--section",
     }
@@ -133,7 +133,7 @@ class DetailPane(Vertical):
         mode = "ascii" if v.ascii else "rtu"
         text.append(f"  {len(v.raw)} bytes {mode}, {KIND_NAMES[v.kind]}")
         if v.status:
-            text.append(f", {Status.NAMES[v.status]}")
+            text.append(f", {STATUS_NAMES[v.status]}")
         if d.latency_ms is not None:
             text.append(f", {latency_text(d.latency_ms)}")
         if partner is not None:
@@ -153,8 +153,9 @@ class DetailPane(Vertical):
                 node.add_leaf(Text(register_text(r)), data=span)
         if d.problems:
             node = root.add(Text(f"problems ({len(d.problems)})", section), expand=True)
-            for p in d.problems:
-                node.add_leaf(Text(plain(p), tree.style("problem")))
+            for p in d.problems:  # coloured by severity; moving over one highlights its bytes
+                part = "problem" if p.severity == WARNING else p.severity
+                node.add_leaf(Text(plain(p.text), tree.style(part)), data=p.span)
         if partner is not None:
             role = "answer" if d.view.kind == Kind.REQUEST else "request"
             line = Text(f"{role} #{partner.view.index}: ", section)

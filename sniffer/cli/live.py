@@ -1,0 +1,246 @@
+"""Provides `modscope live`: watch serial lines as they run, in the TUI or as a listing
+flushed per row, optionally recording (-w) and streaming to Wireshark (--pcap)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import io
+import os
+import sys
+import time
+from collections.abc import Callable
+from typing import TextIO
+
+from sniffer.capture import PUMP_SECONDS, LiveCapture, Notify
+from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
+from sniffer.cli.lines import (
+    add_port_options,
+    add_recording_options,
+    announce,
+    check_reader,
+    duration_option,
+    notifier,
+    open_reader,
+    open_recorder,
+    port_specs,
+    queue_option,
+    quiet_stdout,
+    ring_options,
+    stop_requests,
+)
+from sniffer.cli.options import SubParsers, add_device_options, add_output_options, bindings_for
+from sniffer.errors import UsageError
+from sniffer.export import PcapExporter
+from sniffer.listing import Lister
+from sniffer.pipeline import LIVE_MERGE_SLACK
+from sniffer.recorder import parse_size
+from sniffer.session import Session
+from sniffer.vocab import Status
+
+RENDER_ROWS = 256  # rows rendered between two looks at the output and at Ctrl-C
+STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
+
+
+def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    specs = port_specs(args)
+    ring = ring_options(args)
+    deadline = duration_option(args)
+    queue = queue_option(args)
+    if args.write == "-":
+        raise UsageError("live writes its listing to standard output; record with -w FILE")
+    if args.pcap == "-" and args.format is not None:
+        raise UsageError("--pcap - takes standard output for itself; drop --format")
+    if args.pcap and args.write and os.path.abspath(args.pcap) == os.path.abspath(args.write):
+        raise UsageError("--pcap and -w name the same file; give each its own")
+    bindings = bindings_for(args)
+    session = Session(
+        specs[0].line,
+        bindings=bindings,
+        timeout=args.timeout,
+        source=", ".join(s.name for s in specs),
+        merge_slack=LIVE_MERGE_SLACK,
+    )
+    use_tui = (
+        args.format is None
+        and args.pcap is None
+        and out.isatty()
+        and sys.stdin.isatty()
+        and _tui_available()
+    )
+    reader = open_reader(specs, err)
+    try:
+        recorder = open_recorder(args, specs, ring)
+    except BaseException:
+        reader.stop()
+        raise
+    notify = notifier(err)
+    capture = LiveCapture(
+        reader,
+        session,
+        recorder=recorder,
+        queue_size=queue,
+        notify=None if use_tui else notify,
+    )
+    exporter: PcapExporter | None = None
+    pcap_file = None
+    try:
+        if args.pcap:
+            try:
+                pcap_file = sys.stdout.buffer if args.pcap == "-" else open(args.pcap, "wb")  # noqa: SIM115
+            except OSError as exc:
+                raise UsageError(
+                    f"{args.pcap}: cannot be written ({exc.strerror or exc}); choose a "
+                    "folder you can write to"
+                ) from None
+            exporter = PcapExporter(pcap_file, session.describer, specs[0].line, name=specs[0].name)
+        capture.start()
+        if use_tui:
+            # what the ports said while opening shows in the TUI, not behind it
+            capture.messages.extend(f"warning: {w}" for w in reader.warnings)
+            run_tui: Callable[..., int] = importlib.import_module("sniffer.tui.app").run_tui
+            return run_tui(session, None, live=capture)
+        announce(err, "listening on", specs, recorder)
+        lister = None
+        if args.pcap != "-":
+            lister = Lister(
+                io.StringIO(), args.format or "text", session.describer, absolute=args.time == "abs"
+            )
+        backlog = None if lister is None else Backlog(out, args.backlog)
+        return stream(capture, lister, exporter, deadline, backlog, notify)
+    finally:
+        capture.stop()
+        if pcap_file is not None and pcap_file is not sys.stdout.buffer:
+            pcap_file.close()
+
+
+def parse_backlog(text: str) -> int:
+    """--backlog SIZE (hidden; tests use it): listing bytes held for a slow reader."""
+    try:
+        return parse_size(text, minimum=1)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _tui_available() -> bool:
+    try:
+        return importlib.util.find_spec("sniffer.tui.app") is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def stream(
+    capture: LiveCapture,
+    lister: Lister | None,
+    exporter: PcapExporter | None,
+    duration: float | None,
+    backlog: Backlog | None = None,
+    notify: Notify | None = None,
+) -> int:
+    """The listing loop: rows out as they are framed, until stopped. The listing goes
+    through `backlog` (see `sniffer.cli.backlog`): a slow reader of the output never
+    stops the capture, rows it cannot take are dropped and reported, and Ctrl-C ends
+    the loop within about a second whatever the output does."""
+    end = None if duration is None else time.monotonic() + duration
+    assert capture.session is not None
+    store = capture.session.store
+    waiting: list[int] = []  # requests listed while they waited for their answer
+    sink = io.StringIO()
+    if lister is not None:
+        if not isinstance(lister.out, io.StringIO):
+            raise TypeError("the live lister renders into a StringIO; the backlog writes it")
+        sink = lister.out
+        backlog = backlog or Backlog(sys.stdout)
+        backlog.add(sink.getvalue())  # a CSV header
+        sink.seek(0)
+        sink.truncate()
+    said = 0
+    last_said = 0.0
+
+    def emit(rows: range, deadline: float | None = None) -> None:
+        nonlocal waiting, said, last_said
+        if lister is not None and backlog is not None:
+            store.sync()
+            status = store.status
+            # a request listed as open that then got no answer is listed again
+            again = [i for i in waiting if status[i] == Status.TIMEOUT]
+            waiting = [i for i in waiting if status[i] == Status.OPEN]
+            waiting += [i for i in rows if status[i] == Status.OPEN]
+            todo = [*again, *rows]
+            for k in range(0, len(todo), RENDER_ROWS):
+                late = deadline is not None and time.monotonic() >= deadline
+                if backlog.full or late:
+                    backlog.drop(len(todo) - k)
+                    break
+                lister.write(todo[k : k + RENDER_ROWS], flush=False)
+                backlog.add(sink.getvalue())
+                sink.seek(0)
+                sink.truncate()
+                backlog.send()
+            if backlog.dropped > said and notify is not None:
+                now = time.monotonic()
+                if now - last_said >= 1.0:
+                    notify(_dropped_text(backlog.dropped))
+                    said, last_said = backlog.dropped, now
+        if exporter is not None:
+            exporter.write(rows)
+
+    try:
+        with stop_requests() as stop:
+            while capture.running and not stop.is_set():
+                if end is not None and time.monotonic() >= end:
+                    break
+                behind = backlog is not None and bool(backlog.pending)
+                emit(capture.pump(0.0 if behind else PUMP_SECONDS))
+                if backlog is not None:
+                    backlog.send(PUMP_SECONDS if behind else 0.0)
+            deadline = time.monotonic() + STOP_GRACE
+            emit(capture.stop(), deadline)
+            if backlog is not None:
+                lost = backlog.finish(max(0.0, deadline - time.monotonic()))
+                if lost and notify is not None:
+                    notify(f"stopped; {lost:,} bytes of the listing were not taken by its reader")
+                if backlog.dropped > said and notify is not None:
+                    notify(_dropped_text(backlog.dropped))
+    except BrokenPipeError:
+        quiet_stdout()
+        capture.stop()
+        return 0
+    check_reader(capture)
+    if capture.failure is not None:
+        raise UsageError(capture.failure)
+    return 0
+
+
+def _dropped_text(rows: int) -> str:
+    return (
+        f"data lost: the listing fell behind the reader of its output; {rows:,} rows not "
+        "listed so far (the gaps show in the index column; a recording with -w is complete)"
+    )
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "live",
+        help="watch a serial line as it runs (never transmits)",
+        description=(
+            "Listen to one or two serial ports without ever transmitting (RTS and DTR are "
+            "not asserted, nothing is written) and show every frame as it comes: in the "
+            "TUI on a terminal, else as a listing flushed per line (--format). --write "
+            "records what the ports read; --pcap streams frames for Wireshark "
+            "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -)."
+        ),
+    )
+    add_port_options(p)
+    add_device_options(p)
+    add_output_options(p)
+    p.add_argument(
+        "--pcap",
+        metavar="FILE",
+        help="also write frames as Wireshark pcapng (link type 252, Modbus RTU); - for "
+        "standard output, which then carries nothing else",
+    )
+    add_recording_options(p, required=False)
+    p.add_argument("--backlog", type=parse_backlog, default=BACKLOG_BYTES, help=argparse.SUPPRESS)
+    p.set_defaults(func=cmd_live)
