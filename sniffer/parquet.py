@@ -21,9 +21,9 @@ from typing import Any
 
 from dissectors.functions import function_name
 from sniffer.describe import Describer
-from sniffer.framing import Kind
 from sniffer.listing import KIND_NAMES
-from sniffer.store import NO_PARTNER, Status
+from sniffer.store import NO_PARTNER
+from sniffer.vocab import STATUS_NAMES, Kind
 
 ROW_GROUP = 65_536
 EXTRA_HINT = "Parquet export needs pyarrow: pip install 'modscope[analytics]'"
@@ -142,7 +142,7 @@ def frame_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, 
             "exception": bool(fc & 0x80) if framed else None,
             "name": function_name(fc & 0x7F) if framed else KIND_NAMES[kind],
             "device": label(store.unit[i]) if framed else "",
-            "status": Status.NAMES[store.status[i]],
+            "status": STATUS_NAMES[store.status[i]],
             "check_ok": view_ok,
             "length": store.length[i],
             "channel": store.channel[i],

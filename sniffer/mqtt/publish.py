@@ -31,7 +31,6 @@ from dissectors.dictionary.model import Entry, RegisterValue, ValueSpec
 from sniffer import __version__
 from sniffer.annotate import Binding
 from sniffer.describe import FrameDetail
-from sniffer.framing import PROBLEM_MASK, Flag, Kind
 from sniffer.listing import KIND_NAMES
 from sniffer.model import Chunk, SourceInfo
 from sniffer.mqtt.ha import discovery_configs
@@ -40,7 +39,8 @@ from sniffer.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_p
 from sniffer.mqtt.target import MqttTarget
 from sniffer.session import Session
 from sniffer.sources.linktypes import describe_interface
-from sniffer.store import NO_PARTNER, Status
+from sniffer.store import NO_PARTNER
+from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 
 DEFAULT_EVERY = 60.0  # seconds between two publications of an unchanged value
 STATUS_EVERY = 5.0  # seconds between two unit status messages
@@ -343,7 +343,7 @@ class BusPublisher:
             "function": v.function if framed else None,
             "name": d.name,
             "summary": d.summary,
-            "problems": list(d.problems),
+            "problems": list(d.problem_texts),
             "raw": v.raw.hex(),
         }
         if v.kind == Kind.EXCEPTION:
