@@ -20,7 +20,7 @@ echo "== installing modscope with its dev extras"
 "$VENV/bin/python" -m pip install --quiet -e '.[dev,imports]'
 
 missing=()
-for tool in tshark socat mbpoll; do
+for tool in tshark socat mbpoll mosquitto mosquitto_sub; do
   command -v "$tool" >/dev/null 2>&1 || missing+=("$tool")
 done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -28,7 +28,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   SUDO=""
   [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq tshark socat mbpoll >/dev/null
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq tshark socat mbpoll mosquitto mosquitto-clients >/dev/null
 fi
 
 echo "== ruff"

@@ -33,6 +33,10 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     options = read_options(args)
     use_tui = args.format is None and not args.stats and out.isatty() and sys.stdin.isatty()
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+    if getattr(args, "mqtt", None):
+        from sniffer.mqtt.command import cmd_replay_mqtt
+
+        return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
     if use_tui:
         from sniffer.tui.app import run_tui
 
@@ -88,4 +92,7 @@ def register(sub: SubParsers) -> None:
     add_device_options(p)
     add_output_options(p)
     p.add_argument("--stats", action="store_true", help="print the per-unit statistics table")
+    from sniffer.mqtt.command import add_mqtt_options
+
+    add_mqtt_options(p, replay=True)
     p.set_defaults(func=cmd_replay)
