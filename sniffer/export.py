@@ -41,9 +41,10 @@ from sniffer.store import NO_PARTNER
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
-EXPORT_FORMATS = (*FORMATS, "pcapng")
+EXPORT_FORMATS = (*FORMATS, "pcapng", "parquet")
 EXTENSIONS = {
     ".pcapng": "pcapng",
+    ".parquet": "parquet",
     ".csv": "csv",
     ".jsonl": "jsonl",
     ".ndjson": "jsonl",

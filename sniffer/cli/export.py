@@ -46,7 +46,7 @@ def output_format(path: str, fmt: str | None) -> str:
         raise UsageError(
             f"{path}: cannot tell the format from the name; give --format "
             f"({', '.join(EXPORT_FORMATS)}) or end the name in "
-            ".pcapng, .csv, .jsonl or .txt"
+            ".pcapng, .parquet, .csv, .jsonl or .txt"
         )
     return found
 
@@ -77,6 +77,17 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     rows = Selection(session, query, args.count).take(len(session.store), final=True)
     status = read_status(capture.warnings, len(rows))
     describer = session.describer
+    if fmt == "parquet":
+        from sniffer.parquet import ParquetError, write_parquet
+
+        if args.output == "-":
+            raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")
+        try:
+            n = write_parquet(args.output, what, describer, rows)
+        except ParquetError as exc:
+            raise UsageError(str(exc)) from None
+        err.write(f"{args.output}: {n} {what} (parquet)\n")
+        return 0
     if fmt == "pcapng":
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
         try:

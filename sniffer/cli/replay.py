@@ -76,6 +76,10 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     )
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
     told = line_warnings(options, capture.info.recorded_line, str(path))
+    if getattr(args, "mqtt", None):
+        from sniffer.mqtt.command import cmd_replay_mqtt
+
+        return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
     if use_tui:
         from sniffer.tui.app import run_tui
 
@@ -150,4 +154,7 @@ def register(sub: SubParsers) -> None:
     p.add_argument(
         "--stats", action="store_true", help="print the per-unit statistics and poll cycle"
     )
+    from sniffer.mqtt.command import add_mqtt_options
+
+    add_mqtt_options(p, replay=True)
     p.set_defaults(func=cmd_replay)
