@@ -116,13 +116,15 @@ def announced(buf: bytes | bytearray, pos: int = 0) -> int | None:
 
 
 def consistent(payload: bytes | bytearray) -> bool:
-    """Whether `payload` reads as whole MBAP frames back to back (the last one may run
-    past the end: a segment split in the middle of a frame)."""
+    """Whether `payload` reads as whole MBAP frames back to back. The first must be
+    whole; after it, the last may run past the end (a segment split inside a frame)."""
     pos = 0
     while pos < len(payload):
         if not plausible(payload, pos):
             return pos > 0 and len(payload) - pos < HEADER_SIZE + 1
         size = announced(payload, pos)
         assert size is not None
+        if pos == 0 and size > len(payload):
+            return False
         pos += size
     return pos > 0

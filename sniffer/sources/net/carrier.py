@@ -68,10 +68,12 @@ class Votes:
 
     def add(self, payload: bytes) -> None:
         self.seen += 1
-        if mbap.consistent(payload):
+        is_mbap = mbap.consistent(payload)
+        is_rtu = rtu_frames(payload)
+        if is_mbap and not is_rtu:
             self.mbap += 1
-        elif rtu_frames(payload):
-            self.rtu += 1
+        elif is_rtu and not is_mbap:
+            self.rtu += 1  # both: `01 03 00 00 00 02 C4 0B` reads either way; no vote
 
     def verdict(self, transport: str, server_port: int, final: bool) -> str | None:
         """The carrier, or None while the evidence is not enough (and not `final`)."""
