@@ -3,9 +3,16 @@ and pairing of Modbus TCP, RTU over TCP/UDP; pymodbus over loopback against tsha
 
 from __future__ import annotations
 
+import asyncio
 import random
+import shutil
+import signal
 import struct
+import subprocess
+import threading
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import given, settings
@@ -495,3 +502,163 @@ def test_random_packet_soup_never_raises(tmp_path: Path) -> None:
     total = sum(len(s) for s in store.streams.values())
     covered = sum(store.length[i] for i in range(len(store)))
     assert covered == total  # every reassembled byte is in a frame or a noise row
+
+
+# ---------------------------------------------------------------- real peers over loopback
+
+
+class _TcpPeer:
+    """pymodbus's TCP server on loopback in a thread, with dumpcap capturing its port."""
+
+    def __init__(self, capture: Path, rtu: bool = False) -> None:
+        import socket
+
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            self.port: int = probe.getsockname()[1]
+        self.capture = capture
+        self.rtu = rtu
+        self._loop = asyncio.new_event_loop()
+        self._ready = threading.Event()
+        self._server: Any = None
+        self._dumpcap: subprocess.Popen[str] | None = None
+
+    def __enter__(self) -> _TcpPeer:
+        threading.Thread(target=self._run, daemon=True).start()
+        assert self._ready.wait(5), "the pymodbus TCP server did not start"
+        self._dumpcap = subprocess.Popen(
+            ["dumpcap", "-i", "lo", "-f", f"tcp port {self.port}", "-w", str(self.capture)],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        assert self._dumpcap.stderr is not None
+        for line in self._dumpcap.stderr:
+            if "Capturing on" in line:
+                break
+        time.sleep(1.0)  # dumpcap says it captures a little before it does
+        return self
+
+    def _run(self) -> None:
+        from pymodbus import FramerType
+        from pymodbus.server import ModbusTcpServer
+        from pymodbus.simulator import DataType, SimData, SimDevice
+
+        def device(unit: int) -> Any:
+            bits = [SimData(0, values=[k % 3 == 0 for k in range(32)], datatype=DataType.BITS)]
+            words = [SimData(0, values=list(range(unit, unit + 32)), datatype=DataType.REGISTERS)]
+            return SimDevice(id=unit, simdata=(bits, bits, words, words))
+
+        async def serve() -> None:
+            self._server = ModbusTcpServer(
+                [device(1), device(7)],
+                framer=FramerType.RTU if self.rtu else FramerType.SOCKET,
+                address=("127.0.0.1", self.port),
+            )
+            await self._server.serve_forever(background=True)
+            self._ready.set()
+            await self._server.serving
+
+        asyncio.set_event_loop(self._loop)
+        self._loop.run_until_complete(serve())
+
+    def client(self) -> Any:
+        from pymodbus import FramerType
+        from pymodbus.client import ModbusTcpClient
+
+        framer = FramerType.RTU if self.rtu else FramerType.SOCKET
+        client = ModbusTcpClient("127.0.0.1", port=self.port, framer=framer, timeout=2, retries=0)
+        assert client.connect()
+        return client
+
+    def __exit__(self, *exc: object) -> None:
+        time.sleep(0.3)
+        if self._dumpcap is not None:
+            self._dumpcap.send_signal(signal.SIGINT)
+            self._dumpcap.wait(10)
+        if self._server is not None:
+            future = asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop)
+            future.result(5)
+
+
+def _exchange(clients: list[Any]) -> int:
+    """Requests of several kinds from each client in turn; returns how many were sent."""
+    sent = 0
+    for round_ in range(3):
+        for k, c in enumerate(clients):
+            unit = 7 if k % 2 else 1
+            c.read_holding_registers(round_, count=4, device_id=unit)
+            c.read_input_registers(2, count=3, device_id=unit)
+            c.read_coils(0, count=10, device_id=unit)
+            c.write_register(3, 70 + round_, device_id=unit)
+            c.write_registers(4, [1, 2, round_], device_id=unit)
+            c.read_holding_registers(100, count=5, device_id=unit)  # an exception answer
+            sent += 6
+    for c in clients:
+        c.close()
+    return sent
+
+
+def _tshark(path: Path, port: int, proto: str) -> list[tuple[int, int]]:
+    unit = "mbtcp.unit_id" if proto == "mbtcp" else "mbrtu.unit_id"
+    decode_as = f"tcp.port=={port},{proto}"
+    fields = ["-T", "fields", "-e", unit, "-e", "modbus.func_code"]
+    result = subprocess.run(
+        ["tshark", "-r", str(path), "-d", decode_as, "-Y", proto, *fields],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    rows = []
+    for line in result.stdout.splitlines():
+        unit, fc = line.split("\t")
+        rows.append((int(unit), int(fc)))
+    return rows
+
+
+needs_tools = pytest.mark.skipif(
+    not (shutil.which("dumpcap") and shutil.which("tshark")), reason="needs dumpcap and tshark"
+)
+
+
+@pytest.mark.peer
+@pytest.mark.slow
+@needs_tools
+def test_pymodbus_tcp_over_loopback_matches_tshark(tmp_path: Path) -> None:
+    pytest.importorskip("pymodbus")
+    path = tmp_path / "lo.pcapng"
+    with _TcpPeer(path) as peer:
+        sent = _exchange([peer.client(), peer.client()])
+    capture, store = frame(path)
+    rows = [i for i in range(len(store)) if store.flags[i] & MBAP and store.kind[i] != Kind.NOISE]
+    ours = [(store.unit[i], store.fc[i] & 0x7F) for i in rows]
+    assert ours == _tshark(path, peer.port, "mbtcp")
+    assert len(ours) == 2 * sent
+    requests = [i for i in rows if store.kind[i] == Kind.REQUEST]
+    assert len(requests) == sent
+    statuses = [store.status[i] for i in requests]
+    assert statuses.count(Status.EXCEPTION) == sent // 6
+    assert statuses.count(Status.OK) == sent - sent // 6
+    assert {store.channel[i] for i in rows} == {0, 1, 2, 3}  # two connections, two directions
+    assert capture.warnings == []
+
+
+@pytest.mark.peer
+@pytest.mark.slow
+@needs_tools
+def test_pymodbus_rtu_over_tcp_over_loopback(tmp_path: Path) -> None:
+    pytest.importorskip("pymodbus")
+    path = tmp_path / "rtu.pcapng"
+    with _TcpPeer(path, rtu=True) as peer:
+        sent = _exchange([peer.client()])
+    capture, store = frame(path)
+    assert parse_label(capture.info.channels[0]).carrier == "rtu-over-tcp"  # type: ignore[union-attr]
+    rows = [
+        i
+        for i in range(len(store))
+        if store.kind[i] in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION)
+    ]
+    assert len(rows) == 2 * sent
+    assert not any(store.kind[i] == Kind.NOISE for i in range(len(store)))
+    ours = [(store.unit[i], store.fc[i] & 0x7F) for i in rows]
+    theirs = _tshark(path, peer.port, "mbrtu")
+    assert ours == theirs
