@@ -566,7 +566,9 @@ class _TcpPeer:
         from pymodbus.client import ModbusTcpClient
 
         framer = FramerType.RTU if self.rtu else FramerType.SOCKET
-        client = ModbusTcpClient("127.0.0.1", port=self.port, framer=framer, timeout=2, retries=0)
+        client: Any = ModbusTcpClient(
+            "127.0.0.1", port=self.port, framer=framer, timeout=2, retries=0
+        )
         assert client.connect()
         return client
 
