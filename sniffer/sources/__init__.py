@@ -6,6 +6,7 @@ order. Readers never raise on bad content once the format is recognised: a trunc
 damaged file gives every complete record and a warning naming the offset.
 
 Formats (see each module): pcap and pcapng with link types 147, 250 and 252 (`pcap`),
+and with Ethernet-family link types carrying Modbus TCP or RTU over TCP/UDP (`net`),
 sigrok `.sr` logic captures decoded as UART (`sigrok`), `socat -x -v` logs and
 text2pcap-style hex dumps (`hexdump`), and raw binary (`raw`). Recognition order is in
 `detect`. The pcapng writer is `pcapng_writer`.

@@ -1,5 +1,8 @@
 """Provides the pcap and pcapng readers for serial link types 147, 250 and 252.
 
+Packets of Ethernet-family link types (Ethernet, Linux cooked, raw IP, loopback) go to
+`sniffer.sources.net`, which gives a channel per TCP/UDP connection direction.
+
 pcap: both byte orders, microsecond and nanosecond magics (and the "modified" variant with
 a longer record header). pcapng: both byte orders, several sections and interfaces,
 SHB/IDB/EPB/SPB and the obsolete PB; `if_tsresol`, `if_tsoffset`, `opt_comment` (kept as
@@ -138,7 +141,8 @@ class _PacketDecoder:
         offset: int,
     ) -> Iterator[Chunk]:
         if self.network is not None and iface.linktype in net.NET_LINKTYPES:
-            yield from self.network.packet(iface.linktype, t or iface.last_end or 0.0, data)
+            when = t if t is not None else iface.last_end or 0.0  # an SPB has no time
+            yield from self.network.packet(iface.linktype, when, data)
             return
         if iface.linktype not in LINKTYPE_NAMES:
             if not iface.warned:
