@@ -323,7 +323,7 @@ def test_upper_pdu_frames_are_kept_apart(tmp_path: Path) -> None:
 def test_unknown_linktype_and_interface_are_skipped(tmp_path: Path) -> None:
     data = (
         shb("<")
-        + idb("<", 1)  # Ethernet
+        + idb("<", 105)  # IEEE 802.11 (Ethernet-family types are read: test_sources_ethernet)
         + epb("<", 0, int(T0 * 1e6), b"\xff" * 14)
         + epb("<", 0, int(T0 * 1e6), b"\xff" * 14)
         + epb("<", 5, int(T0 * 1e6), b"\x01")
@@ -333,7 +333,7 @@ def test_unknown_linktype_and_interface_are_skipped(tmp_path: Path) -> None:
     capture, chunks = read(path)
     assert chunks == []
     assert len(capture.warnings) == 2
-    assert "link type 1 is not serial data" in capture.warnings[0]
+    assert "link type 105 is not serial data" in capture.warnings[0]
     assert "interface 5" in capture.warnings[1]
 
 

@@ -6,6 +6,7 @@ order. Readers never raise on bad content once the format is recognised: a trunc
 damaged file gives every complete record and a warning naming the offset.
 
 Formats (see each module): pcap and pcapng with link types 147, 250 and 252 (`pcap`),
+and with Ethernet-family link types carrying Modbus TCP or RTU over TCP/UDP (`net`),
 sigrok `.sr` logic captures decoded as UART (`sigrok`), `socat -x -v` logs and
 text2pcap-style hex dumps (`hexdump`), Saleae Logic CSV exports (`saleae`), text logs
 of ESPHome, pymodbus, libmodbus and serial monitors (`logs`), and raw binary (`raw`).

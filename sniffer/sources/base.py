@@ -19,6 +19,7 @@ class ReadOptions:
     `probes` picks logic analyser channels by name or 1-based number (names win); with
     two, the first carries the master's requests and the second the slaves' responses.
     `invert` is for logic captures of idle-low lines (the RS-232 side of a converter).
+    `carrier` and `port` are for network captures (see `sniffer.sources.net`).
     """
 
     baud: int | None = None
@@ -28,6 +29,8 @@ class ReadOptions:
     mode: str | None = None
     probes: tuple[str, ...] = ()
     invert: bool = False
+    carrier: str | None = None  # network captures: "tcp", "rtu-over-tcp" or "rtu-over-udp"
+    port: int | None = None  # network captures: the server's port; other traffic is left out
 
     def line(self, from_file: LineSettings | None = None) -> LineSettings:
         """Line settings: command line first, then what the file recorded, then defaults."""

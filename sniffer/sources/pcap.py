@@ -1,5 +1,8 @@
 """Provides the pcap and pcapng readers for serial link types 147, 250 and 252.
 
+Packets of Ethernet-family link types (Ethernet, Linux cooked, raw IP, loopback) go to
+`sniffer.sources.net`, which gives a channel per TCP/UDP connection direction.
+
 pcap: both byte orders, microsecond and nanosecond magics (and the "modified" variant with
 a longer record header). pcapng: both byte orders, several sections and interfaces,
 SHB/IDB/EPB/SPB and the obsolete PB; `if_tsresol`, `if_tsoffset`, `opt_comment` (kept as
@@ -45,6 +48,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
+from sniffer.sources import net
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
@@ -119,9 +123,10 @@ class _Interface:
 class _PacketDecoder:
     """Turns packets of one interface into chunks, by link type."""
 
-    def __init__(self, warnings: list[str]) -> None:
+    def __init__(self, warnings: list[str], network: net.NetDecoder | None = None) -> None:
         self.warnings = warnings
         self.other_dissectors: set[str] = set()
+        self.network = network  # Ethernet-family link types go here (sniffer.sources.net)
 
     def chunks(
         self,
@@ -132,6 +137,10 @@ class _PacketDecoder:
         comment: str,
         offset: int,
     ) -> Iterator[Chunk]:
+        if self.network is not None and iface.linktype in net.NET_LINKTYPES:
+            when = t if t is not None else iface.last_end or 0.0  # an SPB has no time
+            yield from self.network.packet(iface.linktype, when, data)
+            return
         if iface.linktype not in LINKTYPE_NAMES:
             if not iface.warned:
                 iface.warned = True
@@ -304,15 +313,36 @@ def open_pcap(path: Path, options: ReadOptions, head: bytes) -> Capture:
         stamps=_stamps(header.linktype),
         resolution=1e-9 if header.nanoseconds else 1e-6,
     )
+    info, network = net.for_capture(
+        info, [(0, header.linktype)], options, warnings, nanoseconds=header.nanoseconds
+    )
     return Capture(
-        info=info, _chunks=_pcap_chunks(path, header, iface, warnings), warnings=warnings
+        info=info,
+        _chunks=_pcap_chunks(path, header, iface, warnings, network),
+        warnings=warnings,
     )
 
 
 def _pcap_chunks(
-    path: Path, header: _PcapHeader, iface: _Interface, warnings: list[str]
+    path: Path,
+    header: _PcapHeader,
+    iface: _Interface,
+    warnings: list[str],
+    network: net.NetDecoder | None = None,
 ) -> Iterator[Chunk]:
-    decoder = _PacketDecoder(warnings)
+    decoder = _PacketDecoder(warnings, network)
+    yield from _pcap_records(path, header, iface, decoder, warnings)
+    if network is not None:
+        yield from network.finish()
+
+
+def _pcap_records(
+    path: Path,
+    header: _PcapHeader,
+    iface: _Interface,
+    decoder: _PacketDecoder,
+    warnings: list[str],
+) -> Iterator[Chunk]:
     record = struct.Struct(header.order + ("IIIIIHBB" if header.modified else "IIII"))
     with path.open("rb") as handle:
         size = _file_size(handle)
@@ -560,8 +590,13 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
         labels=Labels.CERTAIN if roles and Direction.UNKNOWN not in roles else labels,
     )
     warnings: list[str] = []
+    linktypes = [(iface.channel, iface.linktype) for iface in section.all]
+    nanoseconds = any(iface.ticks_per_second > 1_000_000 for iface in section.all)
+    info, network = net.for_capture(info, linktypes, options, warnings, nanoseconds=nanoseconds)
     return Capture(
-        info=info, _chunks=_pcapng_chunks(path, options, info, warnings), warnings=warnings
+        info=info,
+        _chunks=_pcapng_chunks(path, options, info, warnings, network),
+        warnings=warnings,
     )
 
 
@@ -592,10 +627,26 @@ def _first_packet_says(block: _Block, section: _Section) -> tuple[Stamp, Labels]
 
 
 def _pcapng_chunks(
-    path: Path, options: ReadOptions, info: SourceInfo, warnings: list[str]
+    path: Path,
+    options: ReadOptions,
+    info: SourceInfo,
+    warnings: list[str],
+    network: net.NetDecoder | None = None,
+) -> Iterator[Chunk]:
+    decoder = _PacketDecoder(warnings, network)
+    yield from _pcapng_blocks(path, options, info, decoder, warnings)
+    if network is not None:
+        yield from network.finish()
+
+
+def _pcapng_blocks(
+    path: Path,
+    options: ReadOptions,
+    info: SourceInfo,
+    decoder: _PacketDecoder,
+    warnings: list[str],
 ) -> Iterator[Chunk]:
     section = _Section(options, warnings)
-    decoder = _PacketDecoder(warnings)
     with path.open("rb") as handle:
         for block in _blocks(handle, warnings):
             if block.type == BLOCK_SHB:
@@ -614,7 +665,8 @@ def _pcapng_chunks(
                 continue
             if block.type == BLOCK_IDB:
                 iface = section.add(block)
-                info.channels.setdefault(iface.channel, iface.label)
+                if decoder.network is None or iface.linktype not in net.NET_LINKTYPES:
+                    info.channels.setdefault(iface.channel, iface.label)
                 continue
             yield from _packet_block(block, section, decoder, warnings)
 

@@ -1,0 +1,220 @@
+"""Provides the linking of both sides of a gateway: Modbus TCP transactions to the RTU
+transactions that carried them, with a verdict on where each one failed.
+
+Two stores, one per side (a network capture framed by `NetPipeline`, a serial capture
+framed by the ordinary pipeline). `offset` is what to add to serial times to put them on
+the network capture's clock; `estimate_offset` finds it from transactions whose request
+appears once on each side, assuming the gateway takes about as long in as out:
+offset = median of ((tcp request end + tcp answer start) - (rtu request start + rtu
+answer end)) / 2.
+
+A TCP request is linked to the first serial request after it (within `timeout`, less
+`slack` before it for clock error) with the same unit and the same PDU, not linked yet.
+Verdicts (`Verdict`): ok, not sent on the serial side, device timed out, answer lost by
+the gateway, gateway exception explained by the serial side (0x0A/0x0B), gateway
+exception although the device answered, answers that differ.
+"""
+
+from __future__ import annotations
+
+import enum
+import statistics
+from dataclasses import dataclass
+
+from dissectors import mbap
+from dissectors.envelope import ascii_body
+from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.tcpframing import MBAP
+from sniffer.vocab import Flag, Kind
+
+GATEWAY_PATH_UNAVAILABLE = 0x0A
+GATEWAY_TARGET_FAILED = 0x0B
+
+
+class Verdict(enum.Enum):
+    OK = "ok"
+    NOT_SENT = "not-sent"  # the gateway never put the request on the serial line
+    DEVICE_TIMEOUT = "device-timeout"  # sent, the device did not answer
+    ANSWER_LOST = "answer-lost"  # the device answered, the TCP client got nothing
+    GATEWAY_EXCEPTION = "gateway-exception"  # 0x0A/0x0B, and the serial side agrees
+    GATEWAY_FAULT = "gateway-fault"  # 0x0A/0x0B although the device answered
+    MISMATCH = "mismatch"  # both answered, with different PDUs
+
+
+@dataclass(frozen=True, slots=True)
+class Side:
+    """One transaction on one side: rows, times, bodies (unit + PDU)."""
+
+    request: int
+    answer: int  # NO_PARTNER when unanswered
+    t_request: float  # start of the request
+    t_request_end: float
+    t_answer: float | None  # start of the answer
+    t_answer_end: float | None
+    body: bytes
+    answer_body: bytes | None
+
+
+@dataclass(frozen=True, slots=True)
+class Link:
+    """A TCP transaction and what became of it on the serial side."""
+
+    tcp: Side
+    serial: Side | None
+    verdict: Verdict
+    delay_in: float | None  # serial request start - TCP request end (s)
+    delay_out: float | None  # TCP answer start - serial answer end (s)
+    text: str
+
+
+def _body(store: FrameStore, i: int) -> bytes:
+    raw = store.raw(i)
+    flags = store.flags[i]
+    if flags & MBAP:
+        return mbap.body(raw)
+    if flags & Flag.ASCII:
+        decoded = ascii_body(raw)
+        return decoded[:-1] if decoded else b""
+    return raw[:-2]
+
+
+def transactions(store: FrameStore) -> list[Side]:
+    """Every request of a store with its answer (if paired), in store order."""
+    store.sync()
+    out = []
+    for i in range(len(store)):
+        if store.kind[i] != Kind.REQUEST:
+            continue
+        j = store.partner[i]
+        answered = j != NO_PARTNER
+        out.append(
+            Side(
+                i,
+                j,
+                store.t[i],
+                store.t_end[i],
+                store.t[j] if answered else None,
+                store.t_end[j] if answered else None,
+                _body(store, i),
+                _body(store, j) if answered else None,
+            )
+        )
+    return out
+
+
+def estimate_offset(
+    tcp: list[Side], serial: list[Side], window: float = 5.0
+) -> tuple[float, float, int] | None:
+    """(offset, spread, samples): seconds to add to serial times, the median absolute
+    deviation of the samples, and how many answered transactions were unique enough on
+    both sides to use. None without any."""
+    by_body: dict[bytes, list[Side]] = {}
+    for s in serial:
+        if s.t_answer_end is not None:
+            by_body.setdefault(s.body, []).append(s)
+    samples = []
+    for t in tcp:
+        if t.t_answer is None:
+            continue
+        near = [s for s in by_body.get(t.body, ()) if abs(s.t_request - t.t_request_end) <= window]
+        if len(near) != 1:
+            continue
+        s = near[0]
+        assert s.t_answer_end is not None
+        samples.append(((t.t_request_end + t.t_answer) - (s.t_request + s.t_answer_end)) / 2)
+    if not samples:
+        return None
+    offset = statistics.median(samples)
+    spread = statistics.median(abs(x - offset) for x in samples)
+    return offset, spread, len(samples)
+
+
+def link(
+    tcp_store: FrameStore,
+    serial_store: FrameStore,
+    *,
+    offset: float = 0.0,
+    timeout: float = 1.0,
+    slack: float = 0.05,
+) -> list[Link]:
+    """Link every TCP transaction to its serial one (module doc)."""
+    serial = transactions(serial_store)
+    used: set[int] = set()
+    links = []
+    for t in transactions(tcp_store):
+        found: Side | None = None
+        for s in serial:
+            start = s.t_request + offset
+            if start < t.t_request_end - slack:
+                continue
+            if start > t.t_request_end + timeout:
+                break
+            if s.request not in used and s.body == t.body:
+                found = s
+                used.add(s.request)
+                break
+        links.append(_verdict(t, found, offset))
+    return links
+
+
+def _verdict(t: Side, s: Side | None, offset: float) -> Link:
+    delay_in = None if s is None else s.t_request + offset - t.t_request_end
+    delay_out = None
+    if s is not None and s.t_answer_end is not None and t.t_answer is not None:
+        delay_out = t.t_answer - (s.t_answer_end + offset)
+    code = None
+    if t.answer_body is not None and len(t.answer_body) >= 3 and t.answer_body[1] & 0x80:
+        code = t.answer_body[2]
+    device_answered = s is not None and s.answer_body is not None
+    if code in (GATEWAY_PATH_UNAVAILABLE, GATEWAY_TARGET_FAILED):
+        name = "0x0A path unavailable" if code == GATEWAY_PATH_UNAVAILABLE else "0x0B target failed"
+        if device_answered:
+            return Link(
+                t,
+                s,
+                Verdict.GATEWAY_FAULT,
+                delay_in,
+                delay_out,
+                f"gateway answered {name}, but the device answered on the serial line",
+            )
+        why = "nothing was sent on the serial line" if s is None else "the device did not answer"
+        return Link(
+            t, s, Verdict.GATEWAY_EXCEPTION, delay_in, delay_out, f"gateway answered {name}: {why}"
+        )
+    if s is None:
+        return Link(
+            t,
+            s,
+            Verdict.NOT_SENT,
+            None,
+            None,
+            "never sent on the serial line: the gateway dropped or queued it",
+        )
+    if not device_answered:
+        return Link(
+            t,
+            s,
+            Verdict.DEVICE_TIMEOUT,
+            delay_in,
+            None,
+            "sent on the serial line; the device did not answer",
+        )
+    if t.answer_body is None:
+        return Link(
+            t,
+            s,
+            Verdict.ANSWER_LOST,
+            delay_in,
+            None,
+            "the device answered; the gateway did not pass the answer on",
+        )
+    if t.answer_body != s.answer_body:
+        return Link(
+            t,
+            s,
+            Verdict.MISMATCH,
+            delay_in,
+            delay_out,
+            "the TCP answer differs from the device's answer",
+        )
+    return Link(t, s, Verdict.OK, delay_in, delay_out, "")

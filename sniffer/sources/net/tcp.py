@@ -1,0 +1,213 @@
+"""Provides TCP reassembly: one direction's segments in, its byte stream in order out.
+
+`TcpHalf.segment()` takes the segments of one direction of one connection as captured
+and returns `Piece`s: runs of bytes in stream order, and events (connection opened,
+closed, reset, and gaps). The rules:
+
+- retransmitted bytes (sequence numbers already delivered) are dropped; a segment that
+  overlaps what was delivered gives only its new bytes;
+- a segment ahead of the next expected byte waits until the hole before it is filled
+  (out-of-order capture); its bytes come out with the time of the packet that filled
+  the hole, when the receiver could first read them;
+- a hole is never guessed over: it becomes a `gap` event with the number of missing
+  bytes when it cannot be filled any more, that is when the receiver acknowledges bytes
+  past it (the capture missed what the receiver got), when the waiting segments pass
+  `PENDING_LIMIT` bytes or wait more than `REORDER_WAIT` seconds of capture time, when
+  the connection closes or resets, or at the end of the capture (`flush`);
+- bytes the capture's snap length cut off are a gap as well.
+
+Sequence numbers wrap at 2**32; comparisons are made modulo that.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from sniffer.sources.net.packets import TCP_ACK, TCP_FIN, TCP_RST, TCP_SYN, Segment
+
+SEQ_MOD = 1 << 32
+REORDER_WAIT = 2.0  # seconds of capture time a hole may wait for its segment
+PENDING_LIMIT = 1 << 18  # bytes waiting behind a hole before the hole is declared a gap
+
+GAP = "gap"
+CONNECTION = "connection"
+
+
+def seq_diff(a: int, b: int) -> int:
+    """`a - b` in sequence space: negative when `a` lies before `b` (modulo 2**32)."""
+    return (a - b + (1 << 31)) % SEQ_MOD - (1 << 31)
+
+
+@dataclass(frozen=True, slots=True)
+class Piece:
+    """Bytes in stream order (`data`), or an event (`event` with its `note`), at time `t`."""
+
+    t: float
+    data: bytes = b""
+    event: str = ""
+    note: str = ""
+
+
+@dataclass(slots=True)
+class _Waiting:
+    data: bytes
+    missing: int
+    fin: bool
+    t: float
+
+
+@dataclass
+class TcpHalf:
+    """One direction of a TCP connection (see the module doc)."""
+
+    next: int | None = None  # sequence number of the next byte expected
+    isn: int | None = None
+    acked: int | None = None  # highest acknowledgement the other side sent
+    waiting: dict[int, _Waiting] = field(default_factory=dict)
+    waiting_bytes: int = 0
+    hole_since: float | None = None
+    closed: bool = False
+    delivered: int = 0
+    retransmitted: int = 0  # bytes dropped as already delivered
+    gaps: int = 0
+    gap_bytes: int = 0
+
+    def segment(self, seg: Segment, t: float) -> list[Piece]:
+        out: list[Piece] = []
+        seq = seg.seq
+        if seg.flags & TCP_SYN:
+            if self.isn == seq and self.next is not None:
+                return out  # a retransmitted SYN
+            if self.next is not None:
+                out.extend(self.flush(t, "a new connection started on the same ports"))
+            self.isn = seq
+            self.closed = False
+            seq = (seq + 1) % SEQ_MOD
+            self.next = seq
+            note = "accepted (SYN ACK)" if seg.flags & TCP_ACK else "opened (SYN)"
+            out.append(Piece(t, event=CONNECTION, note=note))
+        if seg.flags & TCP_RST:
+            out.extend(self._arrive(seq, seg.payload, seg.missing, False, t))
+            out.extend(self.flush(t, "the connection was reset"))
+            out.append(Piece(t, event=CONNECTION, note="reset (RST)"))
+            self.closed = True
+            return out
+        fin = bool(seg.flags & TCP_FIN)
+        if not seg.payload and not seg.missing and not fin:
+            return out
+        if self.next is None:
+            self.next = seq  # the capture started inside the connection
+        out.extend(self._arrive(seq, seg.payload, seg.missing, fin, t))
+        return out
+
+    def acknowledged(self, ack: int, t: float) -> list[Piece]:
+        """The other side acknowledged bytes up to `ack`: a hole before it will not be
+        filled by a retransmission, so it is a gap in the capture."""
+        if self.acked is None or seq_diff(ack, self.acked) > 0:
+            self.acked = ack
+        if self.waiting and self.next is not None and seq_diff(ack, self.next) > 0:
+            return self._gap(t, "the receiver acknowledged bytes the capture does not hold")
+        return []
+
+    def check(self, t: float) -> list[Piece]:
+        """Declare the hole a gap once it has waited too long (call as time passes)."""
+        if self.hole_since is not None and t - self.hole_since > REORDER_WAIT:
+            return self._gap(t, f"no segment filled it within {REORDER_WAIT:g} s")
+        return []
+
+    def flush(self, t: float, why: str = "the capture ended") -> list[Piece]:
+        """Deliver what waits behind holes, each hole reported as a gap."""
+        out: list[Piece] = []
+        while self.waiting:
+            out.extend(self._gap(t, why))
+        return out
+
+    # -- internals -----------------------------------------------------------------------
+
+    def _arrive(self, seq: int, data: bytes, missing: int, fin: bool, t: float) -> list[Piece]:
+        assert self.next is not None
+        out: list[Piece] = []
+        ahead = seq_diff(seq, self.next)
+        if ahead > 0:
+            known = self.waiting.get(seq)
+            if known is None or len(data) + missing > len(known.data) + known.missing:
+                if known is not None:
+                    self.waiting_bytes -= len(known.data)
+                self.waiting[seq] = _Waiting(data, missing, fin, t)
+                self.waiting_bytes += len(data)
+            if self.hole_since is None:
+                self.hole_since = t
+            if self.acked is not None and seq_diff(self.acked, self.next) > 0:
+                out.extend(
+                    self._gap(t, "the receiver acknowledged bytes the capture does not hold")
+                )
+            elif self.waiting_bytes > PENDING_LIMIT:
+                out.extend(self._gap(t, f"more than {PENDING_LIMIT} bytes wait behind it"))
+            return out
+        out.extend(self._deliver(ahead, data, missing, fin, t))
+        out.extend(self._drain(t))
+        return out
+
+    def _deliver(self, ahead: int, data: bytes, missing: int, fin: bool, t: float) -> list[Piece]:
+        """Deliver a segment starting `ahead` (<= 0) bytes from the next expected byte."""
+        assert self.next is not None
+        out: list[Piece] = []
+        old = -ahead  # bytes at the segment's start that were delivered already
+        if old:
+            seen = min(old, len(data))
+            self.retransmitted += seen
+            data = data[seen:]
+            missing = max(0, missing - (old - seen))
+        if data:
+            out.append(Piece(t, data=data))
+            self.delivered += len(data)
+            self.next = (self.next + len(data)) % SEQ_MOD
+        if missing:
+            out.append(
+                Piece(t, event=GAP, note=f"{missing} bytes cut off by the capture's snap length")
+            )
+            self.gaps += 1
+            self.gap_bytes += missing
+            self.next = (self.next + missing) % SEQ_MOD
+        if fin and not self.closed:
+            self.closed = True
+            self.next = (self.next + 1) % SEQ_MOD
+            out.append(Piece(t, event=CONNECTION, note="closed by the sender (FIN)"))
+        return out
+
+    def _drain(self, t: float) -> list[Piece]:
+        """Deliver waiting segments that now follow on."""
+        out: list[Piece] = []
+        while self.waiting and self.next is not None:
+            ready = [s for s in self.waiting if seq_diff(s, self.next) <= 0]
+            if not ready:
+                break
+            for s in sorted(ready, key=lambda s: seq_diff(s, self.next or 0)):
+                w = self.waiting.pop(s)
+                self.waiting_bytes -= len(w.data)
+                ahead = seq_diff(s, self.next)
+                if ahead + len(w.data) + w.missing <= 0 and not w.fin:
+                    self.retransmitted += len(w.data)
+                    continue
+                if ahead > 0:  # an earlier one of this batch did not reach it
+                    self.waiting[s] = w
+                    self.waiting_bytes += len(w.data)
+                    continue
+                out.extend(self._deliver(ahead, w.data, w.missing, w.fin, t))
+        self.hole_since = t if self.waiting else None
+        return out
+
+    def _gap(self, t: float, why: str) -> list[Piece]:
+        """The hole before the first waiting segment will not be filled: report it, then
+        go on from that segment."""
+        if not self.waiting or self.next is None:
+            return []
+        first = min(self.waiting, key=lambda s: seq_diff(s, self.next or 0))
+        size = seq_diff(first, self.next)
+        self.gaps += 1
+        self.gap_bytes += size
+        out = [Piece(t, event=GAP, note=f"{size} bytes missing from the capture; {why}")]
+        self.next = first
+        self.hole_since = None
+        out.extend(self._drain(t))
+        return out

@@ -1,0 +1,127 @@
+"""Tests linking both sides of a gateway: each injected fault gives its verdict, the clock
+offset between the two captures is estimated, the gateway's delays are measured."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dissectors.checks import with_crc
+from sniffer.gateway import Verdict, estimate_offset, link, transactions
+from sniffer.model import Chunk, LineSettings
+from sniffer.pipeline import frame_capture
+from sniffer.sources import open_capture
+from sniffer.store import FrameStore
+from sniffer.tcpframing import NetPipeline
+from tests.netbuild import Conversation, pcap
+
+SERIAL_CLOCK = -100.0  # the serial recorder's clock is 100 s behind the network capture's
+DELAY_IN = 0.004  # the gateway forwards a request 4 ms after it arrives
+DELAY_OUT = 0.003
+RTU_TIME = 0.010  # a request or answer takes about 10 ms on the line
+LINE = LineSettings(baud=19200, parity="N", stopbits=2)
+
+
+def mbap_frame(tid: int, body: bytes) -> bytes:
+    return tid.to_bytes(2, "big") + b"\0\0" + len(body).to_bytes(2, "big") + body
+
+
+def read_request(address: int) -> bytes:
+    return bytes([1, 3]) + address.to_bytes(2, "big") + b"\x00\x01"
+
+
+def read_answer(value: int) -> bytes:
+    return bytes([1, 3, 2]) + value.to_bytes(2, "big")
+
+
+EXC_0B = bytes([1, 0x83, 0x0B])
+
+# (TCP answer, serial request sent, serial answer): one transaction per injected fate
+CASES = [
+    ("ok", read_answer(10), True, read_answer(10)),
+    ("dropped", None, False, None),
+    ("slow device", None, True, None),
+    ("answer lost", None, True, read_answer(13)),
+    ("0x0B, device silent", EXC_0B, True, None),
+    ("0x0B, device answered", EXC_0B, True, read_answer(15)),
+    ("0x0B, never sent", EXC_0B, False, None),
+    ("different answer", read_answer(17), True, read_answer(18)),
+    ("ok again", read_answer(19), True, read_answer(19)),
+]
+EXPECTED = [
+    Verdict.OK,
+    Verdict.NOT_SENT,
+    Verdict.DEVICE_TIMEOUT,
+    Verdict.ANSWER_LOST,
+    Verdict.GATEWAY_EXCEPTION,
+    Verdict.GATEWAY_FAULT,
+    Verdict.GATEWAY_EXCEPTION,
+    Verdict.MISMATCH,
+    Verdict.OK,
+]
+
+
+def build(tmp_path: Path) -> tuple[FrameStore, FrameStore]:
+    conv = Conversation()
+    packets: list[tuple[float, bytes]] = [
+        (1000.0 + k * 0.001, p) for k, p in enumerate(conv.handshake())
+    ]
+    chunks: list[Chunk] = []
+    for k, (_, tcp_answer, sent, rtu_answer) in enumerate(CASES):
+        t = 1001.0 + k  # a transaction per second
+        request = read_request(10 + k)
+        packets.append((t, conv.client(mbap_frame(k + 1, request))))
+        serial_end = t + DELAY_IN + RTU_TIME
+        if sent:
+            chunks.append(Chunk(with_crc(request), t_end=serial_end + SERIAL_CLOCK))
+        answer_end = serial_end + 0.02 + RTU_TIME
+        if rtu_answer is not None:
+            chunks.append(Chunk(with_crc(rtu_answer), t_end=answer_end + SERIAL_CLOCK))
+        if tcp_answer is not None:
+            packets.append(
+                (
+                    answer_end + DELAY_OUT + 0.5 * (rtu_answer is None),
+                    conv.server(mbap_frame(k + 1, tcp_answer)),
+                )
+            )
+    path = tmp_path / "tcp.pcap"
+    path.write_bytes(pcap(1, packets))
+    capture = open_capture(path)
+    pipeline = NetPipeline(LINE, channels=capture.info.channels)
+    pipeline.feed_all(capture.chunks())
+    pipeline.finish()
+    return pipeline.store, frame_capture(chunks, LINE)
+
+
+def test_each_injected_fault_gets_its_verdict(tmp_path: Path) -> None:
+    tcp, serial = build(tmp_path)
+    links = link(tcp, serial, offset=-SERIAL_CLOCK)
+    assert [x.verdict for x in links] == EXPECTED
+    assert "device answered" in links[5].text
+    assert "nothing was sent" in links[6].text
+
+
+def test_delays_are_measured_on_each_side(tmp_path: Path) -> None:
+    tcp, serial = build(tmp_path)
+    first = link(tcp, serial, offset=-SERIAL_CLOCK)[0]
+    assert first.delay_in is not None and first.delay_out is not None
+    # the serial request starts about one frame time before its last byte
+    assert first.delay_in == pytest.approx(DELAY_IN + RTU_TIME - 7 * LINE.char_time, abs=2e-3)
+    assert first.delay_out == pytest.approx(DELAY_OUT, abs=1e-3)
+
+
+def test_clock_offset_is_estimated(tmp_path: Path) -> None:
+    tcp, serial = build(tmp_path)
+    found = estimate_offset(transactions(tcp), transactions(serial), window=200.0)
+    assert found is not None
+    offset, spread, samples = found
+    assert samples == 4  # the transactions answered on both sides (cases 0, 5, 7, 8)
+    assert offset == pytest.approx(-SERIAL_CLOCK, abs=0.02)
+    assert [x.verdict for x in link(tcp, serial, offset=offset)] == EXPECTED
+    assert spread < 0.02
+
+
+def test_without_the_offset_nothing_links(tmp_path: Path) -> None:
+    tcp, serial = build(tmp_path)
+    assert {x.verdict for x in link(tcp, serial)} <= {Verdict.NOT_SENT, Verdict.GATEWAY_EXCEPTION}
