@@ -11,6 +11,7 @@ from pathlib import Path
 from .build import Builder
 from .device import DeviceDictionary
 from .errors import DictionaryError
+from .limits import load_toml
 from .reader import Source
 from .tomlpos import LineMap, scan_toml
 
@@ -39,7 +40,7 @@ def read_text(path: Path) -> str:
 def parse_toml(path: str, text: str) -> tuple[dict[str, object], LineMap]:
     """tomllib's data and the lines of its keys; syntax errors carry tomllib's line."""
     try:
-        data = tomllib.loads(text)
+        data = load_toml(path, text)
     except tomllib.TOMLDecodeError as error:
         message = str(error)
         where = _TOML_WHERE.search(message)
@@ -92,8 +93,8 @@ def check_dictionary(path: str | Path) -> list[DictionaryError]:
 
 def _declared_model(path: Path) -> str | None:
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        data = load_toml(str(path), path.read_text(encoding="utf-8-sig"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, DictionaryError):
         return None
     device = data.get("device")
     model = device.get("model") if isinstance(device, dict) else None
