@@ -43,7 +43,7 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
-from sniffer.text import plain
+from sniffer.text import csv_row, plain
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
@@ -245,15 +245,21 @@ def _cell(value: Any) -> str:
 
 
 def write_table(
-    out: TextIO, fmt: str, columns: tuple[str, ...], records: Iterable[dict[str, Any]]
+    out: TextIO,
+    fmt: str,
+    columns: tuple[str, ...],
+    records: Iterable[dict[str, Any]],
+    *,
+    raw_csv: bool = False,
 ) -> int:
-    """Records as JSONL or CSV (with a header row). Returns the number written."""
+    """Records as JSONL or CSV (with a header row). Returns the number written. CSV cells
+    go through `sniffer.text.csv_cell` (formula guard unless `raw_csv`)."""
     n = 0
     if fmt == "csv":
         writer = csv.writer(out)
         writer.writerow(columns)
         for rec in records:
-            writer.writerow([_cell(rec.get(c)) for c in columns])
+            writer.writerow(csv_row((_cell(rec.get(c)) for c in columns), raw=raw_csv))
             n += 1
     elif fmt == "jsonl":
         for rec in records:

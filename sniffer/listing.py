@@ -10,6 +10,7 @@ from typing import Any, TextIO
 
 from sniffer.describe import Describer, FrameDetail
 from sniffer.store import NO_PARTNER
+from sniffer.text import csv_row
 from sniffer.vocab import STATUS_NAMES, Kind
 
 FORMATS = ("text", "jsonl", "csv")
@@ -137,10 +138,19 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
 
 
 class Lister:
-    """Writes rows to a text stream in one of FORMATS, flushing after every row."""
+    """Writes rows to a text stream in one of FORMATS, flushing after every row.
+
+    CSV cells go through `sniffer.text.csv_row`: text that a spreadsheet would run as a
+    formula gets a leading `'` unless `raw_csv` (see `csv_cell`)."""
 
     def __init__(
-        self, out: TextIO, fmt: str, describer: Describer, *, absolute: bool = False
+        self,
+        out: TextIO,
+        fmt: str,
+        describer: Describer,
+        *,
+        absolute: bool = False,
+        raw_csv: bool = False,
     ) -> None:
         if fmt not in FORMATS:
             raise ValueError(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
@@ -149,6 +159,7 @@ class Lister:
         self.describer = describer
         self.absolute = absolute
         self.origin: float | None = None
+        self.raw_csv = raw_csv
         self._csv = csv.writer(out) if fmt == "csv" else None
         if self._csv is not None:
             self._csv.writerow(CSV_COLUMNS)
@@ -167,7 +178,7 @@ class Lister:
             else:
                 assert self._csv is not None
                 v = d.view
-                self._csv.writerow(
+                self._csv_row(
                     (
                         v.index,
                         f"{v.t:.6f}",
@@ -190,3 +201,7 @@ class Lister:
             if flush:
                 self.out.flush()
         return n
+
+    def _csv_row(self, cells: tuple[object, ...]) -> None:
+        assert self._csv is not None
+        self._csv.writerow(csv_row(cells, raw=self.raw_csv))
