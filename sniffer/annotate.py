@@ -24,9 +24,8 @@ from dissectors.dictionary import (
     parse_unit_binding,
 )
 from dissectors.dictionary.device import Window
-from dissectors.dictionary.vendor import FIELD_SIZES, VendorField
 from dissectors.dissect import dissect
-from dissectors.functions import AnswerRule, FunctionSpec, fixed
+from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import Flag, Kind
@@ -87,6 +86,7 @@ class Annotator:
 
     def __init__(self, bindings: Mapping[int, Binding]) -> None:
         self.bindings = dict(bindings)
+        self.registry = registry_of(self.bindings)  # what frames and dissects this bus
         self.next = 0
         self.tracks: dict[tuple[int, int], _WindowTrack] = {}
         self.last_write: dict[int, tuple[float, int]] = {}  # unit -> (time, fc) of a write
@@ -129,7 +129,9 @@ class Annotator:
         tracks = self.windows_of.get(unit)
         if tracks and not store.flags[i] & Flag.CHECK_BAD:
             # what the request writes, as the dissector reads it (FC 6, 16, 23)
-            for data in dissect(store.view(i).body(), Role.REQUEST).data:
+            for data in dissect(
+                store.view(i).body(), Role.REQUEST, registry=self.registry
+            ).data:
                 if not data.write or data.address is None or data.table != "holding_registers":
                     continue
                 for track in tracks:
@@ -201,43 +203,14 @@ class Annotator:
         return b.dictionary.exceptions.get(code, "") if b is not None else ""
 
 
-def _layout_length(layout: Sequence[VendorField]) -> int | None:
-    """RTU length of a vendor frame with this layout, None if it varies."""
-    size = 0
-    for f in layout:
-        if f.type == "bytes":
-            if f.length is None:
-                return None
-            size += f.length
-        else:
-            size += FIELD_SIZES.get(f.type, 0)
-    return 2 + size + 2
-
-
-def vendor_functions(
-    bindings: Mapping[int, Binding],
-) -> tuple[dict[int, FunctionSpec], frozenset[int]]:
-    """Framing specs for the vendor function codes of the bound devices (fixed-size
-    layouts frame like public codes), and the codes whose broadcasts get an answer."""
-    specs: dict[int, FunctionSpec] = {}
-    answered: set[int] = set()
+def registry_of(bindings: Mapping[int, Binding]) -> Registry:
+    """The public function codes plus the vendor codes of the bound devices, compiled into
+    specs like the public ones (a code two devices define is the first one's)."""
+    registry = FUNCTIONS
     for b in bindings.values():
-        for code, vendor in b.dictionary.functions.items():
-            if code in specs:
-                continue  # another bound device defined it first
-            req = _layout_length(vendor.request)
-            resp = _layout_length(vendor.response)
-            specs[code] = FunctionSpec(
-                code,
-                vendor.name,
-                klass="user",
-                request_length=fixed(req) if req is not None else None,
-                response_length=fixed(resp) if resp is not None else None,
-                answer=AnswerRule(resp) if resp is not None else None,
-            )
-            if vendor.broadcast:
-                answered.add(code)
-    return specs, frozenset(answered)
+        new = {code: f for code, f in b.dictionary.functions.items() if code not in registry}
+        registry = registry.with_vendor(new)
+    return registry
 
 
 def _covers(start: int, count: int, address: int) -> bool:

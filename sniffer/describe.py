@@ -134,23 +134,12 @@ class Describer:
         request: bytes | None = None
         if role == Role.RESPONSE and view.partner != NO_PARTNER:
             request = store.view(view.partner).body()
-        d = dissect(body, role, request=request)
-        registers: list[RegisterValue] = []
+        # the annotator's registry holds the bound devices' own codes: one path for all
+        d = dissect(body, role, request=request, registry=self.annotator.registry)
+        registers = self.annotator.registers(view.unit, i, d)
         extra_summary = ""
         name = d.name
         binding = self.annotator.bindings.get(view.unit)
-        if binding is not None and view.function in binding.dictionary.functions:
-            vendor = binding.dictionary.functions[view.function]
-            name = vendor.name
-            decoded = (
-                vendor.decode_response(body[2:])
-                if role == Role.RESPONSE
-                else vendor.decode_request(body[2:])
-            )
-            extra_summary = ", ".join(plain(f.text) for f in decoded.fields)
-            problems.extend(Problem("vendor", WARNING, p, None) for p in decoded.problems)
-        else:
-            registers = self.annotator.registers(view.unit, i, d)
         problems.extend(d.problems)
         for r in registers:
             span = register_span(d, r) if r.problems or r.partial else None

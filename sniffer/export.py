@@ -1,4 +1,4 @@
-"""Provides `modscope export`: frames for Wireshark (pcapng, link type 252), or CSV/JSONL tables.
+"""Provides the exporters: frames for Wireshark (pcapng, link type 252), CSV/JSONL tables.
 
 Wireshark export: one packet per frame, link type 252 (exported PDU) naming the `mbrtu`
 dissector, so Wireshark and tshark decode it with no configuration. The packet flags
@@ -18,20 +18,15 @@ units, raw 16-bit words or bits for the others).
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
-import sys
 from collections.abc import Iterable, Iterator
-from pathlib import Path
 from typing import Any, BinaryIO, TextIO
 
-from dissectors.checks import crc_bytes, lrc
+from dissectors.envelope import open_ascii, rtu_frame
 from sniffer import __version__
-from sniffer.cli import UsageError, add_device_options, add_line_options, bindings_for, read_options
 from sniffer.describe import Describer, FrameDetail
-from sniffer.framing import ascii_body
-from sniffer.listing import FORMATS, KIND_NAMES, Lister
+from sniffer.listing import FORMATS, KIND_NAMES
 from sniffer.model import LineSettings
 from sniffer.sources.pcapng_writer import (
     EPB_FLAG_CRC_ERROR,
@@ -43,7 +38,7 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
-from sniffer.text import csv_row, plain
+from sniffer.text import csv_row
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
@@ -87,17 +82,16 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
     if v.ascii:
-        decoded = ascii_body(v.raw)
-        if decoded is None or len(decoded) < 3:
+        envelope = open_ascii(v.raw)
+        sent, want = envelope.sent, envelope.expected
+        if sent is None or want is None or len(envelope.body) < 2:
             problems.insert(0, "Modbus ASCII frame that is not hex; exported as bytes")
             return upper_pdu_record(v.raw, "data"), flags, "; ".join(problems)
-        body, sent = decoded[:-1], decoded[-1]
-        want = lrc(body)
         verdict = "right" if sent == want else f"wrong, expected {want:02X}"
         problems.insert(
             0, f"carried as Modbus ASCII with LRC {sent:02X} ({verdict}); CRC computed here"
         )
-        return upper_pdu_record(body + crc_bytes(body)), flags, "; ".join(problems)
+        return upper_pdu_record(rtu_frame(envelope.body)), flags, "; ".join(problems)
     return upper_pdu_record(v.raw), flags, "; ".join(problems)
 
 
@@ -268,122 +262,3 @@ def write_table(
     else:
         raise ValueError(f"{fmt} cannot hold this table; use csv or jsonl")
     return n
-
-
-# -- the command -----------------------------------------------------------------------------
-
-
-def output_format(path: str, fmt: str | None) -> str:
-    """The export format: --format if given, else from the output's extension."""
-    if fmt is not None:
-        return fmt
-    if path == "-":
-        raise ValueError("writing to standard output needs --format (text, jsonl, csv, pcapng)")
-    found = EXTENSIONS.get(Path(path).suffix.lower())
-    if found is None:
-        raise ValueError(
-            f"{path}: cannot tell the format from the name; give --format "
-            f"({', '.join(EXPORT_FORMATS)}) or end the name in "
-            ".pcapng, .csv, .jsonl or .txt"
-        )
-    return found
-
-
-def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.session import open_session
-
-    source = Path(args.file)
-    try:
-        fmt = output_format(args.output, args.format)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-    what = args.what
-    if fmt == "pcapng" and what != "frames":
-        raise UsageError(f"a pcapng export holds frames; --what {what} needs csv or jsonl")
-    if fmt == "text" and what != "frames":
-        raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
-    if args.output != "-" and Path(args.output).resolve() == source.resolve():
-        raise UsageError(f"{args.output}: is the capture being read; choose another output")
-    bindings = bindings_for(args)
-    session, capture = open_session(
-        source, read_options(args), bindings=bindings, timeout=args.timeout
-    )
-    session.ingest(capture.chunks())
-    session.warnings.extend(capture.warnings)
-    for w in session.warnings:
-        err.write(f"modscope: warning: {plain(w)}\n")
-    rows = range(len(session.store))
-    describer = session.describer
-    if fmt == "pcapng":
-        binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
-        try:
-            n = PcapExporter(binary, describer, session.line, name=source.name).write(rows)
-        finally:
-            if args.output != "-":
-                binary.close()
-        err.write(f"{args.output}: {n} packets (link type 252, Modbus RTU)\n")
-        return 0
-    text = out if args.output == "-" else _open_text(args.output)
-    try:
-        if what == "frames":
-            n = Lister(text, fmt, describer, absolute=args.time == "abs").write(rows, flush=False)
-        elif what == "transactions":
-            n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
-        else:
-            n = write_table(text, fmt, REGISTER_COLUMNS, register_records(describer, rows))
-        text.flush()
-    finally:
-        if text is not out:
-            text.close()
-    if args.output != "-":
-        err.write(f"{args.output}: {n} {what} ({fmt})\n")
-    return 0
-
-
-def _open_binary(path: str) -> BinaryIO:
-    try:
-        return open(path, "wb")
-    except OSError as exc:
-        raise UsageError(
-            f"{path}: cannot be written ({exc.strerror or exc}); choose a folder you can write to"
-        ) from None
-
-
-def _open_text(path: str) -> TextIO:
-    try:
-        return open(path, "w", encoding="utf-8", newline="")
-    except OSError as exc:
-        raise UsageError(
-            f"{path}: cannot be written ({exc.strerror or exc}); choose a folder you can write to"
-        ) from None
-
-
-def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    p = sub.add_parser(
-        "export",
-        help="write a capture's frames for Wireshark, or frames/transactions/registers as "
-        "CSV or JSONL",
-        description=(
-            "Frame, pair and decode a capture, then write it out: as pcapng that Wireshark "
-            "decodes as Modbus RTU with no configuration (requests outbound, answers "
-            "inbound, CRC errors flagged, problems in packet comments), or as CSV/JSONL "
-            "tables of frames, transactions or register values. The format follows the "
-            "output's extension (.pcapng, .csv, .jsonl, .txt) unless --format says."
-        ),
-    )
-    p.add_argument("file", help="capture file (any format replay reads)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file, or -")
-    p.add_argument(
-        "--what",
-        choices=WHATS,
-        default="frames",
-        help="frames (default), transactions (request + answer per row) or registers",
-    )
-    p.add_argument("--format", choices=EXPORT_FORMATS, help="default: from OUT's extension")
-    p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
-    add_line_options(p)
-    g = p.add_argument_group("logic analyser captures (.sr)")
-    g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
-    g.add_argument("--invert", action="store_true", help="idle-low levels")
-    add_device_options(p)
-    p.set_defaults(func=cmd_export)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from dissectors.checks import crc16, lrc
+from dissectors.envelope import ascii_body
 from dissectors.functions import (
     EXCEPTION_LENGTH,
     FUNCTIONS,
@@ -640,19 +641,6 @@ class RtuFramer(_Framer):
 
 # preference of a length rule's kind when it is not the answer the open request predicts
 PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
-
-
-def ascii_body(raw: bytes) -> bytes | None:
-    """The binary body (unit, PDU, LRC) of an ASCII frame, or None if it is not hex."""
-    text = raw[1:]
-    if text.endswith(b"\r\n"):
-        text = text[:-2]
-    elif text.endswith(b"\n") or text.endswith(b"\r"):
-        text = text[:-1]
-    try:
-        return bytes.fromhex(text.decode("ascii"))
-    except ValueError:
-        return None
 
 
 class AsciiFramer(_Framer):

@@ -7,10 +7,10 @@ serves replay and live capture, so a recording frames exactly as the line did.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 
-from dissectors.functions import FUNCTIONS, FunctionSpec
+from dissectors.functions import FUNCTIONS, Registry
 from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.pairing import Pairer, default_timeout
@@ -44,20 +44,19 @@ class Pipeline:
         *,
         exact_timing: bool = False,
         timeout: float | None = None,
-        vendor: Mapping[int, FunctionSpec] | None = None,
-        answered_broadcasts: frozenset[int] = frozenset(),
+        registry: Registry | None = None,
         merge_slack: float = MERGE_SLACK,
     ) -> None:
         self.line = line
         self.merge_slack = merge_slack
         self.store = store if store is not None else FrameStore()
         self.exact_timing = exact_timing
-        # the public registry, plus the vendor codes of the devices on this bus
-        self.functions: Mapping[int, FunctionSpec] = {**FUNCTIONS, **(vendor or {})}
+        # the public registry, or one with the vendor codes of the devices on this bus
+        self.registry: Registry = registry if registry is not None else FUNCTIONS
         self.pairer = Pairer(
             self.store,
             timeout if timeout is not None else default_timeout(line),
-            answered_broadcasts,
+            self.registry.answered_broadcasts,
         )
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}
@@ -165,7 +164,7 @@ class Pipeline:
             channel=ch.number,
             direction=ch.direction,
             exact_timing=self.exact_timing,
-            functions=self.functions,
+            functions=self.registry,
         )
         if isinstance(ch.framer, RtuFramer):
             ch.framer.pair_inline = ch.staging is None

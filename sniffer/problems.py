@@ -9,9 +9,8 @@ the check's span runs past the body over the CRC or LRC. Meanings come from
 
 from __future__ import annotations
 
-from dissectors.checks import crc16, lrc
+from dissectors.envelope import open_ascii, open_rtu
 from dissectors.values import Problem
-from sniffer.framing import ascii_body
 from sniffer.store import FrameView
 from sniffer.vocab import (
     EVENT_MEANING,
@@ -37,20 +36,8 @@ def check_text(frame: FrameView) -> str:
     """`CRC 0x1234 wrong, expected 0x5678` for a bad check; empty when it is right."""
     if frame.kind in (Kind.NOISE, Kind.EVENT) or not frame.flags & Flag.CHECK_BAD:
         return ""
-    if frame.ascii:
-        body = ascii_body(frame.raw)
-        if not body or len(body) < 2:
-            return "too short for an LRC"
-        return f"LRC 0x{body[-1]:02X} wrong, expected 0x{lrc(body[:-1]):02X}"
-    raw = frame.raw
-    if len(raw) < 3:
-        return "too short for a CRC"
-    sent = raw[-2] | raw[-1] << 8
-    want = crc16(raw[:-2])
-    return (
-        f"CRC {raw[-2]:02X} {raw[-1]:02X} wrong, expected {want & 0xFF:02X} {want >> 8:02X}"
-        f" (0x{sent:04X} vs 0x{want:04X})"
-    )
+    envelope = open_ascii(frame.raw) if frame.ascii else open_rtu(frame.raw)
+    return envelope.check_text
 
 
 def _check_span(frame: FrameView) -> tuple[int, int] | None:

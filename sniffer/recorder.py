@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from sniffer import __version__
+from sniffer.errors import UserError
 from sniffer.model import Chunk
 from sniffer.serial_source import PortSpec
 from sniffer.sources.linktypes import RTAC_CAPTURE_COMPLETE
@@ -64,7 +65,7 @@ def epb_size(data: int, comment: int = 0) -> int:
     return 12 + 20 + data + (-data % 4) + options
 
 
-class RecordError(Exception):
+class RecordError(UserError):
     """The recording cannot be written. The message names the file and what to do."""
 
 

@@ -37,6 +37,7 @@ from types import TracebackType
 
 import serial
 
+from sniffer.errors import UserError
 from sniffer.model import Chunk, Direction, LineSettings
 
 READ_SIZE = 1 << 16  # bytes asked of one read: whatever the port has, up to this
@@ -53,7 +54,7 @@ PortFactory = Callable[[str], serial.Serial]
 """Makes an unopened port object for a port name (a device path or a pyserial URL)."""
 
 
-class PortError(Exception):
+class PortError(UserError):
     """A port cannot be used. The message names the port and what to do."""
 
 

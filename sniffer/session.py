@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
-from sniffer.annotate import Annotator, Binding, vendor_functions
+from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
 from sniffer.model import Chunk, LineSettings
 from sniffer.pipeline import MERGE_SLACK, Pipeline
@@ -41,17 +41,15 @@ class Session:
         self.line = line
         self.source = source
         self.store = FrameStore()
-        vendor, answered = vendor_functions(bindings or {})
+        self.annotator = Annotator(bindings or {})
         self.pipeline = Pipeline(
             line,
             self.store,
             exact_timing=exact_timing,
             timeout=timeout,
-            vendor=vendor,
-            answered_broadcasts=answered,
+            registry=self.annotator.registry,
             merge_slack=merge_slack,
         )
-        self.annotator = Annotator(bindings or {})
         self.stats = Stats(self.store)
         self.describer = Describer(self.store, self.annotator)
         self.warnings: list[str] = []

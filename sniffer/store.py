@@ -10,7 +10,7 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass
 
-from sniffer.framing import ascii_body
+from dissectors.envelope import ascii_body
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 NO_PARTNER = -1

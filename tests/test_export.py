@@ -16,9 +16,9 @@ import pytest
 
 from dissectors.checks import ascii_frame, with_crc
 from sniffer.cli import main
+from sniffer.cli.export import output_format
 from sniffer.export import (
     PcapExporter,
-    output_format,
     packet_for,
     register_records,
     transaction_records,

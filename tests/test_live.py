@@ -15,8 +15,9 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
+from sniffer.capture import LiveCapture
 from sniffer.cli import main
-from sniffer.live import LiveCapture, parse_roles
+from sniffer.cli.lines import parse_roles
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.recorder import RecordError
 from sniffer.serial_source import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.live import LiveCapture
+from sniffer.capture import LiveCapture
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.recorder import Recorder, RecordError, Ring, parse_duration, parse_size
 from sniffer.serial_source import LiveReader, PortSpec

@@ -450,7 +450,7 @@ async def test_device_strings_are_shown_as_text_never_as_markup() -> None:
 
 
 class FakeLive:
-    """Feeds chunks handed to it by the test, as `sniffer.live.LiveCapture.pump` does."""
+    """Feeds chunks handed to it by the test, as `sniffer.capture.LiveCapture.pump` does."""
 
     def __init__(self, session: Session) -> None:
         self.session = session
@@ -509,7 +509,7 @@ async def test_live_rows_arrive_followed_and_pause_freezes_the_view() -> None:
 
 
 class RecordingLive(FakeLive):
-    """A live source that can record, like `sniffer.live.LiveCapture`."""
+    """A live source that can record, like `sniffer.capture.LiveCapture`."""
 
     def __init__(self, session: Session, folder: Path) -> None:
         super().__init__(session)

@@ -12,9 +12,8 @@ from typing import Any
 
 import pytest
 
-from sniffer.cli import build_parser, main
+from sniffer.cli import build_parser, main, serve
 from sniffer.session import DEMO_CAPTURE
-from sniffer.tui import commands
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -38,7 +37,7 @@ def test_serve_without_the_extra_says_how_to_install_it(monkeypatch: pytest.Monk
     monkeypatch.setitem(sys.modules, "textual_serve.server", None)
     err = io.StringIO()
     args = build_parser().parse_args(["serve"])
-    assert commands.cmd_serve(args, io.StringIO(), err) == 2
+    assert serve.cmd_serve(args, io.StringIO(), err) == 2
     assert "pip install 'modscope[serve]'" in err.getvalue()
 
 
@@ -113,7 +112,7 @@ def test_forwarded_keeps_what_serve_was_asked() -> None:
             "d.toml",
         ]
     )
-    argv = commands.forwarded(args)
+    argv = serve.forwarded(args)
     assert argv[:2] == ["tui", str(Path("x.pcapng").resolve())]
     assert argv[2:6] == ["--parity", "N", "--mode", "ascii"]
     assert "--bus" in argv and str(Path("b.toml").resolve()) in argv

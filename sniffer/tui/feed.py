@@ -3,7 +3,7 @@
 The thread frames, pairs and counts; the UI only reads rows below the count published
 with each `FeedProgress` (all columns of those rows are complete). A capture can be
 replayed as fast as possible or at its original speed, and paused; a live capture
-(`sniffer.live.LiveCapture`, see `LiveSource`) is pumped. Nothing here imports Textual.
+(`sniffer.capture.LiveCapture`, see `LiveSource`) is pumped. Nothing here imports Textual.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from sniffer.session import Session
 
 
 class LiveSource(Protocol):
-    """A live line as the TUI consumes it: `sniffer.live.LiveCapture`, already started.
+    """A live line as the TUI consumes it: `sniffer.capture.LiveCapture`, already started.
 
     `pump(timeout)` feeds what the ports read to the session (waiting up to `timeout`)
     and brings it up to date; it is called from the feeding thread only. `stop()` ends

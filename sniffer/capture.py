@@ -1,0 +1,213 @@
+"""Provides the live-capture engine: ports being read, framed into a session and recorded.
+
+`LiveCapture` ties a `LiveReader` (threads reading the ports) to a `Session` (framing,
+pairing, annotation) and a `Recorder` (pcapng link type 250). The recorder drains its
+own feed in its own thread, so a slow screen or pipe never costs the recording a byte;
+the session is fed by whoever calls `pump()`: the command line's loop, or the TUI.
+
+For the TUI: `run_tui(session, None, live=capture)` gets a started `LiveCapture`. Call
+`capture.pump(timeout)` from one thread (it feeds the session and returns the range of
+new rows in `session.store`); `capture.messages` holds what happened on the ports
+(port lost, reconnect, data lost); `capture.stop()` ends it (idempotent).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+from sniffer.model import Chunk
+from sniffer.recorder import Recorder, RecordError
+from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, LiveReader
+from sniffer.session import Session
+
+IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
+PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
+RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
+
+Notify = Callable[[str], None]
+
+
+def event_text(chunk: Chunk) -> str:
+    return chunk.event + (f": {chunk.note}" if chunk.note else "")
+
+
+class LiveCapture:
+    """Ports being read, framed into `session` and written by `recorder`, as they run."""
+
+    def __init__(
+        self,
+        reader: LiveReader,
+        session: Session | None,
+        *,
+        recorder: Recorder | None = None,
+        queue_size: int = DEFAULT_QUEUE,
+        notify: Notify | None = None,
+        quiet: float | None = None,
+    ) -> None:
+        self.reader = reader
+        self.session = session
+        self.recorder = recorder
+        self.notify = notify
+        self.queue_size = queue_size
+        line = session.line if session is not None else reader.specs[0].line
+        self.quiet = quiet if quiet is not None else max(line.t35, IDLE_QUIET)
+        self.messages: deque[str] = deque(maxlen=200)
+        self.failure: str | None = None
+        self.shown = 0
+        self.feed: ChunkFeed | None = None
+        if session is not None:
+            self.feed = reader.subscribe(queue_size)
+        self._rec_feed: ChunkFeed | None = None
+        if recorder is not None:
+            self._rec_feed = reader.subscribe(queue_size)
+        self._rec_thread: threading.Thread | None = None
+        self._last_data = time.monotonic()
+        self._lock = threading.Lock()
+        self._pumping = threading.Lock()  # pump() and stop() feed the session in turn
+        self._stopped = False
+
+    # -- lifetime --------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self.reader.start()
+        if self._rec_feed is not None:
+            self._rec_thread = threading.Thread(
+                target=self._record, name="modscope-recorder", daemon=True
+            )
+            self._rec_thread.start()
+
+    def stop(self) -> range:
+        """Stop reading, frame what is left, close the recording. Returns the last rows."""
+        with self._lock:
+            if self._stopped:
+                return range(self.shown, self.shown)
+            self._stopped = True
+        self.reader.stop()
+        rows = range(self.shown, self.shown)
+        if self.session is not None and self.feed is not None:
+            with self._pumping:
+                while not self.feed.closed:
+                    self._take(self.feed.get(0))
+                self.session.finish()
+                rows = self._new_rows()
+        if self._rec_thread is not None:
+            self._rec_thread.join(30)
+            if self._rec_thread.is_alive():
+                self._report("error: the recording did not finish writing; its disk is stuck")
+                return rows
+        if self.recorder is not None:
+            self.recorder.close(self.reader.clock.now())
+        return rows
+
+    # -- recording on demand (the TUI's `r`) ----------------------------------------------
+
+    def start_recording(self, path: str | Path) -> Recorder:
+        """Record from now on into `path` (pcapng, link type 250), while reading goes on.
+        RecordError if the file cannot be written or a recording is already running."""
+        with self._lock:
+            if self.recorder is not None:
+                raise RecordError(f"already recording to {self.recorder.path}; stop it first")
+            recorder = Recorder(path, self.reader.specs)
+            self.recorder = recorder
+            self._rec_feed = self.reader.attach(self.queue_size)
+            self._rec_thread = threading.Thread(
+                target=self._record, name="modscope-recorder", daemon=True
+            )
+            self._rec_thread.start()
+        return recorder
+
+    def stop_recording(self) -> list[Path]:
+        """Finish the running recording (everything read so far is written); its files."""
+        with self._lock:
+            recorder, feed, thread = self.recorder, self._rec_feed, self._rec_thread
+            self.recorder, self._rec_feed, self._rec_thread = None, None, None
+        if recorder is None or feed is None:
+            return []
+        self.reader.detach(feed)
+        if thread is not None:
+            thread.join(30)
+        recorder.close(self.reader.clock.now())
+        return list(recorder.files)
+
+    @property
+    def lost_bytes(self) -> int:
+        """Bytes the display and the recording could not keep up with, together."""
+        feeds = (self.feed, self._rec_feed)
+        return sum(f.lost_bytes for f in feeds if f is not None)
+
+    @property
+    def running(self) -> bool:
+        return self.reader.running and self.failure is None
+
+    def _report(self, text: str) -> None:
+        self.messages.append(text)
+        if self.notify is not None:
+            self.notify(text)
+
+    # -- the session side ------------------------------------------------------------------
+
+    def pump(self, timeout: float = PUMP_SECONDS) -> range:
+        """Feed what the ports read since the last call (waiting up to `timeout` for it)
+        to the session; tell it when the line went quiet. Returns the new rows."""
+        if self.session is None or self.feed is None:
+            raise RuntimeError("this capture has no session to pump")
+        with self._pumping:
+            if self._stopped:
+                return range(self.shown, self.shown)
+            self._take(self.feed.get(timeout))
+            if time.monotonic() - self._last_data >= self.quiet:
+                self.session.idle(self.reader.clock.now())
+            else:
+                self.session.refresh()
+            return self._new_rows()
+
+    def _take(self, chunks: list[Chunk]) -> None:
+        assert self.session is not None
+        feed = self.session.feed
+        got_data = False
+        for chunk in chunks:
+            if chunk.event:
+                self._report(event_text(chunk))
+            feed(chunk)
+            got_data = got_data or bool(chunk.data)
+        if got_data:
+            self._last_data = time.monotonic()
+
+    def _new_rows(self) -> range:
+        assert self.session is not None
+        end = len(self.session.store)
+        rows = range(self.shown, end)
+        self.shown = end
+        return rows
+
+    # -- the recording side ------------------------------------------------------------------
+
+    def _record(self) -> None:
+        feed, recorder = self._rec_feed, self.recorder
+        assert feed is not None and recorder is not None
+        lost = 0
+        while not feed.closed:
+            chunks = feed.get(0.5)
+            if chunks and not feed.closed:
+                # let a few more reads gather: one wake-up per few reads, not per read
+                time.sleep(RECORD_GATHER)
+                chunks += feed.get(0)
+            try:
+                for chunk in chunks:
+                    recorder.write(chunk)
+                    if chunk.event and self.session is None:
+                        self._report(event_text(chunk))
+            except RecordError as exc:
+                self.failure = str(exc)
+                self._report(f"error: {exc}")
+                return
+            if feed.lost_bytes > lost and self.session is not None:
+                self._report(
+                    f"data lost: the recording fell behind; {feed.lost_bytes - lost} bytes "
+                    "not recorded (marked in the file)"
+                )
+                lost = feed.lost_bytes

@@ -1,0 +1,103 @@
+"""Provides the options several commands share (line settings, dictionaries, output) and
+their reading into the core's types; user mistakes become `UsageError`."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from sniffer.annotate import Binding, load_bindings
+from sniffer.errors import UsageError
+from sniffer.listing import FORMATS
+from sniffer.model import LineSettings
+from sniffer.sources import ReadOptions
+
+if TYPE_CHECKING:
+    SubParsers = argparse._SubParsersAction[argparse.ArgumentParser]
+else:
+    SubParsers = Any
+
+Command = Callable[[argparse.Namespace, TextIO, TextIO], int]
+"""A command: (parsed arguments, stdout, stderr) -> exit status."""
+
+
+def add_line_options(p: argparse.ArgumentParser) -> None:
+    """The line settings every command takes (a file's own settings are the default)."""
+    g = p.add_argument_group("line settings (default: what the capture recorded, else 19200 8E1)")
+    g.add_argument("--baud", type=int, metavar="N", help="baud rate")
+    g.add_argument("--bytesize", type=int, choices=(7, 8), help="data bits")
+    g.add_argument("--parity", type=str.upper, choices=("N", "E", "O"), help="parity")
+    g.add_argument("--stopbits", type=int, choices=(1, 2), help="stop bits")
+    g.add_argument(
+        "--mode", choices=("rtu", "ascii", "auto"), help="framing (default auto: from the traffic)"
+    )
+    g.add_argument(
+        "--timeout",
+        type=float,
+        metavar="S",
+        help="response timeout in seconds (default: 0.2 s plus a longest frame's time)",
+    )
+
+
+def add_device_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("device dictionaries")
+    g.add_argument("--bus", metavar="FILE", help="bus file binding slave addresses to models")
+    g.add_argument(
+        "--unit",
+        action="append",
+        default=[],
+        metavar="ADDR=MODEL[:LABEL]",
+        help="bind one address, e.g. --unit 3=rvs-dn or --unit '3=rvs-dn:Pump 1' "
+        "(repeatable; wins over --bus)",
+    )
+    g.add_argument(
+        "--dict",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="a dictionary of your own (repeatable)",
+    )
+
+
+def add_output_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("output")
+    g.add_argument(
+        "--format",
+        choices=FORMATS,
+        help="plain listing instead of the TUI: text, jsonl or csv (default when piped: text)",
+    )
+    g.add_argument("--time", choices=("rel", "abs"), default="rel", help="time column style")
+
+
+def read_options(args: argparse.Namespace) -> ReadOptions:
+    """The line options as the capture readers take them; UsageError when they cannot
+    make a line (a baud rate of 0), so the reader never sees them."""
+    options = ReadOptions(
+        baud=args.baud,
+        bytesize=args.bytesize,
+        parity=args.parity,
+        stopbits=args.stopbits,
+        mode=args.mode,
+        probes=tuple(getattr(args, "probe", None) or ()),
+        invert=bool(getattr(args, "invert", False)),
+    )
+    line_of(options)
+    timeout = getattr(args, "timeout", None)
+    if timeout is not None and not timeout > 0:
+        raise UsageError(f"--timeout must be a positive number of seconds, not {timeout:g}")
+    return options
+
+
+def line_of(options: ReadOptions, from_file: LineSettings | None = None) -> LineSettings:
+    """The line the options describe (over a file's own settings); UsageError if invalid."""
+    try:
+        return options.line(from_file)
+    except ValueError as exc:
+        raise UsageError(f"line settings: {exc}") from None
+
+
+def bindings_for(args: argparse.Namespace, default_bus: Path | None = None) -> dict[int, Binding]:
+    bus = args.bus or (str(default_bus) if default_bus and default_bus.exists() else None)
+    return load_bindings(bus, args.unit, args.dict)

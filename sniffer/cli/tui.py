@@ -1,0 +1,61 @@
+"""Provides `modscope tui`: the TUI on a capture even when stdout is not a terminal
+(textual-serve runs it that way). Textual is imported only when it runs."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TextIO
+
+from sniffer.cli.options import (
+    SubParsers,
+    add_device_options,
+    add_line_options,
+    bindings_for,
+    read_options,
+)
+from sniffer.errors import UsageError
+
+
+def capture_path(args: argparse.Namespace) -> Path:
+    """The capture FILE names, or the bundled demo; UsageError if there is none."""
+    from sniffer.session import DEMO_CAPTURE
+
+    if args.file:
+        path = Path(args.file)
+        if not path.is_file():
+            raise UsageError(f"{path}: no such file; give the path of a capture to show")
+        return path
+    if not DEMO_CAPTURE.exists():
+        raise UsageError(f"the demo capture {DEMO_CAPTURE} is missing; give a capture FILE")
+    return DEMO_CAPTURE
+
+
+def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from sniffer.session import DEMO_BUS, open_session
+
+    path = capture_path(args)
+    bindings = bindings_for(args, DEMO_BUS if not args.file else None)
+    options = read_options(args)
+    session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+    from sniffer.tui.app import run_tui
+
+    return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)
+
+
+def register(sub: SubParsers) -> None:
+    p = sub.add_parser(
+        "tui",
+        help="open the TUI on a capture (the bundled demo without FILE)",
+        description="Open the TUI on a capture, even when stdout is not a terminal.",
+    )
+    p.add_argument("file", nargs="?", help="capture file (default: the bundled demo)")
+    add_line_options(p)
+    add_device_options(p)
+    p.add_argument(
+        "--speed",
+        choices=("fast", "original"),
+        default="fast",
+        help="index as fast as possible (default) or replay at the capture's own speed",
+    )
+    p.set_defaults(func=cmd_tui)
