@@ -19,7 +19,6 @@ units, raw 16-bit words or bits for the others).
 from __future__ import annotations
 
 import csv
-import json
 from collections.abc import Iterable, Iterator
 from typing import Any, BinaryIO, TextIO
 
@@ -38,7 +37,7 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
-from sniffer.text import csv_row
+from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
@@ -257,7 +256,7 @@ def write_table(
             n += 1
     elif fmt == "jsonl":
         for rec in records:
-            out.write(json.dumps(rec, ensure_ascii=False) + "\n")
+            out.write(json_line(rec) + "\n")
             n += 1
     else:
         raise ValueError(f"{fmt} cannot hold this table; use csv or jsonl")

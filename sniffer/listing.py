@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import csv
-import json
 from collections.abc import Iterable
 from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from sniffer.describe import Describer, FrameDetail
 from sniffer.store import NO_PARTNER
-from sniffer.text import csv_row
+from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Kind
 
 FORMATS = ("text", "jsonl", "csv")
@@ -174,7 +173,7 @@ class Lister:
             if self.fmt == "text":
                 self.out.write(text_line(d, self.origin, self.absolute) + "\n")
             elif self.fmt == "jsonl":
-                self.out.write(json.dumps(record(d), ensure_ascii=False) + "\n")
+                self.out.write(json_line(record(d)) + "\n")
             else:
                 assert self._csv is not None
                 v = d.view

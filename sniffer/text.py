@@ -7,6 +7,7 @@ plain text (never through a markup parser).
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections.abc import Iterable
@@ -32,6 +33,24 @@ def plain(text: str, limit: int = MAX_TEXT) -> str:
     if len(result) > limit:
         result = result[: limit - 1] + "…"
     return result
+
+
+def plain_lines(text: str, limit: int = 4000) -> str:
+    """Several lines of text (a report made from file strings) with each line `plain`:
+    the line breaks stay, every other control character is escaped."""
+    return "\n".join(plain(line, limit) for line in text.split("\n"))
+
+
+# JSON escapes C0 controls itself; these reach a terminal raw with ensure_ascii=False
+_JSON_UNSAFE = {c: f"\\u{c:04x}" for c in (*range(0x7F, 0xA0), 0x2028, 0x2029)}
+
+
+def json_line(record: object) -> str:
+    """`record` as one line of JSON, non-ASCII text kept readable, and the control
+    characters JSON itself leaves raw (DEL, C1, line/paragraph separators) escaped, so
+    a JSONL listing on a terminal cannot drive it."""
+    line = json.dumps(record, ensure_ascii=False)
+    return line if line.isascii() and "\x7f" not in line else line.translate(_JSON_UNSAFE)
 
 
 def csv_cell(value: object, *, raw: bool = False) -> str | int | float:

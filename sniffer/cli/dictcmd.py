@@ -8,6 +8,7 @@ from typing import TextIO
 
 from dissectors.dictionary import DictionaryError
 from sniffer.cli.options import SubParsers
+from sniffer.text import plain, plain_lines
 
 
 def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -23,27 +24,28 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.action == "list":
         for name, path in sorted(builtin_models().items()):
             d = load_dictionary(path)
-            out.write(f"{name:<12} {d.name}  ({len(d.entries)} entries)\n")
+            out.write(f"{plain(name):<12} {plain(d.name)}  ({len(d.entries)} entries)\n")
         return 0
     if args.action == "check":
         bad = 0
         for file in args.files:
+            shown = plain(file)
             try:
                 if file.endswith((".yaml", ".yml")):
                     found = import_home_assistant(file)
-                    out.write(f"{file}: ok, {len(found)} device(s) from Home Assistant YAML\n")
+                    out.write(f"{shown}: ok, {len(found)} device(s) from Home Assistant YAML\n")
                 elif file.endswith(".csv"):
                     d = import_csv(file)
-                    out.write(f"{file}: ok, {len(d.entries)} entries from CSV\n")
+                    out.write(f"{shown}: ok, {len(d.entries)} entries from CSV\n")
                 else:
                     d = load_dictionary(file)
-                    out.write(f"{file}: ok, model {d.model}, {len(d.entries)} entries\n")
+                    out.write(f"{shown}: ok, model {plain(d.model)}, {len(d.entries)} entries\n")
             except DictionaryError as exc:
-                err.write(f"{exc}\n")
+                err.write(plain_lines(str(exc)) + "\n")
                 bad += 1
         return 1 if bad else 0
     d = load_model(args.model, [Path(p) for p in args.dict])
-    out.write(describe(d) + "\n")
+    out.write(plain_lines(describe(d)) + "\n")
     return 0
 
 

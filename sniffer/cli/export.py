@@ -12,6 +12,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_raw_csv_option,
     bindings_for,
     read_options,
 )
@@ -76,22 +77,26 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         finally:
             if args.output != "-":
                 binary.close()
-        err.write(f"{args.output}: {n} packets (link type 252, Modbus RTU)\n")
+        err.write(f"{plain(args.output)}: {n} packets (link type 252, Modbus RTU)\n")
         return 0
     text = out if args.output == "-" else _open_text(args.output)
+    raw = bool(args.raw_csv)
     try:
         if what == "frames":
-            n = Lister(text, fmt, describer, absolute=args.time == "abs").write(rows, flush=False)
+            lister = Lister(text, fmt, describer, absolute=args.time == "abs", raw_csv=raw)
+            n = lister.write(rows, flush=False)
         elif what == "transactions":
-            n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
+            records = transaction_records(describer, rows)
+            n = write_table(text, fmt, TRANSACTION_COLUMNS, records, raw_csv=raw)
         else:
-            n = write_table(text, fmt, REGISTER_COLUMNS, register_records(describer, rows))
+            records = register_records(describer, rows)
+            n = write_table(text, fmt, REGISTER_COLUMNS, records, raw_csv=raw)
         text.flush()
     finally:
         if text is not out:
             text.close()
     if args.output != "-":
-        err.write(f"{args.output}: {n} {what} ({fmt})\n")
+        err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
     return 0
 
 
@@ -136,6 +141,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("--format", choices=EXPORT_FORMATS, help="default: from OUT's extension")
     p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
+    add_raw_csv_option(p)
     add_line_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")

@@ -97,7 +97,11 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         lister = None
         if args.pcap != "-":
             lister = Lister(
-                out, args.format or "text", session.describer, absolute=args.time == "abs"
+                out,
+                args.format or "text",
+                session.describer,
+                absolute=args.time == "abs",
+                raw_csv=args.raw_csv,
             )
         return stream(capture, lister, exporter, deadline)
     finally:

@@ -44,7 +44,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
     def progress(done: int, frames: int) -> None:
         if show_progress:
-            err.write(f"\rindexing {path.name}: {done / 1e6:.1f} MB, {frames:,} rows")
+            err.write(f"\rindexing {plain(path.name)}: {done / 1e6:.1f} MB, {frames:,} rows")
             err.flush()
 
     session.ingest(capture.chunks(), progress)
@@ -54,11 +54,17 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     for w in session.warnings:
         err.write(f"modscope: warning: {plain(w)}\n")
     if args.stats:
-        labels = {u: b.label for u, b in bindings.items()}
-        out.write(f"{path} ({session.line.describe()}, mode {session.mode})\n")
+        labels = {u: plain(b.label) for u, b in bindings.items()}
+        out.write(f"{plain(str(path))} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n")
         return 0
-    lister = Lister(out, args.format or "text", session.describer, absolute=args.time == "abs")
+    lister = Lister(
+        out,
+        args.format or "text",
+        session.describer,
+        absolute=args.time == "abs",
+        raw_csv=args.raw_csv,
+    )
     lister.write(range(len(session.store)), flush=False)
     out.flush()
     return 0
