@@ -47,12 +47,45 @@ class Capture:
 
     `warnings` holds every warning: those known when the file was opened (also in
     `info.warnings`) and those found while `chunks()` is consumed (a truncated record is
-    only found at the end), so read it after iterating.
+    only found at the end), so read it after iterating. Every warning names the file
+    (`path: ...`, added here for readers that leave it out). `data_bytes` counts the
+    bytes the chunks carried; a file that gave none gets a warning saying so, and
+    `empty` is then true: nothing in it was usable.
     """
 
     info: SourceInfo
     _chunks: Iterator[Chunk]
     warnings: list[str] = field(default_factory=list)
+    data_bytes: int = 0
+    finished: bool = False
+
+    def __post_init__(self) -> None:
+        self._name_warnings()
+
+    @property
+    def empty(self) -> bool:
+        """True once the chunks were read to the end and carried no byte."""
+        return self.finished and self.data_bytes == 0
 
     def chunks(self) -> Iterator[Chunk]:
-        return self._chunks
+        return self._read()
+
+    def _read(self) -> Iterator[Chunk]:
+        try:
+            for chunk in self._chunks:
+                self.data_bytes += len(chunk.data)
+                yield chunk
+            self.finished = True
+            if not self.data_bytes:
+                self.warnings.append(
+                    "no serial data could be read from it; check that it is a capture of "
+                    "the bus (pcapng, pcap, sigrok .sr, hex dump or raw bytes)"
+                )
+        finally:
+            self._name_warnings()
+
+    def _name_warnings(self) -> None:
+        prefix = f"{self.info.path}: "
+        for i, text in enumerate(self.warnings):
+            if not text.startswith(prefix):
+                self.warnings[i] = prefix + text

@@ -282,8 +282,12 @@ def _pcap_header(head: bytes) -> _PcapHeader:
 
 def open_pcap(path: Path, options: ReadOptions, head: bytes) -> Capture:
     """Open a pcap file (detected from `head`); one interface, channel 0."""
-    header = _pcap_header(head)
     line = options.line(None)
+    if len(head) < 24:
+        info = SourceInfo(path=str(path), format="pcap", line=line)
+        warning = f"truncated pcap file header at byte offset 0: {len(head)} of 24 bytes"
+        return Capture(info=info, _chunks=iter(()), warnings=[warning])
+    header = _pcap_header(head)
     name = LINKTYPE_NAMES.get(header.linktype, f"link type {header.linktype}")
     label = f"pcap {name}"
     iface = _Interface(
