@@ -3,6 +3,7 @@ the read gets a verdict the CLI can exit with (issue 15, item 8)."""
 
 from __future__ import annotations
 
+import io
 import random
 import struct
 from pathlib import Path
@@ -10,10 +11,13 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import with_crc
+from sniffer.export import PcapExporter
+from sniffer.listing import Lister
 from sniffer.session import open_session
 from sniffer.sources import open_capture
 from sniffer.sources.pcapng_writer import PcapngWriter
 from sniffer.verdict import ALL_READ, NOTHING_USABLE, READ_WITH_WARNINGS, read_verdict
+from sniffer.vocab import Kind
 
 REQUEST = with_crc(bytes.fromhex("010300000002"))
 ANSWER = with_crc(bytes.fromhex("01030400640065"))
@@ -101,3 +105,44 @@ def test_hexdump_warnings_name_the_file(tmp_path: Path) -> None:
     list(capture.chunks())
     assert capture.warnings
     assert all(w.startswith(f"{path}: ") for w in capture.warnings)
+
+
+def test_pcapng_with_more_interfaces_than_channels_reads_the_first_128(tmp_path: Path) -> None:
+    # found by the fuzz harness: interface 256 overflowed the frame store's channel byte
+    path = tmp_path / "many.pcapng"
+    with path.open("wb") as handle:
+        writer = PcapngWriter(handle, application="test")
+        ids = [writer.add_interface(147, name=f"i{k}") for k in range(300)]
+        for k in ids:
+            writer.write_packet(k, 1_750_000_000.0 + k, REQUEST)
+    session, capture = open_session(path, None)
+    session.ingest(capture.chunks())
+    assert len(session.store) == 128
+    assert len(capture.warnings) == 1
+    assert capture.warnings[0].startswith(f"{path}: interface description at byte offset ")
+    assert capture.warnings[0].endswith(
+        "is the 129th; modscope reads 128 interfaces at most, the packets of the others are skipped"
+    )
+
+
+@pytest.mark.parametrize("absolute", [False, True])
+def test_impossible_times_are_kept_in_order_with_a_warning(tmp_path: Path, absolute: bool) -> None:
+    # found by the fuzz harness: `--time abs` and the pcapng export crashed on a time
+    # past the year 9999 (a hex dump's "1e37" seconds, a pcapng tick count near 2**64)
+    path = tmp_path / "dump.txt"
+    path.write_text(
+        f"O 99999999999999999999999.5\n0000  {REQUEST.hex(' ')}\n"
+        f"I 9999999999999999999999999999999999999.5\n0000  {ANSWER.hex(' ')}\n",
+        encoding="ascii",
+    )
+    session, capture = open_session(path, None)
+    session.ingest(capture.chunks())
+    kinds = [session.store.kind[i] for i in range(len(session.store))]
+    assert kinds == [Kind.REQUEST, Kind.RESPONSE]
+    assert len(capture.warnings) == 1
+    assert capture.warnings[0].startswith(f"{path}: 2 record(s) had a time outside 1970-2286")
+    rows = range(len(session.store))
+    out = io.StringIO()
+    assert Lister(out, "text", session.describer, absolute=absolute).write(rows) == 2
+    exported = io.BytesIO()
+    assert PcapExporter(exported, session.describer, session.line).write(rows) == 2

@@ -87,6 +87,9 @@ RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
 
 
 SLAVE_CHANNEL = 128  # link type 252 answers: this far above their interface's channel
+# channels are one byte in the frame store and 252 answers need a second set: interfaces
+# past this many (a damaged file, not a serial capture) are described but not read
+MAX_INTERFACES = SLAVE_CHANNEL
 
 
 def packet_direction(linktype: int, role: Direction, flags: int | None) -> Direction:
@@ -460,7 +463,16 @@ class _Section:
     def add(self, block: _Block) -> _Interface:
         order, body = block.order, block.body
         channel = len(self.all)
-        if len(body) < 8:
+        if channel >= MAX_INTERFACES:
+            if channel == MAX_INTERFACES:
+                self.warnings.append(
+                    f"interface description at byte offset {block.offset} is the "
+                    f"{channel + 1}th; modscope reads {MAX_INTERFACES} interfaces at most, "
+                    "the packets of the others are skipped"
+                )
+            iface = _Interface(-1, channel, self.options.line(None), f"interface {channel}")
+            iface.warned = True
+        elif len(body) < 8:
             self.warnings.append(
                 f"corrupt interface description at byte offset {block.offset}; "
                 "its packets are skipped"
