@@ -31,3 +31,17 @@ def test_rows_framed_before_a_second_channel_appears_keep_their_channel() -> Non
     for i in range(len(store)):
         if store.kind[i] != Kind.NOISE:
             assert store.raw(i) in (REQUEST_3, REQUEST_1, ANSWER_4)
+
+
+def test_rows_completed_by_an_event_get_their_framers_channel() -> None:
+    # a framing-error event on channel 1 completed the fast path's pending rows with the
+    # store's default channel 0 before the framer had said which channel they were on
+    chunks = [
+        Chunk(REQUEST_1 + b"\x01\x03\x50", t_end=1.0, channel=1),
+        Chunk(b"", t_end=1.0, channel=1, event="framing error"),
+        Chunk(ANSWER_4, t_end=1.1, channel=0),
+    ]
+    store = frame_capture(chunks, RTU)
+    rows = [(store.channel[i], store.raw(i)) for i in range(len(store)) if store.length[i]]
+    assert (1, REQUEST_1) in rows
+    assert (0, ANSWER_4) in rows
