@@ -19,7 +19,6 @@ units, raw 16-bit words or bits for the others).
 from __future__ import annotations
 
 import csv
-import json
 from collections.abc import Iterable, Iterator
 from typing import Any, BinaryIO, TextIO
 
@@ -38,6 +37,7 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
+from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
@@ -239,19 +239,25 @@ def _cell(value: Any) -> str:
 
 
 def write_table(
-    out: TextIO, fmt: str, columns: tuple[str, ...], records: Iterable[dict[str, Any]]
+    out: TextIO,
+    fmt: str,
+    columns: tuple[str, ...],
+    records: Iterable[dict[str, Any]],
+    *,
+    raw_csv: bool = False,
 ) -> int:
-    """Records as JSONL or CSV (with a header row). Returns the number written."""
+    """Records as JSONL or CSV (with a header row). Returns the number written. CSV cells
+    go through `sniffer.text.csv_cell` (formula guard unless `raw_csv`)."""
     n = 0
     if fmt == "csv":
         writer = csv.writer(out)
         writer.writerow(columns)
         for rec in records:
-            writer.writerow([_cell(rec.get(c)) for c in columns])
+            writer.writerow(csv_row((_cell(rec.get(c)) for c in columns), raw=raw_csv))
             n += 1
     elif fmt == "jsonl":
         for rec in records:
-            out.write(json.dumps(rec, ensure_ascii=False) + "\n")
+            out.write(json_line(rec) + "\n")
             n += 1
     else:
         raise ValueError(f"{fmt} cannot hold this table; use csv or jsonl")

@@ -333,7 +333,9 @@ class RtuFramer(_Framer):
         exact = tl.exact
         # the newest chunk's timing, for the inline time estimate of frames inside it
         cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
-        # row columns, appended inline on the fast paths
+        # row columns, appended inline on the fast paths; whoever syncs the store next
+        # (an event, a merge, a reader) completes them with this framer's channel
+        out.fill_channel = self.channel
         if self._appenders_of is not out:
             self._appenders_of = out
             self._appenders = (

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import json
 from collections.abc import Iterable
 from datetime import UTC, datetime
 from typing import Any, TextIO
@@ -11,6 +10,7 @@ from typing import Any, TextIO
 from sniffer.describe import Describer, FrameDetail
 from sniffer.model import Stamp
 from sniffer.store import NO_PARTNER
+from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Kind
 
 FORMATS = ("text", "jsonl", "csv")
@@ -153,10 +153,19 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
 
 
 class Lister:
-    """Writes rows to a text stream in one of FORMATS, flushing after every row."""
+    """Writes rows to a text stream in one of FORMATS, flushing after every row.
+
+    CSV cells go through `sniffer.text.csv_row`: text that a spreadsheet would run as a
+    formula gets a leading `'` unless `raw_csv` (see `csv_cell`)."""
 
     def __init__(
-        self, out: TextIO, fmt: str, describer: Describer, *, absolute: bool = False
+        self,
+        out: TextIO,
+        fmt: str,
+        describer: Describer,
+        *,
+        absolute: bool = False,
+        raw_csv: bool = False,
     ) -> None:
         if fmt not in FORMATS:
             raise ValueError(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
@@ -165,6 +174,7 @@ class Lister:
         self.describer = describer
         self.absolute = absolute
         self.origin: float | None = None
+        self.raw_csv = raw_csv
         self._csv = csv.writer(out) if fmt == "csv" else None
         if self._csv is not None:
             self._csv.writerow(CSV_COLUMNS)
@@ -183,11 +193,11 @@ class Lister:
             elif self.fmt == "jsonl":
                 rec = record(d)
                 rec["timing"] = TIMING_NAMES[store.stamps]
-                self.out.write(json.dumps(rec, ensure_ascii=False) + "\n")
+                self.out.write(json_line(rec) + "\n")
             else:
                 assert self._csv is not None
                 v = d.view
-                self._csv.writerow(
+                self._csv_row(
                     (
                         v.index,
                         f"{v.t:.6f}",
@@ -210,3 +220,7 @@ class Lister:
             if flush:
                 self.out.flush()
         return n
+
+    def _csv_row(self, cells: tuple[object, ...]) -> None:
+        assert self._csv is not None
+        self._csv.writerow(csv_row(cells, raw=self.raw_csv))

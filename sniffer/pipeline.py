@@ -271,6 +271,9 @@ class Pipeline:
             for other in self.channels.values():
                 other.staging = FrameStore(self.store.streams)
                 if other.framer is not None:
+                    # complete the rows its fast path left in the store (their channel
+                    # column) before the framer writes elsewhere
+                    other.framer.flush()
                     other.framer.out = other.staging
                     other.framer.pair_inline = False
         elif len(self.channels) > 2:

@@ -332,9 +332,10 @@ def test_unknown_linktype_and_interface_are_skipped(tmp_path: Path) -> None:
     path.write_bytes(data)
     capture, chunks = read(path)
     assert chunks == []
-    assert len(capture.warnings) == 2
+    assert len(capture.warnings) == 3
     assert "link type 105 is not serial data" in capture.warnings[0]
     assert "interface 5" in capture.warnings[1]
+    assert "no serial data" in capture.warnings[2] and capture.empty
 
 
 def _three_packets() -> tuple[bytes, list[int]]:
@@ -431,8 +432,8 @@ def test_pcap_252_and_truncated_record(tmp_path: Path) -> None:
     capture, chunks = read(path)
     assert [c.data for c in chunks] == FRAMES[:3]
     assert capture.warnings == [
-        f"truncated pcap record at byte offset {last}: {len(packets[-1][1])} bytes announced, "
-        f"{len(packets[-1][1]) - 3} present; reading stopped there"
+        f"{path}: truncated pcap record at byte offset {last}: {len(packets[-1][1])} bytes "
+        f"announced, {len(packets[-1][1]) - 3} present; reading stopped there"
     ]
     path.write_bytes(data[: last + 9])
     capture, chunks = read(path)

@@ -64,7 +64,7 @@ def test_real_captures_give_only_valid_frames(
     assert capture.info.exact_timing
     chunks = list(capture.chunks())
     # brainchild's probes are named "0" and "1": the reader notes how it took "1"
-    assert [w for w in capture.warnings if not w.startswith("--probe 1 is the probe named")] == []
+    assert [w for w in capture.warnings if "--probe 1 is the probe named" not in w] == []
     assert all(not c.event for c in chunks)
     assert all(len(c.data) == 1 for c in chunks)
     assert capture.info.line is not None

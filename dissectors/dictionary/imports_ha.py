@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from .build import FORMAT, Builder
 from .device import DeviceDictionary
 from .errors import DictionaryError, nearest, raise_all
+from .limits import check_yaml
 from .model import TYPES
 from .reader import Source, kind
 from .textfile import read_text
@@ -115,6 +116,7 @@ def _read_yaml(path: str, text: str) -> object:
         ) from None
     try:
         # A SafeLoader: only plain YAML types are built, no tag ever runs code.
+        check_yaml(path, text)
         return yaml.load(text, Loader=_yaml_loader())
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark

@@ -19,6 +19,7 @@ from .device import DeviceDictionary
 from .errors import DictionaryError
 from .imports_csv import import_csv
 from .imports_ha import import_home_assistant
+from .limits import load_toml
 from .reader import Source
 from .textfile import parse_toml, read_text
 
@@ -106,8 +107,8 @@ def check_dictionary(path: str | Path) -> list[DictionaryError]:
 
 def _declared_model(path: Path) -> str | None:
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        data = load_toml(str(path), path.read_text(encoding="utf-8-sig"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, DictionaryError):
         return None
     device = data.get("device")
     model = device.get("model") if isinstance(device, dict) else None

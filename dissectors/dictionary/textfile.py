@@ -7,6 +7,7 @@ import tomllib
 from pathlib import Path
 
 from .errors import DictionaryError
+from .limits import load_toml
 from .tomlpos import LineMap, scan_toml
 
 _TOML_WHERE = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
@@ -33,7 +34,7 @@ def read_text(path: Path) -> str:
 def parse_toml(path: str, text: str) -> tuple[dict[str, object], LineMap]:
     """tomllib's data and the lines of its keys; syntax errors carry tomllib's line."""
     try:
-        data = tomllib.loads(text)
+        data = load_toml(path, text)
     except tomllib.TOMLDecodeError as error:
         message = str(error)
         where = _TOML_WHERE.search(message)

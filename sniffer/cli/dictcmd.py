@@ -9,7 +9,7 @@ from typing import TextIO
 
 from sniffer.cli.options import SubParsers, add_line_options, read_options
 from sniffer.errors import UsageError
-from sniffer.text import plain
+from sniffer.text import plain, plain_lines
 
 DRAFT_EPILOG = """\
 examples:
@@ -34,7 +34,7 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.action == "list":
         for name, path in sorted(builtin_models().items()):
             d = load_dictionary(path)
-            out.write(f"{name:<12} {d.name}  ({len(d.entries)} entries)\n")
+            out.write(f"{plain(name):<12} {plain(d.name)}  ({len(d.entries)} entries)\n")
         return 0
     if args.action == "check":
         bad = 0
@@ -42,15 +42,15 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             problems = check_dictionary(file)
             if problems:
                 for problem in problems:
-                    err.write(f"{plain(str(problem), 2000)}\n")
+                    err.write(f"{plain_lines(str(problem))}\n")
                 many = f"{len(problems)} problems" if len(problems) > 1 else "1 problem"
-                err.write(f"{file}: {many}\n")
+                err.write(f"{plain(file)}: {many}\n")
                 bad += 1
                 continue
             found = load_dictionaries(file)
             kind = FORMAT_NAMES[file_format(file)]
-            models = ", ".join(f"{d.model} ({len(d.entries)} entries)" for d in found)
-            out.write(f"{file}: ok, {kind}: {models}\n")
+            models = ", ".join(f"{plain(d.model)} ({len(d.entries)} entries)" for d in found)
+            out.write(f"{plain(file)}: ok, {kind}: {models}\n")
         return 1 if bad else 0
     if args.action == "draft":
         return cmd_draft(args, out, err)
@@ -58,10 +58,10 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     model = Path(args.model)
     if model.suffix.lower() in (".toml", ".yaml", ".yml", ".csv") and model.is_file():
         for d in load_dictionaries(model):  # `dict show FILE`: every dictionary in it
-            out.write(describe(d) + "\n")
+            out.write(plain_lines(describe(d)) + "\n")
         return 0
     d = load_model(args.model, extra)
-    out.write(describe(d) + "\n")
+    out.write(plain_lines(describe(d)) + "\n")
     return 0
 
 

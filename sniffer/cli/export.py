@@ -14,6 +14,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_raw_csv_option,
     bindings_for,
     line_warnings,
     read_options,
@@ -95,24 +96,27 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         finally:
             if args.output != "-":
                 binary.close()
-        err.write(f"{args.output}: {n} packets (link type 252, Modbus RTU)\n")
+        err.write(f"{plain(args.output)}: {n} packets (link type 252, Modbus RTU)\n")
         return status
     text = out if args.output == "-" else _open_text(args.output)
+    raw = bool(args.raw_csv)
     try:
         if what == "frames":
-            lister = Lister(text, fmt, describer, absolute=args.time == "abs")
+            lister = Lister(text, fmt, describer, absolute=args.time == "abs", raw_csv=raw)
             lister.origin = session.store.t[0] if len(session.store) else None
             n = lister.write(rows, flush=False)
         elif what == "transactions":
-            n = write_table(text, fmt, TRANSACTION_COLUMNS, transaction_records(describer, rows))
+            records = transaction_records(describer, rows)
+            n = write_table(text, fmt, TRANSACTION_COLUMNS, records, raw_csv=raw)
         else:
-            n = write_table(text, fmt, REGISTER_COLUMNS, register_records(describer, rows))
+            records = register_records(describer, rows)
+            n = write_table(text, fmt, REGISTER_COLUMNS, records, raw_csv=raw)
         text.flush()
     finally:
         if text is not out:
             text.close()
     if args.output != "-":
-        err.write(f"{args.output}: {n} {what} ({fmt})\n")
+        err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
     return status
 
 
@@ -159,6 +163,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("--format", choices=EXPORT_FORMATS, help="default: from OUT's extension")
     p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
+    add_raw_csv_option(p)
     add_line_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")

@@ -106,7 +106,11 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         lister = None
         if args.pcap != "-":
             lister = Lister(
-                io.StringIO(), args.format or "text", session.describer, absolute=args.time == "abs"
+                io.StringIO(),
+                args.format or "text",
+                session.describer,
+                absolute=args.time == "abs",
+                raw_csv=args.raw_csv,
             )
         backlog = None if lister is None else Backlog(out, args.backlog)
         selection = Selection(session, query_of(args), args.count)

@@ -71,6 +71,18 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
         help="plain listing instead of the TUI: text, jsonl or csv (default when piped: text)",
     )
     g.add_argument("--time", choices=("rel", "abs"), default="rel", help="time column style")
+    add_raw_csv_option(g)
+
+
+def add_raw_csv_option(g: argparse._ActionsContainer) -> None:
+    """`--raw-csv`: CSV text cells without the leading ' that stops spreadsheets running
+    them as formulas (see `sniffer.text.csv_cell`)."""
+    g.add_argument(
+        "--raw-csv",
+        action="store_true",
+        help="CSV: write text starting with = + - @ as it is, without the leading ' that "
+        "keeps a spreadsheet from running it as a formula (for programs, not spreadsheets)",
+    )
 
 
 def read_options(args: argparse.Namespace) -> ReadOptions:

@@ -91,7 +91,9 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 
     def progress(done: int, frames: int) -> None:
         if show_progress:
-            err.write(f"\rindexing {shown or path.name}: {done / 1e6:.1f} MB, {frames:,} rows")
+            err.write(
+                f"\rindexing {plain(shown or path.name)}: {done / 1e6:.1f} MB, {frames:,} rows"
+            )
             err.flush()
 
     session.ingest(capture.chunks(), progress)
@@ -107,12 +109,18 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         err.write(f"modscope: warning: {plain(w)}\n")
     status = read_status(capture.warnings, len(session.store))
     if args.stats:
-        labels = {u: b.label for u, b in bindings.items()}
-        out.write(f"{shown or path} ({session.line.describe()}, mode {session.mode})\n")
+        labels = {u: plain(b.label) for u, b in bindings.items()}
+        out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n\n")
         out.write(cycle_table(poll_cycles(session.store), labels) + "\n")
         return status
-    lister = Lister(out, args.format or "text", session.describer, absolute=args.time == "abs")
+    lister = Lister(
+        out,
+        args.format or "text",
+        session.describer,
+        absolute=args.time == "abs",
+        raw_csv=args.raw_csv,
+    )
     selection = Selection(session, query, args.count)
     lister.origin = selection.origin()
     lister.write(selection.take(len(session.store), final=True), flush=False)

@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from sniffer.model import Chunk, LineSettings, SourceInfo
+
+# Times a capture may carry: from the epoch to the year 2286 (1e10 s). Damaged files give
+# others (a pcapng tick count of 2**64, a hex dump's "1e30"), which no clock shows and no
+# pcapng can hold; `Capture` gives such a record the time of the one before.
+MAX_TIME = 1e10
+MAX_CHANNEL = 255  # the frame store keeps a channel in one byte
 
 
 class CaptureError(Exception):
@@ -50,12 +56,69 @@ class Capture:
 
     `warnings` holds every warning: those known when the file was opened (also in
     `info.warnings`) and those found while `chunks()` is consumed (a truncated record is
-    only found at the end), so read it after iterating.
+    only found at the end), so read it after iterating. Every warning names the file
+    (`path: ...`, added here for readers that leave it out). `data_bytes` counts the
+    bytes the chunks carried; a file that gave none gets a warning saying so, and
+    `empty` is then true: nothing in it was usable.
     """
 
     info: SourceInfo
     _chunks: Iterator[Chunk]
     warnings: list[str] = field(default_factory=list)
+    data_bytes: int = 0
+    finished: bool = False
+
+    def __post_init__(self) -> None:
+        self._name_warnings()
+
+    @property
+    def empty(self) -> bool:
+        """True once the chunks were read to the end and carried no byte."""
+        return self.finished and self.data_bytes == 0
 
     def chunks(self) -> Iterator[Chunk]:
-        return self._chunks
+        return self._read()
+
+    def _read(self) -> Iterator[Chunk]:
+        last = 0.0
+        retimed = 0
+        try:
+            for chunk in self._chunks:
+                t = chunk.t_end
+                if not 0.0 <= t < MAX_TIME or not 0 <= chunk.channel <= MAX_CHANNEL:
+                    chunk, retimed = self._repair(chunk, last), retimed + 1
+                last = chunk.t_end
+                self.data_bytes += len(chunk.data)
+                yield chunk
+            self.finished = True
+            if retimed:
+                self.warnings.append(
+                    f"{retimed:,} record(s) had a time outside 1970-2286 or a channel "
+                    f"over {MAX_CHANNEL}, signs of damage; their bytes are kept, with the "
+                    f"time of the record before (and channel {MAX_CHANNEL})"
+                )
+            if not self.data_bytes:
+                self.warnings.append(
+                    "no serial data could be read from it; check that it is a capture of "
+                    "the bus (pcapng, pcap, sigrok .sr, hex dump or raw bytes)"
+                )
+        finally:
+            self._name_warnings()
+
+    @staticmethod
+    def _repair(chunk: Chunk, last: float) -> Chunk:
+        if 0.0 <= chunk.t_end < MAX_TIME:
+            t_end, t_start = chunk.t_end, chunk.t_start
+            if t_start is not None and not 0.0 <= t_start <= t_end:
+                t_start = None
+        else:
+            # a point in time just after the record before, so the order stays the file's
+            t_end = t_start = last + 1e-6
+        channel = min(max(chunk.channel, 0), MAX_CHANNEL)
+        return replace(chunk, t_end=t_end, t_start=t_start, channel=channel)
+
+    def _name_warnings(self) -> None:
+        prefix = f"{self.info.path}: "
+        for i, text in enumerate(self.warnings):
+            if not text.startswith(prefix):
+                self.warnings[i] = prefix + text

@@ -41,18 +41,36 @@ _PRINTABLE = bytes(range(32, 127)) + b"\t\n\r"
 OFFSET_LINE = re.compile(r"^[\s>]*([0-9A-Fa-f]{3,})[:\s]\s*[0-9A-Fa-f]{2}(?:\s|$)", re.MULTILINE)
 
 
+SHB_MAGIC = b"\x0a\x0d\x0d\x0a"
+BYTE_ORDER_MAGICS = (b"\x4d\x3c\x2b\x1a", b"\x1a\x2b\x3c\x4d")
+
+
 def _is_pcapng(head: bytes) -> bool:
-    if len(head) < 12 or head[:4] != b"\x0a\x0d\x0d\x0a":
+    if len(head) < 12:
+        # a file cut inside its first header: the reader says so (offset and size)
+        # instead of showing the bytes as noise
+        return _truncated_pcapng(head)
+    if head[:4] != SHB_MAGIC:
         return False
-    return head[8:12] in (b"\x4d\x3c\x2b\x1a", b"\x1a\x2b\x3c\x4d")
+    return head[8:12] in BYTE_ORDER_MAGICS
+
+
+def _truncated_pcapng(head: bytes) -> bool:
+    if not head or not SHB_MAGIC.startswith(head[:4]):
+        return False
+    rest = head[8:]
+    return any(magic.startswith(rest) for magic in BYTE_ORDER_MAGICS)
 
 
 def _is_pcap(head: bytes) -> bool:
-    if len(head) < 24:
+    if len(head) < 4:
         return False
     (magic,) = struct.unpack_from("<I", head)
     if magic not in PCAP_MAGICS:
         return False
+    if len(head) < 24:
+        return True  # cut inside the file header: the reader warns
+
     order = PCAP_MAGICS[magic][0]
     (major,) = struct.unpack_from(order + "H", head, 4)
     return bool(major == 2)

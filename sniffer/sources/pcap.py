@@ -90,6 +90,11 @@ SEPARATION_MARGIN = 1e-6  # beyond t3.5, so float rounding of Unix times cannot 
 RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
 
 
+# channels are one byte in the frame store: interfaces past this many (a damaged file, not
+# a serial capture) are described but not read
+MAX_INTERFACES = 128
+
+
 def packet_direction(linktype: int, role: Direction, flags: int | None) -> Direction:
     """Direction of a packet from its interface's role and its EPB flags (module doc)."""
     if role != Direction.UNKNOWN:
@@ -292,8 +297,12 @@ def _pcap_header(head: bytes) -> _PcapHeader:
 
 def open_pcap(path: Path, options: ReadOptions, head: bytes) -> Capture:
     """Open a pcap file (detected from `head`); one interface, channel 0."""
-    header = _pcap_header(head)
     line = options.line(None)
+    if len(head) < 24:
+        info = SourceInfo(path=str(path), format="pcap", line=line)
+        warning = f"truncated pcap file header at byte offset 0: {len(head)} of 24 bytes"
+        return Capture(info=info, _chunks=iter(()), warnings=[warning])
+    header = _pcap_header(head)
     name = LINKTYPE_NAMES.get(header.linktype, f"link type {header.linktype}")
     label = f"pcap {name}"
     iface = _Interface(
@@ -494,7 +503,16 @@ class _Section:
     def add(self, block: _Block) -> _Interface:
         order, body = block.order, block.body
         channel = len(self.all)
-        if len(body) < 8:
+        if channel >= MAX_INTERFACES:
+            if channel == MAX_INTERFACES:
+                self.warnings.append(
+                    f"interface description at byte offset {block.offset} is the "
+                    f"{channel + 1}th; modscope reads {MAX_INTERFACES} interfaces at most, "
+                    "the packets of the others are skipped"
+                )
+            iface = _Interface(-1, channel, self.options.line(None), f"interface {channel}")
+            iface.warned = True
+        elif len(body) < 8:
             self.warnings.append(
                 f"corrupt interface description at byte offset {block.offset}; "
                 "its packets are skipped"

@@ -1,0 +1,1 @@
+"""The fuzz harness: bounded Hypothesis runs over every reader, framer and dissector."""
