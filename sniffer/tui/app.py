@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from array import array
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from rich.text import Text
@@ -19,6 +19,7 @@ from textual import work
 from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
+from textual.widget import Widget
 from textual.widgets import Input
 from textual.worker import get_current_worker
 
@@ -38,10 +39,11 @@ from sniffer.tui.feed import (
     feed_live,
     live_status,
 )
+from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
 from sniffer.tui.query import QueryError, parse_query, parse_time_point
 from sniffer.tui.rows import FilterJob, resolve_time
-from sniffer.tui.screens.dialogs import AskScreen, HelpScreen
+from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
 from sniffer.tui.watch import Watch
@@ -52,6 +54,9 @@ from sniffer.tui.widgets.watch import WatchPanel
 
 Reopen = Callable[[], tuple[Session, Capture]]
 PANES = ("detail", "units", "watch")
+EXPORT_DEFAULT = "modscope-export.jsonl"
+# bytes a capture file spends on each chunk besides its data (to estimate indexing progress)
+RECORD_OVERHEAD = {"pcap": 16, "pcapng": 32, "raw": 0}
 EXPORT_FORMATS = {"jsonl": "jsonl", "json": "jsonl", "ndjson": "jsonl", "csv": "csv"}
 
 
@@ -120,6 +125,10 @@ class ModscopeApp(App[int]):
         self._rate_mark: tuple[float, int] = (time.monotonic(), 0)
         self._rate: float | None = None
         self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
+        self.applied_filter = ""  # the filter text that the rows show
+        self._file_size: int | None = None  # of the capture file, for indexing progress
+        self._bytes_done = 0
+        self._chunks_done = [0]
 
     # -- layout ----------------------------------------------------------------------------
 
@@ -131,7 +140,8 @@ class ModscopeApp(App[int]):
         await self.push_screen(self.main)
         frames = self.frames
         frames.following = self.live is not None or self.pacing.speed is not None
-        frames.focus()
+        self._focus(frames)
+        self.watch(self.main, "focused", self._focus_changed)
         self.call_after_refresh(self._start_feed)  # the first screen first
         self.set_interval(0.5, self._tick)
         self.call_after_refresh(self._header)
@@ -166,7 +176,18 @@ class ModscopeApp(App[int]):
             )
         elif self.capture is not None:
             capture = self.capture
-            chunks: Iterable[Chunk] = capture.chunks()
+            try:
+                self._file_size = Path(capture.info.path).stat().st_size
+            except OSError:
+                self._file_size = None
+            counter = self._chunks_done = [0]
+
+            def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+                for chunk in chunks:
+                    counter[0] += 1
+                    yield chunk
+
+            chunks: Iterable[Chunk] = counted(capture.chunks())
             self.run_worker(
                 lambda: feed_capture(session, chunks, pacing, publish, warnings=capture.warnings),
                 thread=True,
@@ -180,6 +201,7 @@ class ModscopeApp(App[int]):
         if message.generation != self.generation or not self.main.alive:
             return
         p = message.progress
+        self._bytes_done = p.bytes_done
         self.model.publish(p.rows)
         if p.done:
             self.model.done = True
@@ -260,6 +282,10 @@ class ModscopeApp(App[int]):
         bar.set_class(model.problems_only, "-problems")
         bar.set_class(model.transactions, "-transactions")
         parts = []
+        edited = self.main.filter_input.value != self.applied_filter
+        bar.set_class(edited, "-edited")
+        if edited:
+            parts.append("edited: ⏎ applies, esc restores")
         if model.problems_only:
             parts.append("problems")
         if model.transactions:
@@ -273,20 +299,108 @@ class ModscopeApp(App[int]):
         info.update(Text(" · ".join(parts)))
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id != "filter":
-            return
+        """Enter in an input that did not come through the priority key (a click, a paste)."""
         event.stop()
+        if event.input is self.main.filter_input:
+            self._apply_filter(event.value)
+        elif event.input is self.main.prompt.input:
+            self._close_prompt(submit=True)
+
+    def on_input_changed(self, event: Input.Changed) -> None:
+        if event.input is self.main.filter_input:
+            self._filter_info()
+
+    def _apply_filter(self, text: str) -> None:
         bar = self.main.filter_bar
         try:
-            query = parse_query(event.value)
+            query = parse_query(text)
         except QueryError as exc:
             bar.add_class("-error")
             self.main.filter_info.update(Text(str(exc)))
+            self._focus(self.main.filter_input)  # to correct it
             return
         bar.remove_class("-error")
         self.model.query = query
+        self.applied_filter = text
         self._restart_filter()
-        self.frames.focus()
+
+    # -- focus and keys --------------------------------------------------------------------
+
+    def _focus(self, widget: Widget) -> None:
+        """Focus `widget` now, not after the keys already queued (`Widget.focus` waits)."""
+        widget.screen.set_focus(widget)
+
+    def focus_context(self) -> Context:
+        main, focused = self.main, self.main.focused
+        if focused is None or focused is main.frames:
+            return Context.LIST
+        if isinstance(focused, Input):
+            return Context.INPUT
+        if focused is main.units:
+            return Context.UNITS
+        return Context.ANY
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """The main screen's keys apply only where the focus is (see `sniffer.tui.keys`);
+        a key that does not apply goes on to the focused widget."""
+        if self.screen is not self.main:
+            return True
+        context = key_context(action)
+        if context is None:
+            return True
+        here = self.focus_context()
+        if context is Context.ANY:
+            return here is not Context.INPUT
+        return here is context
+
+    def _focus_changed(self) -> None:
+        if self.main.alive:
+            self.main.keybar.show(self.focus_context())
+
+    def action_list(self, name: str, step: int) -> None:
+        frames = self.frames
+        if name == "cursor":
+            frames.action_cursor(step)
+        elif name == "page":
+            frames.action_page(step)
+        elif name == "first":
+            frames.action_first()
+        else:
+            frames.action_follow()
+
+    def action_submit(self) -> None:
+        """Enter in an input: the list has the focus at once (keys typed after Enter go
+        there); the input commits once it has taken the characters typed before it."""
+        main = self.main
+        field = main.focused
+        self._focus(self.frames)
+        if field is main.filter_input:
+            field.call_later(lambda: self._apply_filter(main.filter_input.value))
+        elif field is main.prompt.input:
+            field.call_later(main.prompt.close, True)
+
+    def action_cancel(self) -> None:
+        main = self.main
+        field = main.focused
+        self._focus(self.frames)
+        if field is main.filter_input:
+            field.call_later(self._revert_filter)
+        elif field is main.prompt.input:
+            field.call_later(main.prompt.close, False)
+
+    def _revert_filter(self) -> None:
+        self.main.filter_input.value = self.applied_filter  # the bar shows what is applied
+        self._filter_info()
+
+    def action_next_pane(self) -> None:
+        self.main.focus_next()
+
+    def _ask(self, prompt: str, answer: Callable[[str | None], None], default: str = "") -> None:
+        self.main.prompt.ask(prompt, answer, default=default)
+
+    def _close_prompt(self, submit: bool) -> None:
+        self._focus(self.frames)
+        self.main.prompt.close(submit)
 
     # -- cursor and details ----------------------------------------------------------------
 
@@ -318,14 +432,14 @@ class ModscopeApp(App[int]):
         self.push_screen(HelpScreen())
 
     def action_edit_filter(self) -> None:
-        self.main.filter_input.focus()
+        self._focus(self.main.filter_input)
 
     def action_to_list(self) -> None:
-        self.frames.focus()
+        self._focus(self.frames)
 
     def action_fields(self) -> None:
         if self.main.lower.current == "detail":
-            self.main.detail.query_one("#fields").focus()
+            self._focus(self.main.detail.query_one("#fields"))
 
     def action_problems(self) -> None:
         self.model.problems_only = not self.model.problems_only
@@ -382,14 +496,7 @@ class ModscopeApp(App[int]):
         self.main.toggle_class("-zoom")
 
     def action_go_to(self) -> None:
-        self.push_screen(
-            AskScreen(
-                "go to: seconds from the start (12.5, 2m), a clock time (14:03:07) "
-                "or a row (#1234)",
-                placeholder="12.5",
-            ),
-            self._go_to,
-        )
+        self._ask("go to (12.5, 2m, 1:02:03.5, 14:03:07, #1234):", self._go_to)
 
     def _go_to(self, answer: str | None) -> None:
         if not answer:
@@ -441,13 +548,7 @@ class ModscopeApp(App[int]):
             self._status()
             return
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        self.push_screen(
-            AskScreen(
-                "record the line from now on to (pcapng; r again stops)",
-                value=f"modscope-{stamp}.pcapng",
-            ),
-            self._record,
-        )
+        self._ask("record to (pcapng; r stops):", self._record, f"modscope-{stamp}.pcapng")
 
     def _record(self, answer: str | None) -> None:
         live = self.live
@@ -463,13 +564,7 @@ class ModscopeApp(App[int]):
 
     def action_export(self) -> None:
         count = len(self.model.view)
-        self.push_screen(
-            AskScreen(
-                f"export the {count:,} rows shown to a file (.jsonl, .csv, anything else: text)",
-                value="modscope-export.jsonl",
-            ),
-            self._export,
-        )
+        self._ask(f"export {count:,} rows to (.jsonl .csv .txt):", self._export, EXPORT_DEFAULT)
 
     def _export(self, answer: str | None) -> None:
         if not answer:
@@ -574,8 +669,20 @@ class ModscopeApp(App[int]):
             recorded_bytes=status.recorded_bytes,
             losses=status.lost_bytes,
             note=self.feed_note or status.failure,
+            live=live is not None,
+            reconnecting=status.reconnecting,
+            progress=self._index_progress(),
         )
         self.main.status.show(info)
+
+    def _index_progress(self) -> float | None:
+        """How far indexing got, estimated from the file's size (pcap formats, raw)."""
+        capture = self.capture
+        overhead = RECORD_OVERHEAD.get(capture.info.format) if capture is not None else None
+        if overhead is None or self._file_size is None or not self._file_size:
+            return None
+        done = self._bytes_done + self._chunks_done[0] * overhead
+        return max(0.0, min(0.99, done / self._file_size))
 
     def _units(self) -> None:
         model = self.model

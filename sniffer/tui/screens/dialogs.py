@@ -1,4 +1,4 @@
-"""Provides the small screens: help, export to a file, jump to a time or row."""
+"""Provides the help screen (questions are asked in the main screen's prompt line)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from typing import ClassVar
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Vertical, VerticalScroll
+from textual.containers import VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Input, Static
+from textual.widgets import Static
 
 HELP = """\
 modscope: keys
@@ -57,28 +57,4 @@ class HelpScreen(ModalScreen[None]):
             yield Static(Text(HELP), id="help-text")
 
     def action_close(self) -> None:
-        self.dismiss(None)
-
-
-class AskScreen(ModalScreen[str | None]):
-    """One line of input with a prompt: Enter answers, Esc cancels."""
-
-    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape", "cancel", "cancel")]
-
-    def __init__(self, prompt: str, value: str = "", placeholder: str = "") -> None:
-        super().__init__()
-        self.prompt = prompt
-        self.value = value
-        self.placeholder = placeholder
-
-    def compose(self) -> ComposeResult:
-        with Vertical(id="ask-box"):
-            yield Static(Text(self.prompt), id="ask-prompt")
-            yield Input(self.value, placeholder=self.placeholder, id="ask-input")
-
-    def on_input_submitted(self, event: Input.Submitted) -> None:
-        event.stop()
-        self.dismiss(event.value.strip() or None)
-
-    def action_cancel(self) -> None:
         self.dismiss(None)
