@@ -251,14 +251,14 @@ async def test_a_is_absolute_time() -> None:
     app = ModscopeApp(hostile_session())
     async with app.run_test(size=SIZE) as pilot:
         await ready(pilot, app)
-        assert lines(app)[0].startswith("   0.000000")
+        assert lines(app)[0].startswith("    0.000000")
         await pilot.press("a")
         await pilot.pause()
         first = lines(app)[0].strip()
         assert first[2] == ":" and first[5] == ":"
         await pilot.press("a")
         await pilot.pause()
-        assert lines(app)[0].startswith("   0.000000")
+        assert lines(app)[0].startswith("    0.000000")
 
 
 # -- go to, export ------------------------------------------------------------------------------

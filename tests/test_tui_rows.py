@@ -9,6 +9,8 @@ import time
 from array import array
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from rich.style import Style
 
 from dissectors.values import Dissection
@@ -32,7 +34,9 @@ from sniffer.tui.render import (
     register_span,
     row_state,
     row_text,
+    span_text,
     sparkline,
+    time_width,
 )
 from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
 from sniffer.tui.watch import HISTORY, Sample, Series, Watch
@@ -331,7 +335,7 @@ def test_view_model_lines_use_the_published_rows() -> None:
     model.update_view()
     cols = columns_for(300, absolute=False)
     first = model.line(0, cols, {}).plain
-    assert first.startswith("   0.000000") and "u3" in first and "Read Input Registers" in first
+    assert first.startswith("    0.000000") and "u3" in first and "Read Input Registers" in first
     assert "+20.0ms" in model.line(1, cols, {}).plain
     model.transactions = True
     model.new_job()
@@ -593,3 +597,24 @@ def test_an_open_request_at_the_end_waits_until_the_capture_is_indexed() -> None
     assert n - 1 not in job.rows and not job.caught_up
     assert not job.advance(n, final=True)  # ... or the capture is known to be complete
     assert job.rows[-1] == n - 1 and job.caught_up
+
+
+@pytest.mark.parametrize(
+    ("seconds", "shown"),
+    [
+        (0.0, "0.000000"),
+        (3599.9999994, "3599.999999"),
+        (3600.0, "1:00:00.000000"),
+        (38499.538707, "10:41:39.538707"),
+        (3661.000001, "1:01:01.000001"),
+    ],
+)
+def test_times_past_an_hour_read_as_hours_minutes_seconds(seconds: float, shown: str) -> None:
+    assert span_text(seconds) == shown
+
+
+@given(st.floats(0, 400_000, allow_nan=False))
+def test_the_time_column_holds_every_time_of_the_capture(span: float) -> None:
+    width = time_width(span, absolute=False)
+    for t in (0.0, span / 3, span):
+        assert len("●" + span_text(t)) <= width

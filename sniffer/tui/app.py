@@ -8,6 +8,7 @@ run in their own worker threads over the published rows and post their progress.
 
 from __future__ import annotations
 
+import io
 import time
 from array import array
 from collections import deque
@@ -41,8 +42,9 @@ from sniffer.tui.feed import (
 )
 from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
-from sniffer.tui.query import QueryError, parse_query, parse_time_point
-from sniffer.tui.rows import FilterJob, resolve_time
+from sniffer.tui.navigate import find_row
+from sniffer.tui.query import Query, QueryError, parse_query, parse_time_point
+from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
 from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
@@ -53,6 +55,7 @@ from sniffer.tui.widgets.units import Cache, unit_rows
 from sniffer.tui.widgets.watch import WatchPanel
 
 Reopen = Callable[[], tuple[Session, Capture]]
+PROBLEMS = parse_query("status:problem")
 PANES = ("detail", "units", "watch")
 EXPORT_DEFAULT = "modscope-export.jsonl"
 # bytes a capture file spends on each chunk besides its data (to estimate indexing progress)
@@ -126,6 +129,9 @@ class ModscopeApp(App[int]):
         self._rate: float | None = None
         self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
         self.applied_filter = ""  # the filter text that the rows show
+        self.search: Query | None = None  # what n/N look for
+        self.search_text = ""
+        self.search_from: tuple[int, int] | None = None  # (step, row) a cut-short scan reached
         self._file_size: int | None = None  # of the capture file, for indexing progress
         self._bytes_done = 0
         self._chunks_done = [0]
@@ -407,11 +413,15 @@ class ModscopeApp(App[int]):
     def on_frame_list_cursor_moved(self, message: FrameList.CursorMoved) -> None:
         self._show_detail(message.row)
 
+    def on_frame_list_columns_changed(self, message: FrameList.ColumnsChanged) -> None:
+        if self.main.alive:
+            self.main.header.show(message.cols)
+
     def on_frame_list_follow_changed(self, message: FrameList.FollowChanged) -> None:
         self._status()
 
     def _show_detail(self, row: int | None, *, partner_first: bool = False) -> None:
-        if self.main.lower.current != "detail":
+        if not self.main.alive or self.main.lower.current != "detail":
             return
         pane = self.main.detail
         if row is None:
@@ -590,6 +600,110 @@ class ModscopeApp(App[int]):
             self.call_from_thread(self.say, reason, severity="error")
             return
         self.call_from_thread(self.say, f"wrote {n:,} rows to {path} ({fmt})")
+
+    # -- search, problems, marks, copy ------------------------------------------------------
+
+    def action_find(self) -> None:
+        self._ask("find (filter terms; n/N next/previous):", self._set_search, self.search_text)
+
+    def _set_search(self, answer: str | None) -> None:
+        if not answer:
+            return
+        try:
+            self.search = parse_query(answer)
+        except QueryError as exc:
+            self.say(str(exc), severity="error")
+            return
+        self.search_text = answer
+        self.search_from = None
+        self.action_find_next(1)
+
+    def action_find_next(self, step: int) -> None:
+        if self.search is None:
+            self.action_find()
+            return
+        self._find(self.search, step, f"{self.search_text!r}")
+
+    def action_problem(self, step: int) -> None:
+        self._find(PROBLEMS, step, "problem")
+
+    def _find(self, query: Query, step: int, what: str) -> None:
+        model, frames = self.model, self.frames
+        here = frames.cursor_row
+        if here is None:
+            return
+        start = here
+        if what != "problem" and self.search_from is not None and self.search_from[0] == step:
+            start = self.search_from[1]  # a scan cut short goes on where it stopped
+        self.search_from = None
+        lo, hi = time_bounds(model.reader, query, model.origin, model.shown)
+        start = max(lo - 1, min(start, hi)) if step > 0 else min(hi, max(start, lo - 1))
+        found = find_row(
+            model.reader,
+            model.describer,
+            query,
+            model.options(),
+            start,
+            step,
+            hi,
+            model.view.contains,
+        )
+        if found.row is not None:
+            frames.go_to_row(found.row)
+        elif not found.complete:
+            self.search_from = (step, found.stopped)
+            self.say(f"no {what} up to #{found.stopped} yet: press again to search on")
+        else:
+            where = "after" if step > 0 else "before"
+            self.say(f"no {what} {where} #{here}")
+
+    def action_mark(self) -> None:
+        row = self.frames.cursor_row
+        if row is None:
+            return
+        marks = self.model.marks
+        if row in marks:
+            marks.discard(row)
+            self.say(f"mark on #{row} removed")
+        else:
+            marks.add(row)
+            self.say(f"marked #{row}: ' jumps between marks")
+        self.frames.reset()
+
+    def action_jump_mark(self) -> None:
+        marks = sorted(r for r in self.model.marks if self.model.view.contains(r))
+        row = self.frames.cursor_row
+        if not marks or row is None:
+            self.say("no marks: m marks the selected row")
+            return
+        later = [r for r in marks if r > row]
+        self.frames.go_to_row(later[0] if later else marks[0])
+
+    def action_copy(self, what: str) -> None:
+        row = self.frames.cursor_row
+        if row is None:
+            return
+        if what == "hex":
+            text = self.model.reader.raw(row).hex(" ")
+        else:
+            out = io.StringIO()
+            Lister(out, "jsonl", self.model.describer, absolute=self.model.absolute).write(
+                [row], flush=False
+            )
+            text = out.getvalue().strip()
+        self.copy_to_clipboard(text)
+        self.say(f"copied #{row} as {what} ({len(text):,} characters, OSC 52)")
+
+    def action_filter_unit(self) -> None:
+        units = self.main.units
+        k = units.cursor_row
+        keys = [str(key.value) for key in units.rows]
+        if not 0 <= k < len(keys):
+            return
+        text = f"unit:{keys[k]}"
+        self.main.filter_input.value = text
+        self._apply_filter(text)
+        self._focus(self.frames)
 
     # -- restart (replay at the original speed) --------------------------------------------
 

@@ -76,10 +76,33 @@ def row_state(v: FrameView) -> str:
 
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
+    """Wall-clock `14:03:07.123` or time from the start: `12.345678` below an hour,
+    `1:02:03.456789` (h:mm:ss.ffffff) past it."""
     if absolute:
         stamp = datetime.fromtimestamp(t, tz=UTC).astimezone()
         return stamp.strftime("%H:%M:%S.%f")[:-3]
-    return f"{t - origin:.6f}"
+    return span_text(t - origin)
+
+
+def span_text(seconds: float) -> str:
+    """Seconds as `12.345678`, or `h:mm:ss.ffffff` from an hour on (to the microsecond)."""
+    if seconds < 3600:
+        return f"{seconds:.6f}"
+    micros = round(seconds * 1e6)
+    whole, frac = divmod(micros, 1_000_000)
+    minutes, secs = divmod(whole, 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}.{frac:06d}"
+
+
+def time_width(span: float, absolute: bool) -> int:
+    """Cells the time column needs for a capture lasting `span` seconds (one more for a
+    mark), so no time is ever cut."""
+    if absolute:
+        return 13
+    if span < 3600:
+        return 12
+    return len(span_text(span)) + 1
 
 
 def delta_text(dt: float | None) -> str:
@@ -129,8 +152,10 @@ class Columns:
     latency: int
 
 
-def columns_for(width: int, absolute: bool) -> Columns:
-    time = 12 if absolute else 11
+def columns_for(width: int, absolute: bool, span: float = 0.0) -> Columns:
+    """The columns for a width: narrower terminals drop the delta and the device label
+    first and shorten function names; the time column fits the capture's length."""
+    time = time_width(span, absolute)
     if width >= 110:
         return Columns(width, time, 9, 14, 24, 8)
     if width >= 90:
