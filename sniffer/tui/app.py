@@ -48,6 +48,7 @@ from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
 from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
+from sniffer.tui.theme import themes
 from sniffer.tui.watch import Watch
 from sniffer.tui.widgets.frame_list import FrameList
 from sniffer.tui.widgets.status import StatusInfo
@@ -108,8 +109,12 @@ class ModscopeApp(App[int]):
         reopen: Reopen | None = None,
         speed: float | None = None,
         blink: bool = True,
+        light: bool = False,
     ) -> None:
         super().__init__()
+        for theme in themes():
+            self.register_theme(theme)
+        self.theme = "modscope-light" if light else "modscope-dark"
         self.session = session
         self.capture = capture
         self.live = live
@@ -466,6 +471,10 @@ class ModscopeApp(App[int]):
 
     def action_follow(self) -> None:
         self.frames.action_follow()
+
+    def action_theme(self) -> None:
+        self.theme = "modscope-light" if self.theme == "modscope-dark" else "modscope-dark"
+        self.frames.reset()
 
     def action_pause(self) -> None:
         self.paused = not self.paused

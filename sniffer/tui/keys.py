@@ -64,6 +64,7 @@ KEYS: tuple[Key, ...] = (
     Key("f", "follow", "f", "follow"),
     Key("a", "absolute", "a", "time"),
     Key("tab", "next_pane", "tab", "pane", bar=False),
+    Key("T", "theme", "T", "light/dark", bar=False),
     # the frame list
     Key("up,k", "list('cursor', -1)", "↑", "up", Context.LIST, bar=False),
     Key("down,j", "list('cursor', 1)", "↓", "down", Context.LIST, bar=False),

@@ -1,4 +1,4 @@
-"""Provides searching without filtering: the next or previous row matching a query (`n`/`N`, `]`/`[`).
+"""Provides search without filtering: the next or previous row that matches (`n` `N`, `]` `[`).
 
 The scan goes block by block from the cursor in one direction over the store's columns
 (cheap) and decodes only the candidates when the query needs details. It stops after a
