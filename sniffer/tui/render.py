@@ -163,6 +163,18 @@ def columns_for(width: int, absolute: bool, span: float = 0.0) -> Columns:
     return Columns(width, time, 0, 0, 15, 7)
 
 
+def fit_columns(
+    columns: Sequence[tuple[str, int]], priority: Sequence[str], width: int, pad: int = 2
+) -> list[str]:
+    """The names of the columns that fit in `width` cells (each takes its width plus
+    `pad`): whole columns are left out, the least important first (`priority` lists the
+    names most important first), and the others keep their order."""
+    keep = list(priority)
+    while keep and sum(w + pad for n, w in columns if n in keep) > width:
+        keep.pop()
+    return [n for n, _ in columns if n in keep]
+
+
 # shorter names for narrow terminals, used only when the full name does not fit
 SHORT_NAMES = {
     "Read Coils": "Read Coils",
@@ -337,6 +349,23 @@ def register_text(r: RegisterValue) -> str:
     """`Under Voltage Trip = 300 V  [0x012C]`"""
     words = " ".join(f"0x{w:04X}" for w in r.raw[:8]) + (" …" if len(r.raw) > 8 else "")
     return plain(f"{r.text}  [{words}]" if words else r.text)
+
+
+def register_label(r: RegisterValue, width: int) -> str:
+    """`Under Voltage Trip = 300 V  [0x012C]` in `width` cells: the raw words go first,
+    then the name is shortened (`Under Volt… = 300 V`); the value is never cut."""
+    full = register_text(r)
+    if len(full) <= width:
+        return full
+    head = r.name + " = "
+    value = plain(r.text[len(head) :] if r.text.startswith(head) else r.text)
+    name = plain(r.name)
+    room = width - len(value) - 3
+    if room >= len(name):
+        return f"{name} = {value}"
+    if room >= 4:
+        return f"{name[: room - 1]}… = {value}"
+    return value
 
 
 def sparkline(values: Sequence[float], width: int) -> str:
