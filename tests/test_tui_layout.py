@@ -98,3 +98,28 @@ def test_a_register_label_never_cuts_its_value(name: str, value: float, width: i
     )
     label = register_label(r, width)
     assert label.endswith(shown) or label.endswith(shown + "  [0x0064]")
+
+
+@pytest.mark.asyncio
+async def test_a_plot_from_a_partial_scan_says_so() -> None:
+    from sniffer.tui.screens.register import RegisterScreen
+    from sniffer.tui.watch import Sample, Series
+
+    series = Series((3, "holding", 13, "Under Voltage Trip"), "Under Voltage Trip", "V", "Pump")
+    for k, v in enumerate((300.0, 300.0, 320.0)):
+        series.add(Sample(float(k), v, f"{v:.0f} V", k))
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=(80, 24)) as pilot:
+        await opened(pilot, app)
+        await app.push_screen(RegisterScreen(series, 0.0, False, scanned=0.45))
+        await pilot.pause()
+        text = screen_text(app)
+        assert "PARTIAL: 45% of the capture read" in text and "latest so far: 320 V" in text
+        app.pop_screen()
+        await pilot.press("w")
+        deadline = time.monotonic() + 10
+        while app._watch_progress() is not None:
+            assert time.monotonic() < deadline
+            await pilot.pause(0.05)
+        app._watch()
+        assert app.main.lower.border_title == "register watch"

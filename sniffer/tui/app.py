@@ -503,6 +503,7 @@ class ModscopeApp(App[int]):
         switcher = self.main.lower
         self.main.remove_class("-zoom")
         switcher.current = name
+        switcher.border_title = {"detail": "details", "units": "units"}.get(name, "")
         if name == "detail":
             self._show_detail(self.frames.cursor_row)
         elif name == "units":
@@ -834,10 +835,25 @@ class ModscopeApp(App[int]):
                     break
                 time.sleep(0.2)
 
+    def _watch_progress(self) -> float | None:
+        """How much of the capture the register watch has read; None once it has all."""
+        watch, model = self.watch_model, self.model
+        if watch is None:
+            return 0.0
+        if model.done and watch.next >= model.published:
+            return None
+        return watch.next / max(1, model.published)
+
     def _watch(self) -> None:
         watch = self.watch_model
         if watch is None:
             return
+        scanned = self._watch_progress()
+        self.main.lower.border_title = (
+            "register watch"
+            if scanned is None
+            else f"register watch · PARTIAL: {scanned:.0%} read, values so far"
+        )
         panel = self.main.watch_panel
         panel.show(watch.snapshot(), self.model.latest, watch.version)
 
@@ -847,7 +863,8 @@ class ModscopeApp(App[int]):
             return
         with watch.lock:
             series = watch.series[message.key]
-        screen = RegisterScreen(series, self.model.origin, self.model.absolute)
+        scanned = self._watch_progress()
+        screen = RegisterScreen(series, self.model.origin, self.model.absolute, scanned)
         self.push_screen(screen, self._jump_to_row)
 
     def _jump_to_row(self, row: int | None) -> None:

@@ -381,7 +381,9 @@ def sparkline(values: Sequence[float], width: int) -> str:
 
 
 def plot(points: Sequence[tuple[float, float]], width: int, height: int, styles: Styles) -> Text:
-    """A block-character plot of (t, value) points: min/max on the left, time below."""
+    """A plot of (t, value) points: each column spans the lowest to the highest value that
+    fell in it (so no spike or sag between columns is lost) with its mean marked `━`;
+    the range of values on the left, the time below."""
     out = Text(no_wrap=True)
     if not points or width < 16 or height < 3:
         out.append("(no values)", styles.get("dim"))
@@ -391,36 +393,57 @@ def plot(points: Sequence[tuple[float, float]], width: int, height: int, styles:
     label_w = max(len(_num(low)), len(_num(high))) + 1
     cols = max(4, width - label_w - 1)
     rows = max(1, height - 1)
-    t0, t1 = points[0][0], points[-1][0]
-    span = (t1 - t0) or 1.0
-    column: list[float | None] = [None] * cols
-    for t, v in points:
-        k = min(cols - 1, int((t - t0) / span * (cols - 1)))
-        column[k] = v
-    last: float | None = None
-    for k in range(cols):  # carry the last value forward over empty columns
-        if column[k] is None:
-            column[k] = last
-        last = column[k]
-    levels = rows * 8
+    columns = plot_columns(points, cols)
     scale = (high - low) or 1.0
+
+    def row_of(v: float) -> int:  # 0 is the top line
+        if high == low:
+            return rows // 2
+        return rows - 1 - min(rows - 1, int((v - low) / scale * rows))
+
+    cells = [[" "] * cols for _ in range(rows)]
+    kinds = [[""] * cols for _ in range(rows)]
+    for k, col in enumerate(columns):
+        if col is None:
+            continue
+        lo_v, hi_v, mean = col
+        top, bottom = row_of(hi_v), row_of(lo_v)
+        for r in range(top, bottom + 1):
+            cells[r][k], kinds[r][k] = "│" if top != bottom else "─", "plot"
+        m = row_of(mean)
+        cells[m][k], kinds[m][k] = "━", "mean"
     for r in range(rows):
         label = _num(high) if r == 0 else _num(low) if r == rows - 1 else ""
         out.append(label.rjust(label_w) + "│", styles.get("dim"))
-        floor = (rows - 1 - r) * 8
-        line = []
-        for value in column:
-            if value is None:
-                line.append(" ")
-                continue
-            level = round((value - low) / scale * (levels - 1)) + 1 if high != low else levels // 2
-            fill = level - floor
-            line.append(" " if fill <= 0 else "█" if fill >= 8 else SPARK[fill - 1])
-        out.append("".join(line), styles.get("plot"))
+        for k in range(cols):
+            kind = kinds[r][k]
+            out.append(cells[r][k], styles.get(kind) if kind else None)
         out.append("\n")
-    axis = f"{0.0:.1f}s".ljust(cols // 2) + f"+{span:.1f}s".rjust(cols - cols // 2)
+    t0, t1 = points[0][0], points[-1][0]
+    span = t1 - t0
+    axis = "0s".ljust(cols // 2) + f"+{span_text(span) if span >= 3600 else f'{span:.1f}s'}".rjust(
+        cols - cols // 2
+    )
     out.append(" " * label_w + "└" + axis, styles.get("dim"))
     return out
+
+
+def plot_columns(
+    points: Sequence[tuple[float, float]], cols: int
+) -> list[tuple[float, float, float] | None]:
+    """(min, max, mean) of the values that fall in each of `cols` equal time slices
+    (None for a slice with none)."""
+    t0, t1 = points[0][0], points[-1][0]
+    span = (t1 - t0) or 1.0
+    acc: list[list[float] | None] = [None] * cols
+    for t, v in points:
+        k = min(cols - 1, int((t - t0) / span * cols))
+        a = acc[k]
+        if a is None:
+            acc[k] = [v, v, v, 1.0]
+        else:
+            a[0], a[1], a[2], a[3] = min(a[0], v), max(a[1], v), a[2] + v, a[3] + 1
+    return [None if a is None else (a[0], a[1], a[2] / a[3]) for a in acc]
 
 
 def _num(v: float) -> str:
