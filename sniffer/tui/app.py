@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from rich.text import Text
-from textual import work
+from textual import events, work
 from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
@@ -51,6 +51,7 @@ from sniffer.tui.screens.register import RegisterScreen
 from sniffer.tui.theme import themes
 from sniffer.tui.watch import Watch
 from sniffer.tui.widgets.frame_list import FrameList
+from sniffer.tui.widgets.prompt import LineInput
 from sniffer.tui.widgets.status import StatusInfo
 from sniffer.tui.widgets.units import Cache, unit_rows
 from sniffer.tui.widgets.watch import WatchPanel
@@ -247,6 +248,11 @@ class ModscopeApp(App[int]):
         self.filter_generation += 1
         self.workers.cancel_group(self, "filter")
         job = model.new_job()
+        if job is not None:  # the first rows now, so keys typed after Enter find them
+            job.advance(
+                model.shown, budget=0.05, final=model.done and model.shown == model.published
+            )
+            model.update_view()
         frames.anchor_row = None if frames.following else keep
         frames.reset()
         frames.rows_changed()
@@ -379,25 +385,33 @@ class ModscopeApp(App[int]):
         else:
             frames.action_follow()
 
+    async def on_event(self, event: events.Event) -> None:
+        """Keys for the filter or the prompt are typed into it here, as they arrive, so
+        they keep their order with the keys before and after them (see LineInput)."""
+        if isinstance(event, events.Key) and not event.is_forwarded and self.screen is self.main:
+            field = self.main.focused
+            if isinstance(field, LineInput) and await field.type_key(event):
+                event.stop()
+                return
+        await super().on_event(event)
+
     def action_submit(self) -> None:
-        """Enter in an input: the list has the focus at once (keys typed after Enter go
-        there); the input commits once it has taken the characters typed before it."""
         main = self.main
         field = main.focused
-        self._focus(self.frames)
+        self._focus(self.frames)  # keys typed after Enter go to the list
         if field is main.filter_input:
-            field.call_later(lambda: self._apply_filter(main.filter_input.value))
+            self._apply_filter(main.filter_input.value)
         elif field is main.prompt.input:
-            field.call_later(main.prompt.close, True)
+            main.prompt.close(True)
 
     def action_cancel(self) -> None:
         main = self.main
         field = main.focused
         self._focus(self.frames)
         if field is main.filter_input:
-            field.call_later(self._revert_filter)
+            self._revert_filter()
         elif field is main.prompt.input:
-            field.call_later(main.prompt.close, False)
+            main.prompt.close(False)
 
     def _revert_filter(self) -> None:
         self.main.filter_input.value = self.applied_filter  # the bar shows what is applied
@@ -448,6 +462,7 @@ class ModscopeApp(App[int]):
 
     def action_edit_filter(self) -> None:
         self._focus(self.main.filter_input)
+        self.main.filter_input.select_all()
 
     def action_to_list(self) -> None:
         self._focus(self.frames)

@@ -74,3 +74,4 @@ class MainScreen(Screen[None]):
         self.filter_input.cursor_blink = self.blink
         self.prompt.input.cursor_blink = self.blink
         self.prompt.display = False
+        self.lower.border_title = "details"

@@ -11,25 +11,43 @@ from textual import events
 from textual.app import ComposeResult
 from textual.containers import Horizontal
 from textual.widgets import Input, Static
+from textual.widgets.input import Selection
 
 Answer = Callable[[str | None], None]
 
 
 class LineInput(Input):
-    """An input that handles its editing keys (Backspace, arrows, ...) in its own queue, in
-    order with the characters. Textual's Input leaves them to its bindings, which run when
-    the key has bubbled up to the app: in a fast burst a later character is inserted
-    first (`ab` Backspace `c` gave `ab`). Enter and Esc belong to the app (it moves the
-    focus at once, then commits here after the characters before them)."""
+    """An input the app types into itself (`type_key`), in the app's own loop.
 
-    async def _on_key(self, event: events.Key) -> None:
-        if not event.is_printable and event.key not in ("enter", "escape", "tab"):
-            for binding in self._bindings.key_to_bindings.get(event.key, ()):
-                event.stop()
-                event.prevent_default()
-                await self.run_action(binding.action)
-                return
-        await super()._on_key(event)
+    Textual hands a key to the focused input by queueing it there; a key that ends the
+    input (Enter) is handled by the app before the input has taken the characters
+    queued ahead of it, and editing keys (Backspace, arrows) run from the input's
+    bindings only after bubbling back up to the app, behind later characters. Typing
+    each key into the input when the app receives it keeps every key in order with
+    the keys around it, however fast they come."""
+
+    def __init__(self, value: str = "", *, placeholder: str = "", id: str | None = None) -> None:
+        super().__init__(value, placeholder=placeholder, id=id, select_on_focus=False)
+
+    async def type_key(self, event: events.Key) -> bool:
+        """Apply a key now; False if it is not one for the input (Enter, Esc, Tab)."""
+        if event.is_printable and event.character is not None:
+            selection = self.selection
+            if selection.is_empty:
+                self.insert_text_at_cursor(event.character)
+            else:
+                self.replace(event.character, *selection)
+            return True
+        for binding in self._bindings.key_to_bindings.get(event.key, ()):
+            if binding.action in ("submit",):
+                return False
+            await self.run_action(binding.action)
+            return True
+        return False
+
+    def select_all(self) -> None:
+        """Select the text now (typing replaces it; an arrow key keeps it)."""
+        self.selection = Selection(0, len(self.value))
 
 
 class PromptBar(Horizontal):
