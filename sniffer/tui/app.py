@@ -752,6 +752,7 @@ class ModscopeApp(App[int]):
         self.indexed = _Flag()
         self.feed_note = ""
         self.pacing = Pacing(speed)
+        self._rate_mark, self._rate = (time.monotonic(), 0), None
         frames = self.frames
         frames.model = self.main.model = self.model
         frames.following = True
@@ -767,8 +768,10 @@ class ModscopeApp(App[int]):
             return
         now = time.monotonic()
         mark_t, mark_rows = self._rate_mark
-        if now - mark_t >= 1.0:
-            rows = self.model.published
+        rows = self.model.published
+        if rows < mark_rows:  # a restart (s) began again from the first row
+            self._rate_mark, self._rate = (now, rows), None
+        elif now - mark_t >= 1.0:
             self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
             self._rate_mark = (now, rows)
         self._status()

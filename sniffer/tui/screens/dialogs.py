@@ -16,19 +16,25 @@ modscope: keys
 
   ↑ ↓ PgUp PgDn Home   move in the frame list (moving up stops following)
   End  f               follow the newest frame again
-  Enter                show the frame's fields (Tab moves between panes)
+  Enter                show the frame's fields (Tab moves between panes);
+                       on a unit in the units pane: filter to it
   p                    jump to the paired request or answer
-  /                    edit the filter (Enter applies, Esc goes back)
+  /                    edit the filter (Enter applies, Esc puts back the applied one)
   !                    only problems (exceptions, timeouts, bad checks, noise)
+  ] [                  next / previous problem, without filtering
+  F  n N               find (filter terms), next / previous match, without filtering
+  m  '                 mark the row / jump to the next mark
+  c  C                 copy the frame as hex / as JSON (OSC 52)
   t                    one row per frame / one row per transaction
   a                    relative / absolute (wall clock) time
-  g                    go to a time (12.5, 2m, 14:03:07) or a row (#1234)
+  g                    go to a time (12.5, 2m, 1:02:03, 14:03:07) or a row (#1234)
   space                pause / resume (a live capture keeps recording)
   s                    replay as fast as possible / at the original speed
   d u w                lower pane: details / units / register watch
   z                    hide the lower pane (more frames on screen)
   e                    export the rows shown (.jsonl, .csv, else text)
   r                    live: start recording the line to a file, or stop it
+  T                    dark / light theme
   ?                    this help        q  quit
 
 filter language (terms separated by spaces, all must hold)
