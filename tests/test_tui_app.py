@@ -402,6 +402,9 @@ async def test_help_and_zoom() -> None:
         assert app.frames.page_height == height
         await pilot.press("question_mark")
         assert isinstance(app.screen, HelpScreen)
+        assert "F  n N" in screen_text(app)
+        await pilot.press("end")
+        await pilot.pause()
         assert 'reg:"Under Voltage"' in screen_text(app)
         await pilot.press("t")  # the main screen's keys do nothing under the help
         assert app.model.transactions is False
