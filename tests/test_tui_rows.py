@@ -4,11 +4,14 @@ row-by-row reference, incremental filtering, row views, rendering and the regist
 from __future__ import annotations
 
 import itertools
+import random
 import threading
 import time
 from array import array
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from rich.style import Style
 
 from dissectors.values import Dissection
@@ -27,10 +30,13 @@ from sniffer.tui.render import (
     delta_text,
     hex_dump,
     plot,
+    plot_columns,
     raw_span,
     row_state,
     row_text,
+    span_text,
     sparkline,
+    time_width,
 )
 from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
 from sniffer.tui.watch import HISTORY, Sample, Series, Watch
@@ -330,7 +336,7 @@ def test_view_model_lines_use_the_published_rows() -> None:
     model.update_view()
     cols = columns_for(300, absolute=False)
     first = model.line(0, cols, {}).plain
-    assert first.startswith("   0.000000") and "u3" in first and "Read Input Registers" in first
+    assert first.startswith("    0.000000") and "u3" in first and "Read Input Registers" in first
     assert "+20.0ms" in model.line(1, cols, {}).plain
     model.transactions = True
     model.new_job()
@@ -429,8 +435,8 @@ def test_small_texts() -> None:
     )
     drawn = plot([(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)], 40, 6, {}).plain.splitlines()
     assert drawn[0].startswith(" 3│") and drawn[4].startswith(" 1│")
-    assert drawn[5].startswith("  └0.0s") and drawn[5].endswith("+2.0s")
-    assert drawn[0].endswith("█") and drawn[4][3] == "▁" and drawn[0][3] == " "
+    assert drawn[5].startswith("  └0s") and drawn[5].endswith("+2.0s")
+    assert drawn[0].endswith("━") and drawn[4][3] == "━" and drawn[0][3] == " "
     assert plot([], 40, 6, {}).plain == "(no values)"
 
 
@@ -592,3 +598,47 @@ def test_an_open_request_at_the_end_waits_until_the_capture_is_indexed() -> None
     assert n - 1 not in job.rows and not job.caught_up
     assert not job.advance(n, final=True)  # ... or the capture is known to be complete
     assert job.rows[-1] == n - 1 and job.caught_up
+
+
+@pytest.mark.parametrize(
+    ("seconds", "shown"),
+    [
+        (0.0, "0.000000"),
+        (3599.9999994, "3599.999999"),
+        (3600.0, "1:00:00.000000"),
+        (38499.538707, "10:41:39.538707"),
+        (3661.000001, "1:01:01.000001"),
+    ],
+)
+def test_times_past_an_hour_read_as_hours_minutes_seconds(seconds: float, shown: str) -> None:
+    assert span_text(seconds) == shown
+
+
+@given(st.floats(0, 400_000, allow_nan=False))
+def test_the_time_column_holds_every_time_of_the_capture(span: float) -> None:
+    width = time_width(span, absolute=False)
+    for t in (0.0, span / 3, span):
+        assert len("●" + span_text(t)) <= width
+
+
+def test_a_plot_keeps_a_spike_between_columns_and_marks_the_mean() -> None:
+    points = [(t / 100, 10.0) for t in range(1000)]
+    points[503] = (5.03, 90.0)  # one sample high, far narrower than a column
+    columns = plot_columns(points, 40)
+    assert max(c[1] for c in columns if c is not None) == 90.0
+    spiked = next(c for c in columns if c is not None and c[1] == 90.0)
+    assert spiked[0] == 10.0 and 10.0 < spiked[2] < 90.0  # min, max and mean of the column
+    drawn = plot(points, 60, 10, {}).plain.splitlines()
+    assert "│" in drawn[0] or "━" in drawn[0]  # the spike reaches the top line
+
+
+@given(st.integers(0, 2**32), st.integers(HISTORY + 1, 4 * HISTORY))
+def test_thinning_the_history_keeps_the_extremes(seed: int, n: int) -> None:
+    rng = random.Random(seed)
+    values = [round(rng.gauss(100, 5), 1) for _ in range(n)]
+    s = Series((3, "holding", 0, "x"), "x", "", "")
+    for k, v in enumerate(values):
+        s.add(Sample(float(k), v, f"{v}", k))
+    kept = [x.value for x in s.samples if x.value is not None]
+    assert max(kept) == max(values) and min(kept) == min(values)
+    assert len(s.samples) <= HISTORY

@@ -23,10 +23,10 @@ SnapCompare = Callable[..., bool]
 _SESSION: list[Session] = []
 
 
-def demo_app() -> ModscopeApp:
+def demo_app(*, light: bool = False) -> ModscopeApp:
     if not _SESSION:
         _SESSION.append(replay_file(DEMO_CAPTURE, bindings=load_bindings(DEMO_BUS)))
-    return ModscopeApp(_SESSION[0], blink=False)
+    return ModscopeApp(_SESSION[0], blink=False, light=light)
 
 
 def after(*keys: str, watch: bool = False) -> Callable[[Pilot[Any]], Awaitable[None]]:
@@ -62,7 +62,8 @@ async def _idle(pilot: Pilot[Any], app: ModscopeApp) -> None:
     await pilot.pause()
 
 
-SIZES: Iterable[tuple[int, int]] = ((80, 24), (120, 36))
+SIZES: Iterable[tuple[int, int]] = ((80, 24), (120, 36), (160, 48))
+NEW_SIZES: Iterable[tuple[int, int]] = ((80, 24), (160, 48))
 
 
 @pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
@@ -116,3 +117,36 @@ def test_filter_error(snap_compare: SnapCompare) -> None:
         await pilot.pause()
 
     assert snap_compare(demo_app(), terminal_size=(80, 24), run_before=bad_filter)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_prompt_line_and_keys(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    async def ask(pilot: Pilot[Any]) -> None:
+        await after()(pilot)
+        await pilot.press("e", *"rows.csv")
+        await pilot.pause()
+
+    assert snap_compare(demo_app(), terminal_size=size, run_before=ask)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_light_theme_problems(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    run = after("exclamation_mark", "right_square_bracket", "right_square_bracket")
+    assert snap_compare(demo_app(light=True), terminal_size=size, run_before=run)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_register_watch_sizes(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    assert snap_compare(demo_app(), terminal_size=size, run_before=after("w", watch=True))
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_edited_filter_is_marked(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    async def edit(pilot: Pilot[Any]) -> None:
+        await after()(pilot)
+        await pilot.press("slash", *"unit:3", "enter")
+        await after()(pilot)
+        await pilot.press("slash", *"fc:6")
+        await pilot.pause()
+
+    assert snap_compare(demo_app(), terminal_size=size, run_before=edit)

@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import html
 import re
+from collections.abc import Iterable
 from typing import Any
+
+from textual import events
+from textual.keys import _character_to_key
 
 from dissectors.checks import with_crc
 from dissectors.dictionary import load_model
@@ -88,3 +92,16 @@ def screen_text(app: Any) -> str:
     svg = app.export_screenshot()
     parts = re.findall(r"<text[^>]*>(.*?)</text>", svg, flags=re.S)
     return html.unescape("".join(parts)).replace("\xa0", " ")
+
+
+def burst(app: Any, keys: Iterable[str]) -> None:
+    """Send keys as a terminal delivers a fast typist's line or a paste: all at once, none
+    waiting for the one before to be handled (`Pilot.press` waits after every key)."""
+    for key in keys:
+        name = _character_to_key(key) if len(key) == 1 and not key.isalnum() else key
+        char = key if len(key) == 1 else {"enter": "\r", "escape": "\x1b", "space": " "}.get(key)
+        if key == "space":
+            name = "space"
+        event = events.Key(name, char)
+        event.set_sender(app)
+        app._driver.send_message(event)

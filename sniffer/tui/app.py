@@ -8,17 +8,19 @@ run in their own worker threads over the published rows and post their progress.
 
 from __future__ import annotations
 
+import io
 import time
 from array import array
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from rich.text import Text
-from textual import work
+from textual import events, work
 from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
+from textual.widget import Widget
 from textual.widgets import Input
 from textual.worker import get_current_worker
 
@@ -38,20 +40,28 @@ from sniffer.tui.feed import (
     feed_live,
     live_status,
 )
+from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
-from sniffer.tui.query import QueryError, parse_query, parse_time_point
-from sniffer.tui.rows import FilterJob, resolve_time
-from sniffer.tui.screens.dialogs import AskScreen, HelpScreen
+from sniffer.tui.navigate import find_row
+from sniffer.tui.query import Query, QueryError, parse_query, parse_time_point
+from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
+from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
+from sniffer.tui.theme import themes
 from sniffer.tui.watch import Watch
 from sniffer.tui.widgets.frame_list import FrameList
+from sniffer.tui.widgets.prompt import LineInput
 from sniffer.tui.widgets.status import StatusInfo
 from sniffer.tui.widgets.units import Cache, unit_rows
 from sniffer.tui.widgets.watch import WatchPanel
 
 Reopen = Callable[[], tuple[Session, Capture]]
+PROBLEMS = parse_query("status:problem")
 PANES = ("detail", "units", "watch")
+EXPORT_DEFAULT = "modscope-export.jsonl"
+# bytes a capture file spends on each chunk besides its data (to estimate indexing progress)
+RECORD_OVERHEAD = {"pcap": 16, "pcapng": 32, "raw": 0}
 EXPORT_FORMATS = {"jsonl": "jsonl", "json": "jsonl", "ndjson": "jsonl", "csv": "csv"}
 
 
@@ -100,8 +110,12 @@ class ModscopeApp(App[int]):
         reopen: Reopen | None = None,
         speed: float | None = None,
         blink: bool = True,
+        light: bool = False,
     ) -> None:
         super().__init__()
+        for theme in themes():
+            self.register_theme(theme)
+        self.theme = "modscope-light" if light else "modscope-dark"
         self.session = session
         self.capture = capture
         self.live = live
@@ -120,6 +134,13 @@ class ModscopeApp(App[int]):
         self._rate_mark: tuple[float, int] = (time.monotonic(), 0)
         self._rate: float | None = None
         self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
+        self.applied_filter = ""  # the filter text that the rows show
+        self.search: Query | None = None  # what n/N look for
+        self.search_text = ""
+        self.search_from: tuple[int, int] | None = None  # (step, row) a cut-short scan reached
+        self._file_size: int | None = None  # of the capture file, for indexing progress
+        self._bytes_done = 0
+        self._chunks_done = [0]
 
     # -- layout ----------------------------------------------------------------------------
 
@@ -131,7 +152,8 @@ class ModscopeApp(App[int]):
         await self.push_screen(self.main)
         frames = self.frames
         frames.following = self.live is not None or self.pacing.speed is not None
-        frames.focus()
+        self._focus(frames)
+        self.watch(self.main, "focused", self._focus_changed)
         self.call_after_refresh(self._start_feed)  # the first screen first
         self.set_interval(0.5, self._tick)
         self.call_after_refresh(self._header)
@@ -166,7 +188,18 @@ class ModscopeApp(App[int]):
             )
         elif self.capture is not None:
             capture = self.capture
-            chunks: Iterable[Chunk] = capture.chunks()
+            try:
+                self._file_size = Path(capture.info.path).stat().st_size
+            except OSError:
+                self._file_size = None
+            counter = self._chunks_done = [0]
+
+            def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+                for chunk in chunks:
+                    counter[0] += 1
+                    yield chunk
+
+            chunks: Iterable[Chunk] = counted(capture.chunks())
             self.run_worker(
                 lambda: feed_capture(session, chunks, pacing, publish, warnings=capture.warnings),
                 thread=True,
@@ -180,6 +213,7 @@ class ModscopeApp(App[int]):
         if message.generation != self.generation or not self.main.alive:
             return
         p = message.progress
+        self._bytes_done = p.bytes_done
         self.model.publish(p.rows)
         if p.done:
             self.model.done = True
@@ -214,6 +248,11 @@ class ModscopeApp(App[int]):
         self.filter_generation += 1
         self.workers.cancel_group(self, "filter")
         job = model.new_job()
+        if job is not None:  # the first rows now, so keys typed after Enter find them
+            job.advance(
+                model.shown, budget=0.05, final=model.done and model.shown == model.published
+            )
+            model.update_view()
         frames.anchor_row = None if frames.following else keep
         frames.reset()
         frames.rows_changed()
@@ -260,6 +299,10 @@ class ModscopeApp(App[int]):
         bar.set_class(model.problems_only, "-problems")
         bar.set_class(model.transactions, "-transactions")
         parts = []
+        edited = self.main.filter_input.value != self.applied_filter
+        bar.set_class(edited, "-edited")
+        if edited:
+            parts.append("edited: ⏎ applies, esc restores")
         if model.problems_only:
             parts.append("problems")
         if model.transactions:
@@ -273,31 +316,131 @@ class ModscopeApp(App[int]):
         info.update(Text(" · ".join(parts)))
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id != "filter":
-            return
+        """Enter in an input that did not come through the priority key (a click, a paste)."""
         event.stop()
+        if event.input is self.main.filter_input:
+            self._apply_filter(event.value)
+        elif event.input is self.main.prompt.input:
+            self._close_prompt(submit=True)
+
+    def on_input_changed(self, event: Input.Changed) -> None:
+        if event.input is self.main.filter_input:
+            self._filter_info()
+
+    def _apply_filter(self, text: str) -> None:
         bar = self.main.filter_bar
         try:
-            query = parse_query(event.value)
+            query = parse_query(text)
         except QueryError as exc:
             bar.add_class("-error")
             self.main.filter_info.update(Text(str(exc)))
+            self._focus(self.main.filter_input)  # to correct it
             return
         bar.remove_class("-error")
         self.model.query = query
+        self.applied_filter = text
         self._restart_filter()
-        self.frames.focus()
+
+    # -- focus and keys --------------------------------------------------------------------
+
+    def _focus(self, widget: Widget) -> None:
+        """Focus `widget` now, not after the keys already queued (`Widget.focus` waits)."""
+        widget.screen.set_focus(widget)
+
+    def focus_context(self) -> Context:
+        main, focused = self.main, self.main.focused
+        if focused is None or focused is main.frames:
+            return Context.LIST
+        if isinstance(focused, Input):
+            return Context.INPUT
+        if focused is main.units:
+            return Context.UNITS
+        return Context.ANY
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """The main screen's keys apply only where the focus is (see `sniffer.tui.keys`);
+        a key that does not apply goes on to the focused widget."""
+        if self.screen is not self.main:
+            return True
+        context = key_context(action)
+        if context is None:
+            return True
+        here = self.focus_context()
+        if context is Context.ANY:
+            return here is not Context.INPUT
+        return here is context
+
+    def _focus_changed(self) -> None:
+        if self.main.alive:
+            self.main.keybar.show(self.focus_context())
+
+    def action_list(self, name: str, step: int) -> None:
+        frames = self.frames
+        if name == "cursor":
+            frames.action_cursor(step)
+        elif name == "page":
+            frames.action_page(step)
+        elif name == "first":
+            frames.action_first()
+        else:
+            frames.action_follow()
+
+    async def on_event(self, event: events.Event) -> None:
+        """Keys for the filter or the prompt are typed into it here, as they arrive, so
+        they keep their order with the keys before and after them (see LineInput)."""
+        if isinstance(event, events.Key) and not event.is_forwarded and self.screen is self.main:
+            field = self.main.focused
+            if isinstance(field, LineInput) and await field.type_key(event):
+                event.stop()
+                return
+        await super().on_event(event)
+
+    def action_submit(self) -> None:
+        main = self.main
+        field = main.focused
+        self._focus(self.frames)  # keys typed after Enter go to the list
+        if field is main.filter_input:
+            self._apply_filter(main.filter_input.value)
+        elif field is main.prompt.input:
+            main.prompt.close(True)
+
+    def action_cancel(self) -> None:
+        main = self.main
+        field = main.focused
+        self._focus(self.frames)
+        if field is main.filter_input:
+            self._revert_filter()
+        elif field is main.prompt.input:
+            main.prompt.close(False)
+
+    def _revert_filter(self) -> None:
+        self.main.filter_input.value = self.applied_filter  # the bar shows what is applied
+        self._filter_info()
+
+    def action_next_pane(self) -> None:
+        self.main.focus_next()
+
+    def _ask(self, prompt: str, answer: Callable[[str | None], None], default: str = "") -> None:
+        self.main.prompt.ask(prompt, answer, default=default)
+
+    def _close_prompt(self, submit: bool) -> None:
+        self._focus(self.frames)
+        self.main.prompt.close(submit)
 
     # -- cursor and details ----------------------------------------------------------------
 
     def on_frame_list_cursor_moved(self, message: FrameList.CursorMoved) -> None:
         self._show_detail(message.row)
 
+    def on_frame_list_columns_changed(self, message: FrameList.ColumnsChanged) -> None:
+        if self.main.alive:
+            self.main.header.show(message.cols)
+
     def on_frame_list_follow_changed(self, message: FrameList.FollowChanged) -> None:
         self._status()
 
     def _show_detail(self, row: int | None, *, partner_first: bool = False) -> None:
-        if self.main.lower.current != "detail":
+        if not self.main.alive or self.main.lower.current != "detail":
             return
         pane = self.main.detail
         if row is None:
@@ -318,14 +461,15 @@ class ModscopeApp(App[int]):
         self.push_screen(HelpScreen())
 
     def action_edit_filter(self) -> None:
-        self.main.filter_input.focus()
+        self._focus(self.main.filter_input)
+        self.main.filter_input.select_all()
 
     def action_to_list(self) -> None:
-        self.frames.focus()
+        self._focus(self.frames)
 
     def action_fields(self) -> None:
         if self.main.lower.current == "detail":
-            self.main.detail.query_one("#fields").focus()
+            self._focus(self.main.detail.query_one("#fields"))
 
     def action_problems(self) -> None:
         self.model.problems_only = not self.model.problems_only
@@ -342,6 +486,10 @@ class ModscopeApp(App[int]):
 
     def action_follow(self) -> None:
         self.frames.action_follow()
+
+    def action_theme(self) -> None:
+        self.theme = "modscope-light" if self.theme == "modscope-dark" else "modscope-dark"
+        self.frames.reset()
 
     def action_pause(self) -> None:
         self.paused = not self.paused
@@ -370,6 +518,7 @@ class ModscopeApp(App[int]):
         switcher = self.main.lower
         self.main.remove_class("-zoom")
         switcher.current = name
+        switcher.border_title = {"detail": "details", "units": "units"}.get(name, "")
         if name == "detail":
             self._show_detail(self.frames.cursor_row)
         elif name == "units":
@@ -382,14 +531,7 @@ class ModscopeApp(App[int]):
         self.main.toggle_class("-zoom")
 
     def action_go_to(self) -> None:
-        self.push_screen(
-            AskScreen(
-                "go to: seconds from the start (12.5, 2m), a clock time (14:03:07) "
-                "or a row (#1234)",
-                placeholder="12.5",
-            ),
-            self._go_to,
-        )
+        self._ask("go to (12.5, 2m, 1:02:03.5, 14:03:07, #1234):", self._go_to)
 
     def _go_to(self, answer: str | None) -> None:
         if not answer:
@@ -441,13 +583,7 @@ class ModscopeApp(App[int]):
             self._status()
             return
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        self.push_screen(
-            AskScreen(
-                "record the line from now on to (pcapng; r again stops)",
-                value=f"modscope-{stamp}.pcapng",
-            ),
-            self._record,
-        )
+        self._ask("record to (pcapng; r stops):", self._record, f"modscope-{stamp}.pcapng")
 
     def _record(self, answer: str | None) -> None:
         live = self.live
@@ -463,13 +599,7 @@ class ModscopeApp(App[int]):
 
     def action_export(self) -> None:
         count = len(self.model.view)
-        self.push_screen(
-            AskScreen(
-                f"export the {count:,} rows shown to a file (.jsonl, .csv, anything else: text)",
-                value="modscope-export.jsonl",
-            ),
-            self._export,
-        )
+        self._ask(f"export {count:,} rows to (.jsonl .csv .txt):", self._export, EXPORT_DEFAULT)
 
     def _export(self, answer: str | None) -> None:
         if not answer:
@@ -496,6 +626,110 @@ class ModscopeApp(App[int]):
             return
         self.call_from_thread(self.say, f"wrote {n:,} rows to {path} ({fmt})")
 
+    # -- search, problems, marks, copy ------------------------------------------------------
+
+    def action_find(self) -> None:
+        self._ask("find (filter terms; n/N next/previous):", self._set_search, self.search_text)
+
+    def _set_search(self, answer: str | None) -> None:
+        if not answer:
+            return
+        try:
+            self.search = parse_query(answer)
+        except QueryError as exc:
+            self.say(str(exc), severity="error")
+            return
+        self.search_text = answer
+        self.search_from = None
+        self.action_find_next(1)
+
+    def action_find_next(self, step: int) -> None:
+        if self.search is None:
+            self.action_find()
+            return
+        self._find(self.search, step, f"{self.search_text!r}")
+
+    def action_problem(self, step: int) -> None:
+        self._find(PROBLEMS, step, "problem")
+
+    def _find(self, query: Query, step: int, what: str) -> None:
+        model, frames = self.model, self.frames
+        here = frames.cursor_row
+        if here is None:
+            return
+        start = here
+        if what != "problem" and self.search_from is not None and self.search_from[0] == step:
+            start = self.search_from[1]  # a scan cut short goes on where it stopped
+        self.search_from = None
+        lo, hi = time_bounds(model.reader, query, model.origin, model.shown)
+        start = max(lo - 1, min(start, hi)) if step > 0 else min(hi, max(start, lo - 1))
+        found = find_row(
+            model.reader,
+            model.describer,
+            query,
+            model.options(),
+            start,
+            step,
+            hi,
+            model.view.contains,
+        )
+        if found.row is not None:
+            frames.go_to_row(found.row)
+        elif not found.complete:
+            self.search_from = (step, found.stopped)
+            self.say(f"no {what} up to #{found.stopped} yet: press again to search on")
+        else:
+            where = "after" if step > 0 else "before"
+            self.say(f"no {what} {where} #{here}")
+
+    def action_mark(self) -> None:
+        row = self.frames.cursor_row
+        if row is None:
+            return
+        marks = self.model.marks
+        if row in marks:
+            marks.discard(row)
+            self.say(f"mark on #{row} removed")
+        else:
+            marks.add(row)
+            self.say(f"marked #{row}: ' jumps between marks")
+        self.frames.reset()
+
+    def action_jump_mark(self) -> None:
+        marks = sorted(r for r in self.model.marks if self.model.view.contains(r))
+        row = self.frames.cursor_row
+        if not marks or row is None:
+            self.say("no marks: m marks the selected row")
+            return
+        later = [r for r in marks if r > row]
+        self.frames.go_to_row(later[0] if later else marks[0])
+
+    def action_copy(self, what: str) -> None:
+        row = self.frames.cursor_row
+        if row is None:
+            return
+        if what == "hex":
+            text = self.model.reader.raw(row).hex(" ")
+        else:
+            out = io.StringIO()
+            Lister(out, "jsonl", self.model.describer, absolute=self.model.absolute).write(
+                [row], flush=False
+            )
+            text = out.getvalue().strip()
+        self.copy_to_clipboard(text)
+        self.say(f"copied #{row} as {what} ({len(text):,} characters, OSC 52)")
+
+    def action_filter_unit(self) -> None:
+        units = self.main.units
+        k = units.cursor_row
+        keys = [str(key.value) for key in units.rows]
+        if not 0 <= k < len(keys):
+            return
+        text = f"unit:{keys[k]}"
+        self.main.filter_input.value = text
+        self._apply_filter(text)
+        self._focus(self.frames)
+
     # -- restart (replay at the original speed) --------------------------------------------
 
     def _restart(self, speed: float | None) -> None:
@@ -518,6 +752,7 @@ class ModscopeApp(App[int]):
         self.indexed = _Flag()
         self.feed_note = ""
         self.pacing = Pacing(speed)
+        self._rate_mark, self._rate = (time.monotonic(), 0), None
         frames = self.frames
         frames.model = self.main.model = self.model
         frames.following = True
@@ -533,8 +768,10 @@ class ModscopeApp(App[int]):
             return
         now = time.monotonic()
         mark_t, mark_rows = self._rate_mark
-        if now - mark_t >= 1.0:
-            rows = self.model.published
+        rows = self.model.published
+        if rows < mark_rows:  # a restart (s) began again from the first row
+            self._rate_mark, self._rate = (now, rows), None
+        elif now - mark_t >= 1.0:
             self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
             self._rate_mark = (now, rows)
         self._status()
@@ -574,8 +811,20 @@ class ModscopeApp(App[int]):
             recorded_bytes=status.recorded_bytes,
             losses=status.lost_bytes,
             note=self.feed_note or status.failure,
+            live=live is not None,
+            reconnecting=status.reconnecting,
+            progress=self._index_progress(),
         )
         self.main.status.show(info)
+
+    def _index_progress(self) -> float | None:
+        """How far indexing got, estimated from the file's size (pcap formats, raw)."""
+        capture = self.capture
+        overhead = RECORD_OVERHEAD.get(capture.info.format) if capture is not None else None
+        if overhead is None or self._file_size is None or not self._file_size:
+            return None
+        done = self._bytes_done + self._chunks_done[0] * overhead
+        return max(0.0, min(0.99, done / self._file_size))
 
     def _units(self) -> None:
         model = self.model
@@ -604,10 +853,25 @@ class ModscopeApp(App[int]):
                     break
                 time.sleep(0.2)
 
+    def _watch_progress(self) -> float | None:
+        """How much of the capture the register watch has read; None once it has all."""
+        watch, model = self.watch_model, self.model
+        if watch is None:
+            return 0.0
+        if model.done and watch.next >= model.published:
+            return None
+        return watch.next / max(1, model.published)
+
     def _watch(self) -> None:
         watch = self.watch_model
         if watch is None:
             return
+        scanned = self._watch_progress()
+        self.main.lower.border_title = (
+            "register watch"
+            if scanned is None
+            else f"register watch · PARTIAL: {scanned:.0%} read, values so far"
+        )
         panel = self.main.watch_panel
         panel.show(watch.snapshot(), self.model.latest, watch.version)
 
@@ -617,7 +881,8 @@ class ModscopeApp(App[int]):
             return
         with watch.lock:
             series = watch.series[message.key]
-        screen = RegisterScreen(series, self.model.origin, self.model.absolute)
+        scanned = self._watch_progress()
+        screen = RegisterScreen(series, self.model.origin, self.model.absolute, scanned)
         self.push_screen(screen, self._jump_to_row)
 
     def _jump_to_row(self, row: int | None) -> None:

@@ -54,6 +54,7 @@ class LiveStatus:
     recorded_bytes: int | None = None
     lost_bytes: int = 0
     failure: str = ""
+    reconnecting: bool = False  # a port was lost; the capture waits for it to come back
 
 
 def live_status(source: object) -> LiveStatus:
@@ -69,7 +70,9 @@ def live_status(source: object) -> LiveStatus:
             size = None
     lost = int(getattr(source, "lost_bytes", 0) or 0)
     failure = str(getattr(source, "failure", "") or "")
-    return LiveStatus(recording, size, lost, failure)
+    stats = getattr(getattr(source, "reader", None), "stats", None) or []
+    reconnecting = any(not getattr(s, "connected", True) for s in stats)
+    return LiveStatus(recording, size, lost, failure, reconnecting)
 
 
 @dataclass(frozen=True, slots=True)

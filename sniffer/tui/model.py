@@ -34,6 +34,7 @@ class ViewModel:
         self.query = Query()
         self.job: FilterJob | None = None
         self.view = RowView(None, 0)
+        self.marks: set[int] = set()  # store rows marked with `m`
         self.last_answer: dict[int, float] = {}  # unit -> time of its last answer
         self._answers_seen = 0
 
@@ -113,7 +114,7 @@ class ViewModel:
         return row_text(
             self.describer.detail(row),
             answer=self.answer(row),
-            when=time_text(t, self.origin, self.absolute),
+            when=("●" if row in self.marks else "") + time_text(t, self.origin, self.absolute),
             delta=delta,
             cols=cols,
             styles=styles,

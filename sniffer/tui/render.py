@@ -59,10 +59,33 @@ def row_state(v: FrameView) -> str:
 
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
+    """Wall-clock `14:03:07.123` or time from the start: `12.345678` below an hour,
+    `1:02:03.456789` (h:mm:ss.ffffff) past it."""
     if absolute:
         stamp = datetime.fromtimestamp(t, tz=UTC).astimezone()
         return stamp.strftime("%H:%M:%S.%f")[:-3]
-    return f"{t - origin:.6f}"
+    return span_text(t - origin)
+
+
+def span_text(seconds: float) -> str:
+    """Seconds as `12.345678`, or `h:mm:ss.ffffff` from an hour on (to the microsecond)."""
+    if seconds < 3600:
+        return f"{seconds:.6f}"
+    micros = round(seconds * 1e6)
+    whole, frac = divmod(micros, 1_000_000)
+    minutes, secs = divmod(whole, 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}.{frac:06d}"
+
+
+def time_width(span: float, absolute: bool) -> int:
+    """Cells the time column needs for a capture lasting `span` seconds (one more for a
+    mark), so no time is ever cut."""
+    if absolute:
+        return 13
+    if span < 3600:
+        return 12
+    return len(span_text(span)) + 1
 
 
 def delta_text(dt: float | None) -> str:
@@ -112,13 +135,27 @@ class Columns:
     latency: int
 
 
-def columns_for(width: int, absolute: bool) -> Columns:
-    time = 12 if absolute else 11
+def columns_for(width: int, absolute: bool, span: float = 0.0) -> Columns:
+    """The columns for a width: narrower terminals drop the delta and the device label
+    first and shorten function names; the time column fits the capture's length."""
+    time = time_width(span, absolute)
     if width >= 110:
         return Columns(width, time, 9, 14, 24, 8)
     if width >= 90:
         return Columns(width, time, 9, 10, 18, 8)
     return Columns(width, time, 0, 0, 15, 7)
+
+
+def fit_columns(
+    columns: Sequence[tuple[str, int]], priority: Sequence[str], width: int, pad: int = 2
+) -> list[str]:
+    """The names of the columns that fit in `width` cells (each takes its width plus
+    `pad`): whole columns are left out, the least important first (`priority` lists the
+    names most important first), and the others keep their order."""
+    keep = list(priority)
+    while keep and sum(w + pad for n, w in columns if n in keep) > width:
+        keep.pop()
+    return [n for n, _ in columns if n in keep]
 
 
 # shorter names for narrow terminals, used only when the full name does not fit
@@ -277,6 +314,23 @@ def register_text(r: RegisterValue) -> str:
     return plain(f"{r.text}  [{words}]" if words else r.text)
 
 
+def register_label(r: RegisterValue, width: int) -> str:
+    """`Under Voltage Trip = 300 V  [0x012C]` in `width` cells: the raw words go first,
+    then the name is shortened (`Under Volt… = 300 V`); the value is never cut."""
+    full = register_text(r)
+    if len(full) <= width:
+        return full
+    head = r.name + " = "
+    value = plain(r.text[len(head) :] if r.text.startswith(head) else r.text)
+    name = plain(r.name)
+    room = width - len(value) - 3
+    if room >= len(name):
+        return f"{name} = {value}"
+    if room >= 4:
+        return f"{name[: room - 1]}… = {value}"
+    return value
+
+
 def sparkline(values: Sequence[float], width: int) -> str:
     """The last `width` values as block characters, scaled to their own range."""
     tail = list(values[-width:])
@@ -290,7 +344,9 @@ def sparkline(values: Sequence[float], width: int) -> str:
 
 
 def plot(points: Sequence[tuple[float, float]], width: int, height: int, styles: Styles) -> Text:
-    """A block-character plot of (t, value) points: min/max on the left, time below."""
+    """A plot of (t, value) points: each column spans the lowest to the highest value that
+    fell in it (so no spike or sag between columns is lost) with its mean marked `━`;
+    the range of values on the left, the time below."""
     out = Text(no_wrap=True)
     if not points or width < 16 or height < 3:
         out.append("(no values)", styles.get("dim"))
@@ -300,36 +356,57 @@ def plot(points: Sequence[tuple[float, float]], width: int, height: int, styles:
     label_w = max(len(_num(low)), len(_num(high))) + 1
     cols = max(4, width - label_w - 1)
     rows = max(1, height - 1)
-    t0, t1 = points[0][0], points[-1][0]
-    span = (t1 - t0) or 1.0
-    column: list[float | None] = [None] * cols
-    for t, v in points:
-        k = min(cols - 1, int((t - t0) / span * (cols - 1)))
-        column[k] = v
-    last: float | None = None
-    for k in range(cols):  # carry the last value forward over empty columns
-        if column[k] is None:
-            column[k] = last
-        last = column[k]
-    levels = rows * 8
+    columns = plot_columns(points, cols)
     scale = (high - low) or 1.0
+
+    def row_of(v: float) -> int:  # 0 is the top line
+        if high == low:
+            return rows // 2
+        return rows - 1 - min(rows - 1, int((v - low) / scale * rows))
+
+    cells = [[" "] * cols for _ in range(rows)]
+    kinds = [[""] * cols for _ in range(rows)]
+    for k, col in enumerate(columns):
+        if col is None:
+            continue
+        lo_v, hi_v, mean = col
+        top, bottom = row_of(hi_v), row_of(lo_v)
+        for r in range(top, bottom + 1):
+            cells[r][k], kinds[r][k] = "│" if top != bottom else "─", "plot"
+        m = row_of(mean)
+        cells[m][k], kinds[m][k] = "━", "mean"
     for r in range(rows):
         label = _num(high) if r == 0 else _num(low) if r == rows - 1 else ""
         out.append(label.rjust(label_w) + "│", styles.get("dim"))
-        floor = (rows - 1 - r) * 8
-        line = []
-        for value in column:
-            if value is None:
-                line.append(" ")
-                continue
-            level = round((value - low) / scale * (levels - 1)) + 1 if high != low else levels // 2
-            fill = level - floor
-            line.append(" " if fill <= 0 else "█" if fill >= 8 else SPARK[fill - 1])
-        out.append("".join(line), styles.get("plot"))
+        for k in range(cols):
+            kind = kinds[r][k]
+            out.append(cells[r][k], styles.get(kind) if kind else None)
         out.append("\n")
-    axis = f"{0.0:.1f}s".ljust(cols // 2) + f"+{span:.1f}s".rjust(cols - cols // 2)
+    t0, t1 = points[0][0], points[-1][0]
+    span = t1 - t0
+    axis = "0s".ljust(cols // 2) + f"+{span_text(span) if span >= 3600 else f'{span:.1f}s'}".rjust(
+        cols - cols // 2
+    )
     out.append(" " * label_w + "└" + axis, styles.get("dim"))
     return out
+
+
+def plot_columns(
+    points: Sequence[tuple[float, float]], cols: int
+) -> list[tuple[float, float, float] | None]:
+    """(min, max, mean) of the values that fall in each of `cols` equal time slices
+    (None for a slice with none)."""
+    t0, t1 = points[0][0], points[-1][0]
+    span = (t1 - t0) or 1.0
+    acc: list[list[float] | None] = [None] * cols
+    for t, v in points:
+        k = min(cols - 1, int((t - t0) / span * cols))
+        a = acc[k]
+        if a is None:
+            acc[k] = [v, v, v, 1.0]
+        else:
+            a[0], a[1], a[2], a[3] = min(a[0], v), max(a[1], v), a[2] + v, a[3] + 1
+    return [None if a is None else (a[0], a[1], a[2] / a[3]) for a in acc]
 
 
 def _num(v: float) -> str:

@@ -61,11 +61,27 @@ class Series:
             return  # thinned: an unchanged value between kept samples
         self.samples.append(sample)
         if len(self.samples) > HISTORY:
-            self.samples = self.samples[::2]
+            self.samples = thin(self.samples)
             self.stride *= 2
 
     def numbers(self) -> list[tuple[float, float]]:
         return [(s.t, s.value) for s in self.samples if s.value is not None]
+
+
+def thin(samples: list[Sample]) -> list[Sample]:
+    """Half the samples: of each four, the lowest and the highest value (in time order),
+    so thinning never loses a spike or a sag (samples without a number: every other)."""
+    out: list[Sample] = []
+    for k in range(0, len(samples), 4):
+        group = samples[k : k + 4]
+        numeric = [s for s in group if s.value is not None]
+        if len(numeric) < 2:
+            out += group[::2]
+            continue
+        lo = min(numeric, key=lambda s: s.value if s.value is not None else 0.0)
+        hi = max(numeric, key=lambda s: s.value if s.value is not None else 0.0)
+        out += sorted({id(lo): lo, id(hi): hi}.values(), key=lambda s: s.row)
+    return out
 
 
 def _number(r: RegisterValue) -> float | None:

@@ -1,4 +1,4 @@
-"""Provides the small screens: help, export to a file, jump to a time or row."""
+"""Provides the help screen (questions are asked in the main screen's prompt line)."""
 
 from __future__ import annotations
 
@@ -7,28 +7,34 @@ from typing import ClassVar
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Vertical, VerticalScroll
+from textual.containers import VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Input, Static
+from textual.widgets import Static
 
 HELP = """\
 modscope: keys
 
   ↑ ↓ PgUp PgDn Home   move in the frame list (moving up stops following)
   End  f               follow the newest frame again
-  Enter                show the frame's fields (Tab moves between panes)
+  Enter                show the frame's fields (Tab moves between panes);
+                       on a unit in the units pane: filter to it
   p                    jump to the paired request or answer
-  /                    edit the filter (Enter applies, Esc goes back)
+  /                    edit the filter (Enter applies, Esc puts back the applied one)
   !                    only problems (exceptions, timeouts, bad checks, noise)
+  ] [                  next / previous problem, without filtering
+  F  n N               find (filter terms), next / previous match, without filtering
+  m  '                 mark the row / jump to the next mark
+  c  C                 copy the frame as hex / as JSON (OSC 52)
   t                    one row per frame / one row per transaction
   a                    relative / absolute (wall clock) time
-  g                    go to a time (12.5, 2m, 14:03:07) or a row (#1234)
+  g                    go to a time (12.5, 2m, 1:02:03, 14:03:07) or a row (#1234)
   space                pause / resume (a live capture keeps recording)
   s                    replay as fast as possible / at the original speed
   d u w                lower pane: details / units / register watch
   z                    hide the lower pane (more frames on screen)
   e                    export the rows shown (.jsonl, .csv, else text)
   r                    live: start recording the line to a file, or stop it
+  T                    dark / light theme
   ?                    this help        q  quit
 
 filter language (terms separated by spaces, all must hold)
@@ -57,28 +63,4 @@ class HelpScreen(ModalScreen[None]):
             yield Static(Text(HELP), id="help-text")
 
     def action_close(self) -> None:
-        self.dismiss(None)
-
-
-class AskScreen(ModalScreen[str | None]):
-    """One line of input with a prompt: Enter answers, Esc cancels."""
-
-    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape", "cancel", "cancel")]
-
-    def __init__(self, prompt: str, value: str = "", placeholder: str = "") -> None:
-        super().__init__()
-        self.prompt = prompt
-        self.value = value
-        self.placeholder = placeholder
-
-    def compose(self) -> ComposeResult:
-        with Vertical(id="ask-box"):
-            yield Static(Text(self.prompt), id="ask-prompt")
-            yield Input(self.value, placeholder=self.placeholder, id="ask-input")
-
-    def on_input_submitted(self, event: Input.Submitted) -> None:
-        event.stop()
-        self.dismiss(event.value.strip() or None)
-
-    def action_cancel(self) -> None:
         self.dismiss(None)

@@ -9,41 +9,26 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal
 from textual.screen import Screen
-from textual.widgets import ContentSwitcher, Footer, Input, Static
+from textual.widgets import ContentSwitcher, Static
 
+from sniffer.tui.keys import KEYS
 from sniffer.tui.model import ViewModel
 from sniffer.tui.widgets.detail import DetailPane
 from sniffer.tui.widgets.frame_list import FrameList, ListHeader
+from sniffer.tui.widgets.keybar import KeyBar
+from sniffer.tui.widgets.prompt import LineInput, PromptBar
 from sniffer.tui.widgets.status import StatusBar
 from sniffer.tui.widgets.units import UnitsPanel
 from sniffer.tui.widgets.watch import WatchPanel
 
-FILTER_HINT = 'unit:3 fc:3 status:timeout reg:"Under Voltage" t:10-20 text'
+FILTER_HINT = "none: / to filter, e.g. unit:3 fc:3 status:timeout"
 
 
 class MainScreen(Screen[None]):
     """The analyser's screen; its keys call the app's actions (shown in the footer)."""
 
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("question_mark", "app.help", "help"),
-        Binding("q", "app.quit", "quit"),
-        Binding("slash", "app.edit_filter", "filter"),
-        Binding("exclamation_mark", "app.problems", "problems"),
-        Binding("t", "app.transactions", "txn"),
-        Binding("p", "app.partner", "pair"),
-        Binding("g", "app.go_to", "go to"),
-        Binding("e", "app.export", "export"),
-        Binding("r", "app.record", "record"),
-        Binding("u", "app.pane('units')", "units"),
-        Binding("w", "app.pane('watch')", "watch"),
-        Binding("d", "app.pane('detail')", "detail"),
-        Binding("space", "app.pause", "pause"),
-        Binding("s", "app.speed", "speed"),
-        Binding("f", "app.follow", "follow", show=False),
-        Binding("a", "app.absolute", "time", show=False),
-        Binding("z", "app.zoom", "zoom", show=False),
-        Binding("enter", "app.fields", "fields", show=False),
-        Binding("escape", "app.to_list", "back", show=False),
+        Binding(k.keys, "app." + k.action, k.text, show=False, priority=True) for k in KEYS
     ]
 
     def __init__(self, model: ViewModel, *, blink: bool = True) -> None:
@@ -53,7 +38,7 @@ class MainScreen(Screen[None]):
         # the widgets, made once: the app reaches them directly (no queries), which also
         # keeps late messages harmless while the app is being torn down
         self.filter_bar = Horizontal(id="filter-bar")
-        self.filter_input = Input(placeholder=FILTER_HINT, id="filter")
+        self.filter_input = LineInput(placeholder=FILTER_HINT, id="filter")
         self.filter_info = Static(Text(""), id="filter-info")
         self.header = ListHeader(id="list-header")
         self.frames = FrameList(model, id="frames")
@@ -61,7 +46,9 @@ class MainScreen(Screen[None]):
         self.detail = DetailPane(id="detail")
         self.units = UnitsPanel(id="units")
         self.watch_panel = WatchPanel(id="watch")
+        self.prompt = PromptBar(id="prompt")
         self.status = StatusBar(id="status")
+        self.keybar = KeyBar(id="keys")
 
     def compose(self) -> ComposeResult:
         with self.filter_bar:
@@ -74,8 +61,9 @@ class MainScreen(Screen[None]):
             yield self.detail
             yield self.units
             yield self.watch_panel
+        yield self.prompt
         yield self.status
-        yield Footer()
+        yield self.keybar
 
     @property
     def alive(self) -> bool:
@@ -84,3 +72,6 @@ class MainScreen(Screen[None]):
 
     def on_mount(self) -> None:
         self.filter_input.cursor_blink = self.blink
+        self.prompt.input.cursor_blink = self.blink
+        self.prompt.display = False
+        self.lower.border_title = "details"

@@ -41,8 +41,12 @@ class RegisterScreen(Screen[int | None]):
         Binding("enter", "jump", "go to frame"),
     ]
 
-    def __init__(self, series: Series, origin: float, absolute: bool) -> None:
+    def __init__(
+        self, series: Series, origin: float, absolute: bool, scanned: float | None = None
+    ) -> None:
+        """`scanned`: how much of the capture the watch had read (None: all of it)."""
         super().__init__()
+        self.scanned = scanned
         self.series = series
         self.origin = origin
         self.absolute = absolute
@@ -55,9 +59,13 @@ class RegisterScreen(Screen[int | None]):
         if s.unit_text:
             title.append(f" [{plain(s.unit_text, 16)}]")
         latest = s.latest
+        title.append("\n")
+        if self.scanned is not None:
+            title.append(f"PARTIAL: {self.scanned:.0%} of the capture read", "bold reverse")
         if latest is not None:
-            title.append("  latest: " + latest.text)
-        title.append(f"  ({s.seen} values, {len(s.samples)} kept)")
+            title.append("  latest so far: " if self.scanned is not None else "  latest: ")
+            title.append(latest.text)
+        title.append(f"  ({s.seen} values, {len(s.samples)} kept; plot: min-max, ━ mean)")
         yield Static(title, id="register-title")
         yield Plot(s.numbers(), id="register-plot")
         table: DataTable[Text] = DataTable(id="register-frames", cursor_type="row")

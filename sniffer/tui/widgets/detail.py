@@ -26,7 +26,7 @@ from sniffer.tui.render import (
     hex_dump,
     latency_text,
     raw_span,
-    register_text,
+    register_label,
 )
 from sniffer.vocab import STATUS_NAMES, WARNING, Kind
 
@@ -148,9 +148,10 @@ class DetailPane(Vertical):
             self._field(root, f, tree, fold=bool(d.registers))
         if d.registers:
             node = root.add(Text(f"registers ({len(d.registers)})", section), expand=True)
+            room = max(24, tree.size.width - 8)  # less the tree's guides
             for r in d.registers:
                 span = register_span(d.dissection, r)
-                node.add_leaf(Text(register_text(r)), data=span)
+                node.add_leaf(Text(register_label(r, room)), data=span)
         if d.problems:
             node = root.add(Text(f"problems ({len(d.problems)})", section), expand=True)
             for p in d.problems:  # coloured by severity; moving over one highlights its bytes

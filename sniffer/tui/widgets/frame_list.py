@@ -23,7 +23,7 @@ from textual.strip import Strip
 from textual.widgets import Static
 
 from sniffer.tui.model import ViewModel
-from sniffer.tui.render import ROW_STATES, Columns, columns_for, header_text
+from sniffer.tui.render import ROW_STATES, Columns, columns_for, header_text, time_width
 
 _PARTS = ("time", "dim", "unit", "label", "name", *ROW_STATES)
 
@@ -62,6 +62,13 @@ class FrameList(ScrollView, can_focus=True):
         def can_replace(self, message: Message) -> bool:
             return isinstance(message, FrameList.CursorMoved)
 
+    class ColumnsChanged(Message):
+        """The columns changed (a resize, a longer capture): the header follows."""
+
+        def __init__(self, cols: Columns) -> None:
+            super().__init__()
+            self.cols = cols
+
     class FollowChanged(Message):
         def __init__(self, following: bool) -> None:
             super().__init__()
@@ -99,9 +106,14 @@ class FrameList(ScrollView, can_focus=True):
 
     def columns(self) -> Columns:
         width = max(20, self.scrollable_content_region.width)
-        if self._cols is None or self._cols.width != width:
-            self._cols = columns_for(width, self.model.absolute)
-        return self._cols
+        model = self.model
+        span = model.latest - model.origin
+        cols = self._cols
+        if cols is None or cols.width != width or cols.time != time_width(span, model.absolute):
+            self._cols = cols = columns_for(width, model.absolute, span)
+            self._strips.clear()
+            self.post_message(self.ColumnsChanged(cols))
+        return cols
 
     def reset(self) -> None:
         """Forget rendered lines (options, filter or styles changed)."""

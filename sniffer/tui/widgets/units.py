@@ -12,7 +12,7 @@ from textual.widgets import DataTable
 
 from sniffer.stats import UnitStats
 from sniffer.text import plain
-from sniffer.tui.render import ago_text
+from sniffer.tui.render import ago_text, fit_columns
 
 # fixed widths: columns that grew with whatever was shown first would jump about
 COLUMNS = (
@@ -28,6 +28,8 @@ COLUMNS = (
     ("p95", 7),
     ("seen", 10),
 )
+# what stays when the pane is narrow, most important first
+PRIORITY = ("unit", "state", "seen", "exc", "t/o", "chk", "median", "p95", "ans", "req", "device")
 SILENT_AFTER = 2.0  # seconds without an answer, at least, before a polled unit is silent
 
 
@@ -126,26 +128,44 @@ class UnitsPanel(DataTable[Text]):
     def on_mount(self) -> None:
         self.cursor_type = "row"
         self.zebra_stripes = True
-        for name, width in COLUMNS:
+        self.shown: list[str] = []
+        self.last: tuple[list[UnitRow], float] = ([], 0.0)
+        self._columns(fit_columns(COLUMNS, PRIORITY, 200))
+
+    def _columns(self, names: list[str]) -> None:
+        self.clear(columns=True)
+        self.shown = names
+        widths = dict(COLUMNS)
+        for name in names:
             self.add_column(
                 Text(name, justify="left" if name in ("device", "state") else "right"),
                 key=name,
-                width=width,
+                width=widths[name],
             )
 
+    def on_resize(self) -> None:
+        names = fit_columns(COLUMNS, PRIORITY, self.size.width - 1)
+        if names != self.shown:
+            self._columns(names)
+            self.show(*self.last)
+
     def show(self, rows: list[UnitRow], now: float) -> None:
+        self.last = (rows, now)
         silent = self.get_component_rich_style("units-panel--silent", partial=True)
         bad = self.get_component_rich_style("units-panel--bad", partial=True)
         keys = [str(r.unit) for r in rows]
         current = [str(k.value) for k in self.rows]
+        names = [name for name, _ in COLUMNS]
         if keys != current:
             self.clear()
             for r in rows:
-                self.add_row(*self._cells(r, now, silent, bad), key=str(r.unit))
+                cells = dict(zip(names, self._cells(r, now, silent, bad), strict=True))
+                self.add_row(*(cells[n] for n in self.shown), key=str(r.unit))
             return
         for r in rows:
-            for (name, _), cell in zip(COLUMNS, self._cells(r, now, silent, bad), strict=True):
-                self.update_cell(str(r.unit), name, cell)
+            for name, cell in zip(names, self._cells(r, now, silent, bad), strict=True):
+                if name in self.shown:
+                    self.update_cell(str(r.unit), name, cell)
 
     def _cells(self, r: UnitRow, now: float, silent: Style, bad: Style) -> list[Text]:
         def cell(value: str, style: Style | None = None, right: bool = True) -> Text:

@@ -10,18 +10,21 @@ from textual.message import Message
 from textual.widgets import DataTable
 
 from sniffer.text import plain
-from sniffer.tui.render import ago_text, sparkline
+from sniffer.tui.render import ago_text, fit_columns, sparkline
 from sniffer.tui.watch import Series, SeriesKey
 
 # fixed widths: columns that grew with whatever was shown first would jump about
 COLUMNS = (
-    ("unit", 15),
+    ("unit", 12),
     ("register", 30),
     ("value", 18),
     ("changed", 10),
     ("history", 16),
-    ("seen", 7),
+    ("values", 7),
 )
+# what stays when the pane is narrow, most important first; `values` counts the values
+# seen (`seen` is an age everywhere: when a unit was last heard)
+PRIORITY = ("register", "value", "changed", "unit", "history", "values")
 SPARK_WIDTH = 16
 
 
@@ -41,29 +44,50 @@ class WatchPanel(DataTable[Text]):
         self.version = -1
 
     def on_mount(self) -> None:
-        for name, width in COLUMNS:
-            self.add_column(Text(name), key=name, width=width)
+        self.shown: list[str] = []
+        self.last: tuple[list[Series], float] = ([], 0.0)
+        self._columns(fit_columns(COLUMNS, PRIORITY, 200))
+
+    def _columns(self, names: list[str]) -> None:
+        self.clear(columns=True)
+        self.keys = []
+        self.shown = names
+        widths = dict(COLUMNS)
+        for name in names:
+            right = name in ("changed", "values")
+            self.add_column(
+                Text(name, justify="right" if right else "left"), key=name, width=widths[name]
+            )
+
+    def on_resize(self) -> None:
+        names = fit_columns(COLUMNS, PRIORITY, self.size.width - 1)
+        if names != self.shown:
+            self._columns(names)
+            self.version = -1
+            self.show(*self.last, version=0)
 
     def show(self, series: list[Series], now: float, version: int) -> None:
         if version == self.version:
             return
         self.version = version
+        self.last = (series, now)
         keys = [s.key for s in series]
         spark = self.get_component_rich_style("watch-panel--spark", partial=True)
         recent = self.get_component_rich_style("watch-panel--recent", partial=True)
-        rows = [self._cells(s, now, spark, recent) for s in series]
+        names = [name for name, _ in COLUMNS]
+        rows = [dict(zip(names, self._cells(s, now, spark, recent), strict=True)) for s in series]
         if keys != self.keys:
             cursor = self.cursor_row
             self.clear()
             self.keys = keys
             for s, cells in zip(series, rows, strict=True):
-                self.add_row(*cells, key=_key_text(s.key))
+                self.add_row(*(cells[n] for n in self.shown), key=_key_text(s.key))
             if rows:
                 self.move_cursor(row=min(cursor, len(rows) - 1))
             return
         for s, cells in zip(series, rows, strict=True):
-            for (name, _), cell in zip(COLUMNS, cells, strict=True):
-                self.update_cell(_key_text(s.key), name, cell)
+            for name in self.shown:
+                self.update_cell(_key_text(s.key), name, cells[name])
 
     def _cells(self, s: Series, now: float, spark: Style, recent: Style) -> list[Text]:
         latest = s.latest
@@ -76,9 +100,9 @@ class WatchPanel(DataTable[Text]):
             fresh = ago < 5.0
         numbers = [v for _, v in s.numbers()]
         return [
-            Text(f"{s.key[0]} " + plain(s.label, 12), no_wrap=True),
+            Text(f"{s.key[0]} " + plain(s.label, 9), no_wrap=True),
             Text(plain(s.name, 30), no_wrap=True),
-            Text(plain(value, 18), style=recent if fresh else "", no_wrap=True),
+            Text(value_fit(value, 18), style=recent if fresh else "", no_wrap=True),
             Text(changed, justify="right"),
             Text(sparkline(numbers, SPARK_WIDTH), style=spark),
             Text(str(s.seen), justify="right"),
@@ -89,6 +113,16 @@ class WatchPanel(DataTable[Text]):
         if 0 <= k < len(self.keys):
             event.stop()
             self.post_message(self.Open(self.keys[k]))
+
+
+def value_fit(value: str, width: int) -> str:
+    """A value in `width` cells, never cut inside its number: a long value loses its
+    engineering unit first (`10.0 %` stays whole), then shows `…` alone."""
+    text = plain(value, 200)
+    if len(text) <= width:
+        return text
+    number = text.split(" ")[0]
+    return number if len(number) <= width else "…"
 
 
 def _key_text(key: SeriesKey) -> str:
