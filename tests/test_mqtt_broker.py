@@ -248,7 +248,7 @@ def test_broker_restart_during_a_replay(broker: Broker) -> None:
         assert link.counts.dropped >= pub.raw_dropped
         assert f"{link.counts.dropped:,} dropped" in report
         assert link.counts.delivered == link.counts.offered - link.counts.dropped
-        expected = {raw_payload(c) for c in chunks[: n_first + kept]}
+        expected = {raw_payload(c, k + 1) for k, c in enumerate(chunks[: n_first + kept])}
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
             with lock:

@@ -23,12 +23,19 @@ from typing import Any
 
 from sniffer.model import Chunk, LineSettings
 from sniffer.mqtt import MqttError, require_paho
-from sniffer.mqtt.payload import PayloadError, chunk_from_raw
+from sniffer.mqtt.payload import PayloadError, RawMessage, read_raw
 from sniffer.mqtt.target import MqttTarget
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 
 Notify = Callable[[str], None]
 DUPLICATES = 4096  # recent raw messages remembered to drop QoS 1 re-deliveries
+
+
+def lost_text(count: int) -> str:
+    return (
+        f"{count:,} published reads never reached this watcher: the broker dropped them "
+        "(raise its max_queued_messages) or the publisher's buffer was full"
+    )
 
 
 class StreamClock:
@@ -78,6 +85,8 @@ class MqttReader:
         self.notify = notify
         self.clock = StreamClock()
         self.warnings: list[str] = []
+        self.failure: str | None = None  # as LiveReader: a reading thread ended by a bug
+        self.error: Exception | None = None
         self.stats = [PortStats(target.describe())]
         self.feeds: list[ChunkFeed] = []
         self.specs: list[PortSpec] = []
@@ -85,6 +94,8 @@ class MqttReader:
         self.publisher_state = ""
         self.bad_messages = 0
         self.duplicates = 0
+        self.lost_messages = 0  # reads the publisher counted that never came
+        self.last_sequence: int | None = None
         self._got_interface = threading.Event()
         self._connected = threading.Event()
         self._recent: deque[int] = deque(maxlen=DUPLICATES)
@@ -238,21 +249,38 @@ class MqttReader:
         self._recent.append(key)
         self._recent_set.add(key)
         try:
-            chunk = chunk_from_raw(payload)
+            message = read_raw(payload)
         except PayloadError as exc:
             self.bad_messages += 1
-            chunk = Chunk(
-                b"", self.clock.now(), event="data lost", note=f"unreadable raw message: {exc}"
+            message = RawMessage(
+                Chunk(
+                    b"", self.clock.now(), event="data lost", note=f"unreadable raw message: {exc}"
+                ),
+                None,
             )
+        chunk = message.chunk
+        chunks = [chunk]
+        lost = self._missed(message.sequence)
+        if lost:
+            self.lost_messages += lost
+            chunks.insert(0, Chunk(b"", chunk.t_end, event="data lost", note=lost_text(lost)))
         self.clock.seen(chunk.t_end)
         stats = self.stats[0]
         stats.reads += 1
         stats.bytes += len(chunk.data)
         with self._lock:
             if not self._started:
-                self._held.append(chunk)
+                self._held.extend(chunks)
                 return
-        self._emit(chunk)
+        for c in chunks:
+            self._emit(c)
+
+    def _missed(self, sequence: int | None) -> int:
+        """Reads the publisher counted between the last message and this one."""
+        last, self.last_sequence = self.last_sequence, sequence
+        if sequence is None or last is None or sequence <= last:
+            return 0  # the first message, an old publisher, or a publisher started again
+        return sequence - last - 1
 
     def _emit(self, chunk: Chunk) -> None:
         for feed in self.feeds:
