@@ -362,3 +362,42 @@ def test_a_watcher_reports_reads_the_broker_dropped(tmp_path: Path) -> None:
 
 def _demo_reads() -> list[Any]:
     return [c for c in open_capture(DEMO_BUS.with_name("demo.pcapng")).chunks() if not c.event]
+
+
+@pytest.mark.peer
+@pytest.mark.skipif(shutil.which("mosquitto") is None, reason="apt-get install mosquitto")
+def test_watching_what_is_not_there_is_one_plain_error(broker: Broker) -> None:
+    url = f"mqtt://127.0.0.1:{broker.port}/nothing/here"
+    for command in ("live", "tui"):
+        done = subprocess.run(
+            [MODSCOPE, command, url], capture_output=True, text=True, timeout=30, check=False
+        )
+        assert done.returncode == 2
+        assert done.stderr == (
+            f"modscope: error: {url}: no modscope publishes under 'nothing/here' (no "
+            "retained nothing/here/interface message); check the base topic\n"
+        )
+    done = subprocess.run(
+        [MODSCOPE, "live", url, "/dev/ttyUSB0"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    assert done.returncode == 2 and "is a published bus; watch it alone" in done.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.peer
+def test_watching_where_no_broker_answers_says_so(broker: Broker) -> None:
+    port = broker.port
+    broker.stop()  # a port where nothing listens now
+    done = subprocess.run(
+        [MODSCOPE, "live", f"mqtt://127.0.0.1:{port}/modscope/demo"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert "no broker answers there; check the host and port" in done.stderr

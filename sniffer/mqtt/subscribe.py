@@ -28,6 +28,7 @@ from sniffer.mqtt.target import MqttTarget
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 
 Notify = Callable[[str], None]
+RETAINED_GRACE = 1.0  # seconds for retained messages to follow the subscription's ack
 DUPLICATES = 4096  # recent raw messages remembered to drop QoS 1 re-deliveries
 
 
@@ -98,6 +99,7 @@ class MqttReader:
         self.last_sequence: int | None = None
         self._got_interface = threading.Event()
         self._connected = threading.Event()
+        self._subscribed = threading.Event()  # the broker acknowledged the subscriptions
         self._recent: deque[int] = deque(maxlen=DUPLICATES)
         self._recent_set: set[int] = set()
         self._held: list[Chunk] = []  # chunks that came before start()
@@ -118,6 +120,7 @@ class MqttReader:
             client.tls_set_context(ssl.create_default_context(cafile=target.ca))
         client.on_connect = self._on_connect
         client.on_message = self._on_message
+        client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         self.client = client
 
@@ -130,7 +133,7 @@ class MqttReader:
         except (OSError, ValueError) as exc:
             raise MqttError(f"{self.target.describe()}: cannot connect ({exc})") from None
         self.client.loop_start()
-        if not self._got_interface.wait(wait):
+        if not self._wait_interface(wait):
             self.client.loop_stop()
             where = self.target.describe()
             if not self._connected.is_set():
@@ -144,6 +147,14 @@ class MqttReader:
             )
         line = line_from_interface(self.interface)
         self.specs = [PortSpec(self.target.describe(), line)]
+
+    def _wait_interface(self, wait: float) -> bool:
+        """The retained interface message comes right after the broker acknowledged the
+        subscription: give it `RETAINED_GRACE` seconds from then, `wait` in all."""
+        end = time.monotonic() + wait
+        if self._subscribed.wait(wait):
+            end = min(end, time.monotonic() + RETAINED_GRACE)
+        return self._got_interface.wait(max(0.0, end - time.monotonic()))
 
     def subscribe(self, maxsize: int = DEFAULT_QUEUE) -> ChunkFeed:
         feed = ChunkFeed(maxsize)
@@ -209,6 +220,9 @@ class MqttReader:
         )
         if again:
             self._tell(f"mqtt: connected again to {self.target.describe()}")
+
+    def _on_subscribe(self, client: Any, userdata: Any, mid: int, *args: Any) -> None:
+        self._subscribed.set()
 
     def _on_disconnect(
         self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any
