@@ -205,12 +205,13 @@ def test_a_second_modscope_lists_the_published_demo_byte_for_byte(
 ) -> None:
     """`modscope live mqtt://host/base` watching a replay of the demo lists the frames
     `modscope replay` lists: same bytes, kinds, times, decoding. A request listed while
-    it waited for its answer is the one field a live listing cannot know yet."""
+    it waited for its answer is the one field a live listing cannot know yet. Without
+    --bus the watcher binds the units the publisher names (the demo's three models)."""
     url = f"mqtt://127.0.0.1:{broker.port}/modscope/demo"
     publish = [MODSCOPE, "replay", "--mqtt", url]
     subprocess.run(publish, check=True, capture_output=True, timeout=60)  # the interface
     watch = subprocess.Popen(
-        [MODSCOPE, "live", url, "--bus", str(DEMO_BUS), "--format", "jsonl"],
+        [MODSCOPE, "live", url, "--format", "jsonl"],  # units bound as the publisher's
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

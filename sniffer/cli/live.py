@@ -45,7 +45,13 @@ STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.mqtt.command import MQTT_QUIET, live_publisher, mqtt_session, mqtt_source
+    from sniffer.mqtt.command import (
+        MQTT_QUIET,
+        live_publisher,
+        mqtt_session,
+        mqtt_source,
+        published_bindings,
+    )
 
     source = mqtt_source(args, notifier(err))  # a bus another modscope publishes
     specs = list(source.specs) if source is not None else port_specs(args)
@@ -58,7 +64,11 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError("--pcap - takes standard output for itself; drop --format")
     if args.pcap and args.write and os.path.abspath(args.pcap) == os.path.abspath(args.write):
         raise UsageError("--pcap and -w name the same file; give each its own")
-    bindings = bindings_for(args)
+    bindings = (
+        published_bindings(args, source, notifier(err))
+        if source is not None
+        else bindings_for(args)
+    )
     session = (
         mqtt_session(source, bindings, args.timeout)
         if source is not None

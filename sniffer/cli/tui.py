@@ -48,11 +48,17 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 def _watch(args: argparse.Namespace) -> int:
     """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
     from sniffer.capture import LiveCapture
-    from sniffer.mqtt.command import MQTT_QUIET, mqtt_session, open_mqtt_source
+    from sniffer.mqtt.command import (
+        MQTT_QUIET,
+        mqtt_session,
+        open_mqtt_source,
+        published_bindings,
+    )
 
     messages: list[str] = []
     reader = open_mqtt_source(args.file, args, messages.append)
-    session = mqtt_session(reader, bindings_for(args), args.timeout)
+    bindings = published_bindings(args, reader, messages.append)
+    session = mqtt_session(reader, bindings, args.timeout)
     capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
     capture.messages.extend(messages)
     reader.notify = capture.messages.append

@@ -200,3 +200,37 @@ def mqtt_source(args: argparse.Namespace, notify: Callable[[str], None]) -> Mqtt
             "with all its ports)"
         )
     return open_mqtt_source(urls[0], args, notify)
+
+
+def published_bindings(
+    args: argparse.Namespace, reader: MqttReader, notify: Callable[[str], None]
+) -> dict[int, Binding]:
+    """The watcher's bindings: --bus, --unit and --dict when given, else the units the
+    publisher's `interface` names, where the model is one of modscope's dictionaries."""
+    from dissectors.dictionary.errors import DictionaryError
+    from dissectors.dictionary.loader import load_model
+    from sniffer.cli.options import bindings_for
+
+    if args.bus or args.unit or args.dict:
+        return bindings_for(args)
+    units = reader.interface.get("units")
+    out: dict[int, Binding] = {}
+    if not isinstance(units, dict):
+        return out
+    for key, unit in sorted(units.items()):
+        if not isinstance(unit, dict) or not str(key).isdigit():
+            continue
+        address, model, label = int(key), str(unit.get("model", "")), unit.get("label")
+        if not 1 <= address <= 247 or not model:
+            continue
+        try:
+            dictionary = load_model(model)
+        except DictionaryError:
+            notify(
+                f"unit {address}: the publisher's model {model!r} is not one of modscope's "
+                "dictionaries; give --bus or --dict for its names"
+            )
+            continue
+        name = label if isinstance(label, str) and label else dictionary.name
+        out[address] = Binding(address, name, dictionary)
+    return out
