@@ -224,3 +224,41 @@ def test_man_page_renders_without_warnings(
         ["groff", "-man", "-Tutf8", "-ww", "-z", str(path)], capture_output=True, text=True
     )
     assert done.returncode == 0 and done.stderr == ""
+
+
+def test_the_command_line_filter_never_loads_the_tui_package() -> None:
+    """--filter uses the matcher in sniffer.select; running a filtered replay must not
+    import anything from sniffer.tui (which would tie the CLI to the TUI's files)."""
+    code = (
+        "import sys\n"
+        "from sniffer.cli import main\n"
+        "from sniffer.cli.filtering import Selection\n"
+        "import sniffer.cli.replay, sniffer.cli.live, sniffer.cli.export\n"
+        "print('\\n'.join(m for m in sys.modules if m.startswith('sniffer.tui')))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert out.stdout.split() == []
+
+
+def test_the_tui_rows_module_shares_the_core_matcher() -> None:
+    import sniffer.select
+    import sniffer.tui.rows
+
+    assert sniffer.tui.rows.FilterJob is sniffer.select.FilterJob
+    assert sniffer.tui.rows.Options is sniffer.select.Options
+
+
+def test_filtered_replay_in_small_blocks_gives_the_same_rows(
+    capture: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sniffer.select
+
+    args = ["replay", str(capture), "--format", "text", "--filter", "kind:exception,request unit:5"]
+    code, whole, _ = run(args, capsys)
+    monkeypatch.setattr(sniffer.select, "BLOCK", 3)  # columns scanned three rows at a time
+    code2, small, _ = run(args, capsys)
+    assert code == code2
+    assert whole == small
+    assert len(whole.splitlines()) == 21  # 20 requests and one exception answer
