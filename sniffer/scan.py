@@ -394,12 +394,12 @@ class PortListener:
         name: str,
         *,
         factory: PortFactory | None = None,
-        counters: CounterReader = driver_counters,
+        counters: CounterReader | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.name = name
         self.factory = factory
-        self.counters = counters
+        self.counters = counters if counters is not None else driver_counters
         self.clock = clock
         self.wall = WallClock()
         self.warnings: list[str] = []

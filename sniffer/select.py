@@ -6,8 +6,7 @@ combined as big integers, and `itertools.compress` turns the result into row num
 all at C speed. Only register-name and free-text terms dissect rows, and only the
 candidates the column terms leave, a slice at a time so that matches arrive
 incrementally. The TUI's frame list (`sniffer.tui.rows`) and the command line's
-`--filter` (`sniffer.cli.filtering`) both use it, so a query means the same in both;
-nothing here imports Textual.
+`--filter` both use it, so a query means the same in both; nothing here imports Textual.
 """
 
 from __future__ import annotations
