@@ -276,6 +276,7 @@ class FilterJob:
         self.query = query
         self.options = options
         self.origin = origin
+        self.annotator = annotator
         self.describer = Describer(store, annotator, size=512)
         self.rows: array[int] = array("Q")
         self.scanned = 0  # rows whose columns were tested
@@ -321,6 +322,7 @@ class FilterJob:
             end = resolve_time(span.end, self.origin)
             limit = bisect_left(store.t, end, self.scanned, upto)
         deadline = _time.monotonic() + budget
+        options = self._options()
         while self.scanned < limit:
             if should_stop is not None and should_stop():
                 return True
@@ -329,7 +331,7 @@ class FilterJob:
                 hi = self._stable(self.scanned, hi)
                 if hi <= self.scanned:
                     break
-            mask = column_mask(store, self.scanned, hi, self.query, self.options)
+            mask = column_mask(store, self.scanned, hi, self.query, options)
             found = compress(range(self.scanned, hi), mask)
             if self.query.needs_detail:
                 self.candidates.extend(found)
@@ -352,6 +354,17 @@ class FilterJob:
                 if _time.monotonic() > deadline:
                     return True
         return False
+
+    def _options(self) -> Options:
+        """The options, with the units recognised as SunSpec devices so far counted as
+        bound: they carry named registers with no dictionary."""
+        found = self.annotator.sunspec.units.keys() - self.options.bound
+        if not found:
+            return self.options
+        o = self.options
+        return Options(
+            transactions=o.transactions, problems_only=o.problems_only, bound=o.bound | found
+        )
 
     def _details(self, i: int) -> list[FrameDetail]:
         d = self.describer.detail(i)
