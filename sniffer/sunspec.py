@@ -33,11 +33,13 @@ from dissectors.dictionary.sunspec import (
     decode_point,
     default_library,
 )
+from dissectors.envelope import ascii_body
 from dissectors.values import Dissection
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import Flag
 
 BASES = (40000, 50000, 0, 40001, 50001, 1)  # PDU addresses of the marker, likeliest first
+_SORTED_BASES = tuple(sorted(BASES))
 MAX_MODELS = 64  # a longer chain is not believed
 READ_HOLDING = 3
 INSTALL_HINT = "install modscope[sunspec] (pysunspec2) to name its values"
@@ -116,7 +118,8 @@ class SunSpecTracker:
     # -- following the capture -------------------------------------------------------
 
     def follow(self, store: FrameStore, i: int) -> None:
-        """Take in row `i` if it answers a read of holding registers (FC 3)."""
+        """Take in row `i` if it answers a read of holding registers (FC 3). Cheap for
+        the reads of other units: the request's range is looked at first."""
         if store.fc[i] != READ_HOLDING or store.flags[i] & Flag.CHECK_BAD:
             return
         req = store.partner[i]
@@ -125,12 +128,25 @@ class SunSpecTracker:
         unit = store.unit[i]
         if unit in self.skip:
             return
-        request = store.view(req).body()
-        answer = store.view(i).body()
-        if len(request) < 6 or len(answer) < 3:
+        request: bytes | bytearray
+        if store.flags[req] & Flag.ASCII:
+            request = _body(store, req)
+            if len(request) < 6:
+                return
+        elif store.length[req] < 8:
             return
-        start = int.from_bytes(request[2:4], "big")
-        count = int.from_bytes(request[4:6], "big")
+        else:  # six bytes, not the whole frame: most answers on a bus are not SunSpec's
+            at = store.offset[req]
+            request = store.streams[store.channel[req]][at : at + 6]
+        start = (request[2] << 8) | request[3]
+        count = (request[4] << 8) | request[5]
+        if unit not in self.units:
+            k = bisect.bisect_left(_SORTED_BASES, start)
+            if k == len(_SORTED_BASES) or _SORTED_BASES[k] + 2 > start + count:
+                return  # no marker can be in this read
+        answer = _body(store, i)
+        if len(answer) < 3:
+            return
         data = answer[3 : 3 + answer[2]]
         if len(data) != 2 * count:
             return
@@ -319,6 +335,15 @@ class SunSpecTracker:
         if raw == 0x8000 or not -10 <= value <= 10:
             return None, False  # not implemented, or no believable power of ten
         return value, True
+
+
+def _body(store: FrameStore, i: int) -> bytes:
+    """Unit byte and PDU of a frame row, without its check (as FrameView.body)."""
+    raw = store.raw(i)
+    if store.flags[i] & Flag.ASCII:
+        decoded = ascii_body(raw)
+        return decoded[:-1] if decoded else b""
+    return raw[:-2]
 
 
 def _marker_in(start: int, words: Sequence[int]) -> int | None:
