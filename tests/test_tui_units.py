@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from itertools import pairwise
 from typing import Any
 
 import pytest
@@ -37,7 +38,7 @@ def read(unit: int, start: int, count: int) -> tuple[bytes, bytes]:
 def bus(polls: dict[tuple[int, int], list[float]]) -> Session:
     """A session where each (unit, start) read is sent at the given times and answered."""
     sends = sorted((t, unit, start) for (unit, start), times in polls.items() for t in times)
-    for (a, _, _), (b, _, _) in zip(sends, sends[1:], strict=False):
+    for (a, _, _), (b, _, _) in pairwise(sends):
         assert b - a >= 0.025, "transactions would overlap on the line"
     session = Session(LINE)
     for t, unit, start in sends:
@@ -72,7 +73,8 @@ def test_the_main_poll_of_each_unit_agrees_with_the_stats_table() -> None:
         assert got[unit].gaps == len(cycle.gaps)
     assert got[1].period == pytest.approx(0.25) and got[1].gaps == 0
     assert got[2].period == pytest.approx(0.5) and got[2].gaps == 1  # the 5.5 s stall
-    assert got[3].period == pytest.approx(1.0, abs=1e-5) and got[3].jitter == pytest.approx(0.24, abs=1e-5)
+    assert got[3].period == pytest.approx(1.0, abs=1e-5)
+    assert got[3].jitter == pytest.approx(0.24, abs=1e-5)
 
 
 def test_rows_arriving_in_pieces_give_the_same_cycle() -> None:
