@@ -262,3 +262,43 @@ def test_filtered_replay_in_small_blocks_gives_the_same_rows(
     assert code == code2
     assert whole == small
     assert len(whole.splitlines()) == 21  # 20 requests and one exception answer
+
+
+def _readme_runs() -> list[tuple[list[str], list[str]]]:
+    """Each `$ modscope ...` line of the README's toolkit section and the lines after it."""
+    import shlex
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Unknown line, unknown device: the toolkit", 1)[1].split("\n## ", 1)[0]
+    runs: list[tuple[list[str], list[str]]] = []
+    for block in section.split("```")[1::2]:
+        for line in block.strip("\n").splitlines():
+            if line.startswith("$ modscope "):
+                runs.append((shlex.split(line[len("$ modscope ") :]), []))
+            elif runs:
+                runs[-1][1].append(line)
+    return runs
+
+
+def test_the_readme_toolkit_outputs_are_what_the_demo_gives(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The README shows real output: the filter, dict draft and check runs on the demo
+    give exactly those lines (scan runs through the UART double, diff needs a second
+    simulated capture; tests/test_scan.py and test_diff cover them)."""
+    import shutil
+
+    from sniffer.session import DEMO_BUS, DEMO_CAPTURE
+
+    shutil.copy(DEMO_CAPTURE, tmp_path / "demo.pcapng")
+    shutil.copy(DEMO_BUS, tmp_path / "demo-bus.toml")
+    monkeypatch.chdir(tmp_path)
+    checked = 0
+    for args, want in _readme_runs():
+        if args[0] in ("scan", "diff"):
+            continue
+        main(args)
+        out, err = capsys.readouterr()
+        assert (out + err).splitlines() == want, args
+        checked += 1
+    assert checked == 5
