@@ -371,3 +371,26 @@ def test_replay_lists_named_scaled_values(
     assert len(out.splitlines()) == 4 and err == ""
     assert main(["replay", str(capture), "--format", "text", "--filter", "reg:Watts"]) == 0
     assert len(capsys.readouterr().out.splitlines()) == 4
+
+
+@needs_models
+def test_a_sunspec_device_on_modbus_ascii() -> None:
+    from dissectors.checks import lrc
+
+    def ascii_frame(rtu: bytes) -> bytes:
+        body = rtu[:-2]
+        return b":" + (body + bytes([lrc(body)])).hex().upper().encode() + b"\r\n"
+
+    line = LineSettings(9600, 7, "E", 1, "ascii")
+    reg = device_image()
+    session = Session(line)
+    for k, (start, count) in enumerate([*discovery(reg, 40000), (40084, 2)]):
+        request, answer = read(reg, start, count)
+        session.feed(Chunk(ascii_frame(request), 1_700_000_000 + k * 1.0 + 0.02))
+        session.feed(Chunk(ascii_frame(answer), 1_700_000_000 + k * 1.0 + 0.5))
+    session.finish()
+    assert [m.id for m in session.annotator.sunspec.units[UNIT].models] == [1, 103, 203]
+    assert texts(session, len(session.store) - 1) == [
+        "Watts = 819.0 W",
+        "W_SF = -1 (scale 10^-1)",
+    ]
