@@ -32,6 +32,7 @@ from sniffer.cli.lines import (
     stop_requests,
 )
 from sniffer.cli.options import SubParsers, add_device_options, add_output_options, bindings_for
+from sniffer.cli.scan import AUTO, accept_auto_baud, scan_for_live
 from sniffer.errors import UsageError
 from sniffer.export import PcapExporter
 from sniffer.listing import Lister
@@ -45,6 +46,8 @@ STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    if args.baud == AUTO:
+        scan_for_live(args, err)  # the line's settings into args, before anything opens
     specs = port_specs(args)
     ring = ring_options(args)
     deadline = duration_option(args)
@@ -293,10 +296,13 @@ def register(sub: SubParsers) -> None:
             "not asserted, nothing is written) and show every frame as it comes: in the "
             "TUI on a terminal, else as a listing flushed per line (--format). --write "
             "records what the ports read; --pcap streams frames for Wireshark "
-            "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -)."
+            "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -). --baud auto first "
+            "scans the port for its baud rate and format, as `modscope scan` does, and "
+            "says what it chose."
         ),
     )
     add_port_options(p)
+    accept_auto_baud(p)
     add_device_options(p)
     add_output_options(p)
     p.add_argument(
