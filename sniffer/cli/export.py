@@ -18,8 +18,8 @@ from sniffer.cli.options import (
     bindings_for,
     line_warnings,
     read_options,
-    read_status,
 )
+from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.export import (
     EXPORT_FORMATS,
@@ -76,7 +76,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     rows = Selection(session, query, args.count).take(len(session.store), final=True)
-    status = read_status(capture.warnings, len(rows))
+    status = finish_read(capture, session, err)
     describer = session.describer
     if fmt == "parquet":
         from sniffer.parquet import ParquetError, write_parquet
