@@ -252,7 +252,7 @@ def test_tshark_reads_the_export_of_a_live_recording(bench: Bench, tmp_path: Pat
     )
     assert malformed.returncode == 0 and malformed.stdout == ""
     fields = subprocess.run(
-        [TSHARK, "-r", str(exported), "-T", "fields", "-e", "mbrtu.unit_id", "-e",
+        [TSHARK, "-r", str(exported), "-T", "fields", "-e", "mbtcp.unit_id", "-e",
          "modbus.func_code"],
         capture_output=True,
         text=True,
@@ -271,7 +271,7 @@ def test_pcap_to_stdout_feeds_tshark_and_nothing_else(bench: Bench, tmp_path: Pa
     stream = tmp_path / "stdout.pcapng"
     stream.write_bytes(out)
     read = subprocess.run(
-        [TSHARK, "-r", "-", "-T", "fields", "-e", "mbrtu.unit_id", "-e", "modbus.func_code",
+        [TSHARK, "-r", "-", "-T", "fields", "-e", "mbtcp.unit_id", "-e", "modbus.func_code",
          "-e", "_ws.malformed"],
         input=out,
         capture_output=True,
