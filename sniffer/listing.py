@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Sequence
 from datetime import UTC, datetime
 from typing import Any, TextIO
 
+from dissectors.values import Field
 from sniffer.describe import Describer, FrameDetail
 from sniffer.model import Stamp
 from sniffer.store import NO_PARTNER
@@ -38,6 +39,7 @@ CSV_COLUMNS = (
     "summary",
     "problems",
     "raw",
+    "fields",
 )
 
 
@@ -56,6 +58,64 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, tuple):
         return [_jsonable(v) for v in value]
     return value
+
+
+def field_record(f: Field) -> dict[str, Any]:
+    """One decoded field as JSON: name, value, text, span and, for a record or a list of
+    records (FC 20/21 file records, FC 23's parts, FC 43/14 objects), `children` of the
+    same shape. A list of register words or bits has every element in `value` and no
+    `children` (element i spans 2 bytes from the field's start, or holds bit i % 8 of
+    byte i // 8): that keeps a 125-register answer one short line."""
+    rec: dict[str, Any] = {
+        "name": f.name,
+        "value": _jsonable(f.value),
+        "text": f.text,
+        "span": list(f.span),
+    }
+    if not isinstance(f.value, tuple):  # arrays make their children only when read
+        children = f.children
+        if children:
+            rec["children"] = [field_record(c) for c in children]
+    return rec
+
+
+def _segment(child: Field, parent: Field) -> str:
+    """A child's part of a dotted name: `3` for `objects[3]` under `objects`, else its name."""
+    name = child.name
+    if name.startswith(parent.name + "[") and name.endswith("]"):
+        return name[len(parent.name) + 1 : -1]
+    return name
+
+
+def _flat_value(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple):
+        return " ".join(_flat_value(v) for v in value)
+    return str(value)
+
+
+def flat_fields(fields: Sequence[Field]) -> Iterator[tuple[str, str]]:
+    """(dotted name, value) of every field that has a value, children after their parent:
+    `sub_requests.0.file_number`, `objects.VendorName.value`. Lists of words or bits give
+    one item with their values separated by spaces."""
+    for f in fields:
+        yield from _flat(f, f.name)
+
+
+def _flat(f: Field, path: str) -> Iterator[tuple[str, str]]:
+    if f.value is not None:
+        yield path, _flat_value(f.value)
+    if not isinstance(f.value, tuple):
+        for child in f.children:
+            yield from _flat(child, f"{path}.{_segment(child, f)}")
+
+
+def fields_cell(fields: Sequence[Field]) -> str:
+    """The CSV `fields` cell: `name=value` pairs joined by `; ` (values as plain text)."""
+    return "; ".join(f"{name}={value}" for name, value in flat_fields(fields))
 
 
 def record(d: FrameDetail) -> dict[str, Any]:
@@ -90,10 +150,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
     if d.label:
         rec["device"] = d.label
     if d.dissection is not None:
-        rec["fields"] = [
-            {"name": f.name, "value": _jsonable(f.value), "text": f.text, "span": list(f.span)}
-            for f in d.dissection.fields
-        ]
+        rec["fields"] = [field_record(f) for f in d.dissection.fields]
     if v.kind in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) and v.status:
         req = v.index if v.kind == Kind.REQUEST or v.partner == NO_PARTNER else v.partner
         rec["transaction"] = {
@@ -214,6 +271,7 @@ class Lister:
                         d.summary,
                         "; ".join(d.problem_texts),
                         v.raw.hex(),
+                        "" if d.dissection is None else fields_cell(d.dissection.fields),
                     )
                 )
             n += 1
