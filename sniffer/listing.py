@@ -123,8 +123,8 @@ def record(d: FrameDetail) -> dict[str, Any]:
     v = d.view
     rec: dict[str, Any] = {
         "index": v.index,
-        "t": v.t,
-        "t_end": v.t_end,
+        "t": round(v.t, 6),  # to the microsecond, as recordings keep a start time
+        "t_end": round(v.t_end, 6),
         "raw": v.raw.hex(),
         "mode": "ascii" if v.ascii else "rtu",
         "kind": KIND_NAMES[v.kind],
@@ -138,29 +138,14 @@ def record(d: FrameDetail) -> dict[str, Any]:
         "summary": d.summary,
     }
     if d.problems:
-        rec["problem_details"] = [
-            {
-                "kind": p.kind,
-                "severity": p.severity,
-                "text": p.text,
-                "span": None if p.span is None else list(p.span),
-            }
-            for p in d.problems
-        ]
+        rec["problem_details"] = problem_details(d)
     if d.label:
         rec["device"] = d.label
     if d.dissection is not None:
         rec["fields"] = [field_record(f) for f in d.dissection.fields]
-    if v.kind in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) and v.status:
-        req = v.index if v.kind == Kind.REQUEST or v.partner == NO_PARTNER else v.partner
-        rec["transaction"] = {
-            "id": req,
-            "role": "request" if v.kind == Kind.REQUEST else "response",
-            "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
-            "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
-            "status": STATUS_NAMES[v.status],
-            "partner": None if v.partner == NO_PARTNER else v.partner,
-        }
+    transaction = transaction_of(d)
+    if transaction is not None:
+        rec["transaction"] = transaction
     if d.registers:
         rec["registers"] = [
             {
@@ -176,6 +161,68 @@ def record(d: FrameDetail) -> dict[str, Any]:
             for r in d.registers
         ]
     return rec
+
+
+def problem_details(d: FrameDetail) -> list[dict[str, Any]]:
+    """Each problem of a row as kind, severity, text and byte span (or null)."""
+    return [
+        {
+            "kind": p.kind,
+            "severity": p.severity,
+            "text": p.text,
+            "span": None if p.span is None else list(p.span),
+        }
+        for p in d.problems
+    ]
+
+
+def transaction_of(d: FrameDetail) -> dict[str, Any] | None:
+    """The `transaction` object of a row that is part of one (None for noise, events and
+    frames that are not paired)."""
+    v = d.view
+    if v.kind not in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) or not v.status:
+        return None
+    req = v.index if v.kind == Kind.REQUEST or v.partner == NO_PARTNER else v.partner
+    return {
+        "id": req,
+        "role": "request" if v.kind == Kind.REQUEST else "response",
+        "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
+        "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
+        "status": STATUS_NAMES[v.status],
+        "partner": None if v.partner == NO_PARTNER else v.partner,
+    }
+
+
+UPDATED_KEYS = ("transaction", "problems", "problem_details")
+
+
+def update_record(d: FrameDetail) -> dict[str, Any]:
+    """What the live listing learnt later about a row it listed earlier (its answer came,
+    it timed out): `{"update": 40, "transaction": {...}, "problems": [...]}`, the keys of
+    UPDATED_KEYS as they are now (`problem_details` only when there are problems, as in
+    a row). It has no `raw`, so `select(.raw)` keeps only frames."""
+    rec: dict[str, Any] = {
+        "update": d.view.index,
+        "transaction": transaction_of(d),
+        "problems": list(d.problem_texts),
+    }
+    if d.problems:
+        rec["problem_details"] = problem_details(d)
+    return rec
+
+
+def update_text(d: FrameDetail) -> str:
+    """The text listing's line for an update: `update #40: timeout`, or `update #40: ok,
+    answer #41 12.3ms`."""
+    v = d.view
+    line = f"update #{v.index}: {STATUS_NAMES[v.status]}"
+    if v.partner != NO_PARTNER:
+        line += f", answer #{v.partner}"
+    if d.latency_ms is not None:
+        line += f" {d.latency_ms:.1f}ms"
+    elif d.latency_max_ms is not None:
+        line += f" <{d.latency_max_ms:.0f}ms"
+    return line
 
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
@@ -277,6 +324,27 @@ class Lister:
             n += 1
             if flush:
                 self.out.flush()
+        return n
+
+    def write_updates(self, rows: Iterable[int]) -> int:
+        """One update per row listed earlier whose transaction has settled since (see
+        `update_record`): a JSONL object, a text line, or a CSV row of kind `update`
+        whose index is the row updated (status, latency and partner in their columns,
+        the other cells empty)."""
+        n = 0
+        for i in rows:
+            d = self.describer.detail(i)
+            if self.fmt == "text":
+                self.out.write(f"{'':12}  {update_text(d)}\n")
+            elif self.fmt == "jsonl":
+                self.out.write(json_line(update_record(d)) + "\n")
+            else:
+                v = d.view
+                latency = "" if d.latency_ms is None else f"{d.latency_ms:.3f}"
+                answer = "" if v.partner == NO_PARTNER else f"answer #{v.partner}"
+                cells = (v.index, "", "", "", "update", "", "", "", "", "", d.status, latency)
+                self._csv_row((*cells, answer, "", "", ""))
+            n += 1
         return n
 
     def _csv_row(self, cells: tuple[object, ...]) -> None:

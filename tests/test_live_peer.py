@@ -142,12 +142,17 @@ def stop(proc: subprocess.Popen[bytes]) -> tuple[bytes, str]:
 
 
 def records(jsonl: bytes | str) -> list[dict[str, Any]]:
-    """Rows by index; a row listed twice (a request that then timed out) counts once,
-    as last listed."""
+    """Rows by index, each listed once, with the update records of the live listing (a
+    request's answer came, or it timed out) applied to the rows they name."""
     text = jsonl.decode() if isinstance(jsonl, bytes) else jsonl
     by_index: dict[int, dict[str, Any]] = {}
     for line in text.splitlines():
         rec = json.loads(line)
+        if "update" in rec:
+            assert "raw" not in rec
+            by_index[rec.pop("update")].update(rec)
+            continue
+        assert rec["index"] not in by_index, "a frame listed twice"
         by_index[rec["index"]] = rec
     return [by_index[i] for i in sorted(by_index)]
 
@@ -170,7 +175,7 @@ def check_transactions(rows: list[dict[str, Any]], done: list[Done]) -> None:
     }
     for req, d in zip(requests, done, strict=True):
         # a request is listed as soon as it is framed ("open"); its answer's row tells
-        # the transaction, and a request that got none is listed again as "timeout"
+        # the transaction, and an update record gives the request its outcome
         answer = answers.get(req["index"])
         if d.outcome == "timeout":
             assert answer is None
@@ -221,12 +226,8 @@ def test_every_transaction_is_seen_live_and_from_the_recording(
     check_transactions(again, bench.done)
 
     def frames(rows: list[dict[str, Any]]) -> list[tuple[Any, ...]]:
-        # live lists a request while it waits ("open"); its answer's row has the outcome
-        return [
-            (r["raw"], r["kind"], r.get("transaction", {}).get("status"))
-            for r in rows
-            if r["kind"] != "request"
-        ] + [(r["raw"], r["kind"]) for r in rows if r["kind"] == "request"]
+        # the updates applied, live and replay agree on every frame and outcome
+        return [(r["raw"], r["kind"], r.get("transaction", {}).get("status")) for r in rows]
 
     assert frames(again) == frames(live)
 
