@@ -13,7 +13,9 @@ every problem modscope found. A frame whose CRC or LRC is wrong also has the EPB
 CRC-error bit (bit 24). EPB flags carry the direction as seen from the master:
 requests outbound (2), answers inbound (1). Rows whose direction is unknown go out as
 queries (their comment says so). Noise spans and source events (reconnect, data lost)
-go out for the `data` dissector, with a comment. modscope reads such an export back as
+go out for the `data` dissector, with a comment. A Modbus TCP row of a network
+capture goes out the same way, its own MBAP header in the comment (`Modbus/TCP 00 07
+...`). modscope reads such an export back as
 the same frames: the comment gives back the bytes of the line, CRC and all.
 
 `rtu` export (`export --as rtu`): the same packets, but each holds the RTU frame byte
@@ -35,6 +37,7 @@ import json
 from collections.abc import Iterable, Iterator
 from typing import Any, BinaryIO, TextIO
 
+from dissectors import mbap
 from dissectors.envelope import open_ascii, open_rtu, rtu_frame
 from sniffer import __version__
 from sniffer.describe import Describer, FrameDetail
@@ -51,6 +54,7 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
+from sniffer.tcpframing import MBAP
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
@@ -101,6 +105,8 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         flags |= EPB_FLAG_INBOUND
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
+    if v.flags & MBAP:  # a Modbus TCP row of a network capture: the frame as captured
+        return upper_pdu_record(v.raw, "mbtcp"), flags, "; ".join(problems)
     if v.ascii:
         envelope = open_ascii(v.raw)
         sent, want = envelope.sent, envelope.expected
@@ -157,9 +163,13 @@ def tcp_packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         flags |= EPB_FLAG_INBOUND
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
-    shown, check, body = line_bytes_text(v.raw, v.ascii)
-    problems = [p for p in problems if p != check]
-    head = f"{shown}; {check}"
+    if v.flags & MBAP:  # a Modbus TCP row: its own header goes in the comment
+        body: bytes | None = mbap.body(v.raw)
+        head = "Modbus/TCP " + v.raw.hex(" ")
+    else:
+        shown, check, body = line_bytes_text(v.raw, v.ascii)
+        problems = [p for p in problems if p != check]
+        head = f"{shown}; {check}"
     if body is None or len(body) < 2:
         note = "not a Modbus frame that Wireshark can take; exported as bytes"
         return upper_pdu_record(v.raw, "data"), flags, "; ".join([head, note, *problems])

@@ -14,10 +14,14 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import ascii_frame, with_crc
+from sniffer.annotate import Annotator
 from sniffer.cli import main
+from sniffer.describe import Describer
 from sniffer.export import PcapExporter, tcp_packet_for
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import Session, open_session
+from sniffer.sources import open_capture
+from sniffer.sources.base import ReadOptions
 from sniffer.sources.linktypes import (
     EPB_FLAG_CRC_ERROR,
     EPB_FLAG_INBOUND,
@@ -25,7 +29,9 @@ from sniffer.sources.linktypes import (
     MBAP_HEADER,
     parse_upper_pdu,
 )
+from sniffer.tcpframing import NetPipeline
 from sniffer.vocab import STATUS_NAMES, Kind
+from tests.netbuild import Conversation, pcap
 
 TSHARK = shutil.which("tshark")
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
@@ -261,3 +267,43 @@ def test_exported_pdu_tags_name_mbtcp_and_port_502() -> None:
     assert struct.unpack(">I", tags[26])[0] == 502  # a request goes to the server port
     answer = tcp_packet_for(s.describer.detail(1))[0]
     assert struct.pack(">HHI", 25, 4, 502) in answer
+
+
+def modbus_tcp_capture(path: Path) -> Path:
+    """A Modbus TCP connection on Ethernet: two transactions with their own MBAP ids."""
+    conv = Conversation()
+    adus = [
+        (True, bytes.fromhex("0007 0000 0006 01 03 0000 0002")),
+        (False, bytes.fromhex("0007 0000 0007 01 03 04 0064 0065")),
+        (True, bytes.fromhex("0008 0000 0006 01 06 0005 0007")),
+        (False, bytes.fromhex("0008 0000 0006 01 06 0005 0007")),
+    ]
+    packets = [*conv.handshake()]
+    packets += [conv.client(adu) if client else conv.server(adu) for client, adu in adus]
+    path.write_bytes(pcap(1, [(T0 + 0.01 * k, p) for k, p in enumerate(packets)]))
+    return path
+
+
+def test_modbus_tcp_rows_go_out_with_their_header_in_the_comment(tmp_path: Path) -> None:
+    path = modbus_tcp_capture(tmp_path / "tcp.pcap")
+    capture = open_capture(path, ReadOptions())
+    pipeline = NetPipeline(RTU, channels=capture.info.channels)
+    pipeline.feed_all(capture.chunks())
+    pipeline.finish()
+    store = pipeline.store
+    describer = Describer(store, Annotator({}))
+    rows = [i for i in range(len(store)) if store.kind[i] != Kind.EVENT]
+    assert [Kind(store.kind[i]) for i in rows] == [Kind.REQUEST, Kind.RESPONSE] * 2
+    for i in rows:
+        packet, _flags, comment = tcp_packet_for(describer.detail(i))
+        record = parse_upper_pdu(packet)
+        assert record is not None and record.dissector == "mbtcp"
+        assert record.pdu[6:] == store.raw(i)[6:]  # unit and PDU
+        assert comment.startswith("Modbus/TCP " + store.raw(i).hex(" "))
+    out = io.BytesIO()
+    PcapExporter(out, describer, RTU).write(rows)
+    exported = tmp_path / "out.pcapng"
+    exported.write_bytes(out.getvalue())
+    if TSHARK is not None:
+        info = tshark(exported, "-T", "fields", "-e", "_ws.col.Info").splitlines()
+        assert [line.split(":")[0].strip() for line in info] == ["Query", "Response"] * 2
