@@ -310,7 +310,8 @@ def register(sub: SubParsers) -> None:
     p.add_argument(
         "--pcap",
         metavar="FILE",
-        help="also write frames as Wireshark pcapng (link type 252, Modbus RTU); - for "
+        help="also write frames as Wireshark pcapng (each PDU for Wireshark's Modbus/TCP "
+        "dissector, decoded and paired with no setup; see modscope export); - for "
         "standard output, which then carries nothing else",
     )
     add_recording_options(p, required=False)

@@ -262,7 +262,7 @@ class _PacketDecoder:
             self.other_dissectors.add(record.dissector)
             self.warnings.append(
                 f"{iface.label}: exported PDUs for dissector {record.dissector!r}, expected "
-                "'mbrtu'; passed on as bytes"
+                "'mbrtu' or 'mbtcp'; passed on as bytes"
             )
         if not record.pdu:
             return
