@@ -51,9 +51,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
+import sniffer.sources.net as net
 from dissectors.envelope import open_ascii, rtu_frame
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.sources import net
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
