@@ -10,7 +10,7 @@ from typing import Any, TextIO
 from dissectors.values import Field
 from sniffer.describe import Describer, FrameDetail
 from sniffer.model import Stamp
-from sniffer.store import NO_PARTNER
+from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Kind
 
@@ -118,8 +118,10 @@ def fields_cell(fields: Sequence[Field]) -> str:
     return "; ".join(f"{name}={value}" for name, value in flat_fields(fields))
 
 
-def record(d: FrameDetail) -> dict[str, Any]:
-    """The JSONL object of a row. Keys keep their meaning as fields are added."""
+def record(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any]:
+    """The JSONL object of a row. Keys keep their meaning as fields are added. With the
+    `store`, `latency_ms` is the difference of the row times as listed (see
+    `shown_latency_ms`)."""
     v = d.view
     rec: dict[str, Any] = {
         "index": v.index,
@@ -143,7 +145,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
         rec["device"] = d.label
     if d.dissection is not None:
         rec["fields"] = [field_record(f) for f in d.dissection.fields]
-    transaction = transaction_of(d)
+    transaction = transaction_of(d, store)
     if transaction is not None:
         rec["transaction"] = transaction
     if d.registers:
@@ -176,7 +178,21 @@ def problem_details(d: FrameDetail) -> list[dict[str, Any]]:
     ]
 
 
-def transaction_of(d: FrameDetail) -> dict[str, Any] | None:
+def shown_latency_ms(d: FrameDetail, store: FrameStore | None) -> float | None:
+    """A measured latency in ms to the microsecond: with the `store`, the answer's `t`
+    minus the request's `t_end` as the listing gives them (to the microsecond), so the
+    number is the same whether the times came from a live clock or from a recording
+    that keeps microseconds; without it, the measured value rounded."""
+    if d.latency_ms is None:
+        return None
+    v = d.view
+    if store is None or v.partner == NO_PARTNER:
+        return round(d.latency_ms, 3)
+    req, resp = (v.index, v.partner) if v.kind == Kind.REQUEST else (v.partner, v.index)
+    return round((round(store.t[resp], 6) - round(store.t_end[req], 6)) * 1000, 3)
+
+
+def transaction_of(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any] | None:
     """The `transaction` object of a row that is part of one (None for noise, events and
     frames that are not paired)."""
     v = d.view
@@ -186,7 +202,7 @@ def transaction_of(d: FrameDetail) -> dict[str, Any] | None:
     return {
         "id": req,
         "role": "request" if v.kind == Kind.REQUEST else "response",
-        "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
+        "latency_ms": shown_latency_ms(d, store),
         "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
         "status": STATUS_NAMES[v.status],
         "partner": None if v.partner == NO_PARTNER else v.partner,
@@ -196,14 +212,14 @@ def transaction_of(d: FrameDetail) -> dict[str, Any] | None:
 UPDATED_KEYS = ("transaction", "problems", "problem_details")
 
 
-def update_record(d: FrameDetail) -> dict[str, Any]:
+def update_record(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any]:
     """What the live listing learnt later about a row it listed earlier (its answer came,
     it timed out): `{"update": 40, "transaction": {...}, "problems": [...]}`, the keys of
     UPDATED_KEYS as they are now (`problem_details` only when there are problems, as in
     a row). It has no `raw`, so `select(.raw)` keeps only frames."""
     rec: dict[str, Any] = {
         "update": d.view.index,
-        "transaction": transaction_of(d),
+        "transaction": transaction_of(d, store),
         "problems": list(d.problem_texts),
     }
     if d.problems:
@@ -223,6 +239,10 @@ def update_text(d: FrameDetail) -> str:
     elif d.latency_max_ms is not None:
         line += f" <{d.latency_max_ms:.0f}ms"
     return line
+
+
+def _ms(value: float | None) -> str:
+    return "" if value is None else f"{value:.3f}"
 
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
@@ -295,7 +315,7 @@ class Lister:
             if self.fmt == "text":
                 self.out.write(text_line(d, self.origin, self.absolute) + "\n")
             elif self.fmt == "jsonl":
-                rec = record(d)
+                rec = record(d, store)
                 rec["timing"] = TIMING_NAMES[store.stamps]
                 self.out.write(json_line(rec) + "\n")
             else:
@@ -314,7 +334,7 @@ class Lister:
                         len(v.raw),
                         v.check_ok,
                         d.status,
-                        "" if d.latency_ms is None else f"{d.latency_ms:.3f}",
+                        _ms(shown_latency_ms(d, store)),
                         d.summary,
                         "; ".join(d.problem_texts),
                         v.raw.hex(),
@@ -332,15 +352,16 @@ class Lister:
         whose index is the row updated (status, latency and partner in their columns,
         the other cells empty)."""
         n = 0
+        store = self.describer.store
         for i in rows:
             d = self.describer.detail(i)
             if self.fmt == "text":
                 self.out.write(f"{'':12}  {update_text(d)}\n")
             elif self.fmt == "jsonl":
-                self.out.write(json_line(update_record(d)) + "\n")
+                self.out.write(json_line(update_record(d, store)) + "\n")
             else:
                 v = d.view
-                latency = "" if d.latency_ms is None else f"{d.latency_ms:.3f}"
+                latency = _ms(shown_latency_ms(d, store))
                 answer = "" if v.partner == NO_PARTNER else f"answer #{v.partner}"
                 cells = (v.index, "", "", "", "update", "", "", "", "", "", d.status, latency)
                 self._csv_row((*cells, answer, "", "", ""))
