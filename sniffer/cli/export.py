@@ -38,9 +38,9 @@ from sniffer.text import plain
 
 EXPORT_EXAMPLES = """\
 examples:
-  modscope export bus.pcapng -o frames.pcapng       for Wireshark, decoded as it opens
-  modscope export bus.pcapng -o raw.pcapng --as rtu the RTU bytes as they were on the line
-  modscope export bus.pcapng -o frames.jsonl        one JSON object per frame
+  modscope export bus.pcapng -o frames.pcapng          for Wireshark, decoded as it opens
+  modscope export bus.pcapng -o raw.pcapng --as rtu    the RTU bytes as on the line
+  modscope export bus.pcapng -o frames.jsonl           one JSON object per frame
   modscope export bus.pcapng -o regs.csv --what registers
 
 """
