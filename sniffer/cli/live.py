@@ -299,7 +299,10 @@ def register(sub: SubParsers) -> None:
         description=(
             "Listen to one or two serial ports without ever transmitting (RTS and DTR are "
             "not asserted, nothing is written) and show every frame as it comes: in the "
-            "TUI on a terminal, else as a listing flushed per line (--format). --write "
+            "TUI on a terminal, else as a listing flushed per line (--format). Each frame "
+            "is listed once; a request's later answer or timeout follows as an update "
+            'record naming its row (JSONL {"update": N, ...}, with no raw: jq '
+            "'select(.raw)' keeps the frames; see docs/output.md). --write "
             "records what the ports read; --pcap streams frames for Wireshark "
             "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -)."
         ),
