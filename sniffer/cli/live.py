@@ -201,7 +201,7 @@ def stream(
     end = None if duration is None else time.monotonic() + duration
     assert capture.session is not None
     store = capture.session.store
-    waiting: list[int] = []  # requests listed while they waited for their answer
+    waiting: list[int] = []  # requests listed while open: each gets one update record
     sink = io.StringIO()
     if lister is not None:
         if not isinstance(lister.out, io.StringIO):
@@ -219,22 +219,30 @@ def stream(
         picked: list[int] | None = None  # the rows a filter or -c lets through
         if selection is not None and (selection.query is not None or selection.left is not None):
             picked = selection.take(rows.stop, final=final) if rows.stop else []
-        todo = picked
+        todo: list[int] | range = rows if picked is None else picked
         if lister is not None and backlog is not None:
-            if todo is None:
-                store.sync()
-                status = store.status
-                # a request listed as open that then got no answer is listed again
-                again = [i for i in waiting if status[i] == Status.TIMEOUT]
-                waiting = [i for i in waiting if status[i] == Status.OPEN]
-                waiting += [i for i in rows if status[i] == Status.OPEN]
-                todo = [*again, *rows]
+            # each frame is listed once; what is learnt later about a request listed
+            # while open (its answer, its timeout) follows as one update record
+            store.sync()
+            status = store.status
+            settled = [i for i in waiting if status[i] != Status.OPEN]
+            waiting = [i for i in waiting if status[i] == Status.OPEN]
+            if settled:
+                if backlog.full:
+                    backlog.drop(len(settled))
+                else:
+                    lister.write_updates(settled)
+                    backlog.add(sink.getvalue())
+                    sink.seek(0)
+                    sink.truncate()
             for k in range(0, len(todo), RENDER_ROWS):
                 late = deadline is not None and time.monotonic() >= deadline
                 if backlog.full or late:
                     backlog.drop(len(todo) - k)
                     break
-                lister.write(todo[k : k + RENDER_ROWS], flush=False)
+                part = todo[k : k + RENDER_ROWS]
+                lister.write(part, flush=False)
+                waiting += [i for i in part if status[i] == Status.OPEN]
                 backlog.add(sink.getvalue())
                 sink.seek(0)
                 sink.truncate()
@@ -294,7 +302,10 @@ def register(sub: SubParsers) -> None:
         description=(
             "Listen to one or two serial ports without ever transmitting (RTS and DTR are "
             "not asserted, nothing is written) and show every frame as it comes: in the "
-            "TUI on a terminal, else as a listing flushed per line (--format). --write "
+            "TUI on a terminal, else as a listing flushed per line (--format). Each frame "
+            "is listed once; a request's later answer or timeout follows as an update "
+            'record naming its row (JSONL {"update": N, ...}, with no raw: jq '
+            "'select(.raw)' keeps the frames; see docs/output.md). --write "
             "records what the ports read; --pcap streams frames for Wireshark "
             "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -). --baud auto first "
             "scans the port for its baud rate and format, as `modscope scan` does, and "
@@ -308,7 +319,8 @@ def register(sub: SubParsers) -> None:
     p.add_argument(
         "--pcap",
         metavar="FILE",
-        help="also write frames as Wireshark pcapng (link type 252, Modbus RTU); - for "
+        help="also write frames as Wireshark pcapng (each PDU for Wireshark's Modbus/TCP "
+        "dissector, decoded and paired with no setup; see modscope export); - for "
         "standard output, which then carries nothing else",
     )
     add_recording_options(p, required=False)
