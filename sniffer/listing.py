@@ -38,6 +38,8 @@ CSV_COLUMNS = (
     "summary",
     "problems",
     "raw",
+    "channel",
+    "peer",  # network captures: the sender's ip:port
 )
 
 
@@ -66,7 +68,7 @@ def record(d: FrameDetail) -> dict[str, Any]:
         "t": v.t,
         "t_end": v.t_end,
         "raw": v.raw.hex(),
-        "mode": "ascii" if v.ascii else "rtu",
+        "mode": "ascii" if v.ascii else "tcp" if v.mbap else "rtu",
         "kind": KIND_NAMES[v.kind],
         "unit": v.unit if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
         "function": v.function if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
@@ -128,9 +130,12 @@ def time_text(t: float, origin: float, absolute: bool) -> str:
     return f"{t - origin:12.6f}"
 
 
-def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
+def text_line(d: FrameDetail, origin: float, absolute: bool = False, peer: str = "") -> str:
+    """One row as text; `peer` (a network row's sender, `ip:port`) follows the time."""
     v = d.view
     when = time_text(v.t, origin, absolute)
+    if peer:
+        when += f"  {peer:<21}"
     if v.kind == Kind.EVENT:
         return f"{when}  ---  {d.summary}"
     if v.kind == Kind.NOISE:
@@ -188,11 +193,16 @@ class Lister:
                 if self.fmt == "text" and store.stamps == Stamp.NONE:
                     self.out.write(SYNTHETIC_HEADER + "\n")
             d = self.describer.detail(i)
+            peer = store.peers.get(store.channel[i], "") if store.peers else ""
             if self.fmt == "text":
-                self.out.write(text_line(d, self.origin, self.absolute) + "\n")
+                self.out.write(text_line(d, self.origin, self.absolute, peer) + "\n")
             elif self.fmt == "jsonl":
                 rec = record(d)
                 rec["timing"] = TIMING_NAMES[store.stamps]
+                if peer:
+                    rec["peer"] = peer
+                if i in store.links:
+                    rec["gateway"] = store.links[i]
                 self.out.write(json_line(rec) + "\n")
             else:
                 assert self._csv is not None
@@ -214,6 +224,8 @@ class Lister:
                         d.summary,
                         "; ".join(d.problem_texts),
                         v.raw.hex(),
+                        v.channel,
+                        peer,
                     )
                 )
             n += 1

@@ -18,6 +18,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_network_options,
     add_output_options,
     bindings_for,
     line_warnings,
@@ -100,7 +101,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     if show_progress:
         err.write("\r\x1b[K")
     session.warnings.extend(capture.warnings)
-    slow = wrong_speed(session.store)
+    slow = None if capture.info.network else wrong_speed(session.store)
     if slow is not None:
         session.warnings.append(f"{shown or path}: {slow}")
     for note in [*capture.info.notes, *session.notes]:
@@ -147,6 +148,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("-r", "--read", metavar="FILE", help="the capture file (as tcpdump -r)")
     add_line_options(p)
+    add_network_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument(
         "--probe",
