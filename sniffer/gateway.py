@@ -102,12 +102,37 @@ def transactions(store: FrameStore) -> list[Side]:
     return out
 
 
+def coarse_offset(tcp: list[Side], serial: list[Side], step: float = 0.05) -> float | None:
+    """A first guess of the seconds to add to serial times, for clocks that may be any
+    distance apart: every (TCP request end - serial request start) of requests with the
+    same body votes, the `step`-wide bin with the most votes (with its two neighbours)
+    wins. Polls repeated every period vote for the period's multiples too, but the true
+    offset gets one vote more per repetition. None when no body appears on both sides."""
+    by_body: dict[bytes, list[float]] = {}
+    for s in serial:
+        by_body.setdefault(s.body, []).append(s.t_request)
+    votes: dict[int, int] = {}
+    cast = 0
+    for t in tcp:
+        for start in by_body.get(t.body, ())[:64]:
+            b = round((t.t_request_end - start) / step)
+            votes[b] = votes.get(b, 0) + 1
+            cast += 1
+            if cast > 200_000:
+                break
+    if not votes:
+        return None
+    best = max(votes, key=lambda b: (votes.get(b - 1, 0) + votes[b] + votes.get(b + 1, 0), -abs(b)))
+    return best * step
+
+
 def estimate_offset(
-    tcp: list[Side], serial: list[Side], window: float = 5.0
+    tcp: list[Side], serial: list[Side], window: float = 5.0, guess: float = 0.0
 ) -> tuple[float, float, int] | None:
     """(offset, spread, samples): seconds to add to serial times, the median absolute
     deviation of the samples, and how many answered transactions were unique enough on
-    both sides to use. None without any."""
+    both sides to use (within `window` of each other once `guess` is added to the serial
+    times). None without any."""
     by_body: dict[bytes, list[Side]] = {}
     for s in serial:
         if s.t_answer_end is not None:
@@ -116,7 +141,11 @@ def estimate_offset(
     for t in tcp:
         if t.t_answer is None:
             continue
-        near = [s for s in by_body.get(t.body, ()) if abs(s.t_request - t.t_request_end) <= window]
+        near = [
+            s
+            for s in by_body.get(t.body, ())
+            if abs(s.t_request + guess - t.t_request_end) <= window
+        ]
         if len(near) != 1:
             continue
         s = near[0]
@@ -138,10 +167,27 @@ def link(
     slack: float = 0.05,
 ) -> list[Link]:
     """Link every TCP transaction to its serial one (module doc)."""
-    serial = transactions(serial_store)
+    return link_sides(
+        transactions(tcp_store),
+        transactions(serial_store),
+        offset=offset,
+        timeout=timeout,
+        slack=slack,
+    )
+
+
+def link_sides(
+    tcp: list[Side],
+    serial: list[Side],
+    *,
+    offset: float = 0.0,
+    timeout: float = 1.0,
+    slack: float = 0.05,
+) -> list[Link]:
+    """`link` over transactions already taken from their stores (serial in time order)."""
     used: set[int] = set()
     links = []
-    for t in transactions(tcp_store):
+    for t in tcp:
         found: Side | None = None
         for s in serial:
             start = s.t_request + offset

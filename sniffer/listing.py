@@ -195,7 +195,9 @@ class Lister:
             d = self.describer.detail(i)
             peer = store.peers.get(store.channel[i], "") if store.peers else ""
             if self.fmt == "text":
-                self.out.write(text_line(d, self.origin, self.absolute, peer) + "\n")
+                # with network rows about, the others name their channel in that column
+                where = peer or (f"ch{store.channel[i]}" if store.peers else "")
+                self.out.write(text_line(d, self.origin, self.absolute, where) + "\n")
             elif self.fmt == "jsonl":
                 rec = record(d)
                 rec["timing"] = TIMING_NAMES[store.stamps]
