@@ -153,8 +153,17 @@ def test_gateway_faults_get_their_verdicts(
         tap = bus.attach("tap")
         server = ModbusServer(device_end, units=(1, 2)).start()
         recorder = subprocess.Popen(
-            [MODSCOPE, "record", str(tap), "--parity", "N", "--stopbits", "2"]
-            + ["-w", str(serial_path)],
+            [
+                MODSCOPE,
+                "record",
+                str(tap),
+                "--parity",
+                "N",
+                "--stopbits",
+                "2",
+                "-w",
+                f"{serial_path}",
+            ],
             stderr=subprocess.PIPE,
             text=True,
         )
@@ -163,8 +172,7 @@ def test_gateway_faults_get_their_verdicts(
             wait_ready(recorder.stderr)
             with Gateway(gateway_end, [fault for fault, _, _ in PLAN]) as gateway:
                 dumpcap = subprocess.Popen(
-                    ["dumpcap", "-i", "lo", "-f", f"tcp port {gateway.port}"]
-                    + ["-w", str(tcp_path)],
+                    ["dumpcap", "-i", "lo", "-f", f"tcp port {gateway.port}", "-w", str(tcp_path)],
                     stderr=subprocess.PIPE,
                     text=True,
                 )
