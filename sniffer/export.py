@@ -81,6 +81,8 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         flags |= EPB_FLAG_INBOUND
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
+    if v.mbap:  # a Modbus TCP frame as it was, MBAP header and PDU
+        return upper_pdu_record(v.raw, "mbtcp"), flags, "; ".join(problems)
     if v.ascii:
         envelope = open_ascii(v.raw)
         sent, want = envelope.sent, envelope.expected

@@ -334,3 +334,23 @@ def test_replay_lists_what_tshark_dissects(
     assert ours == theirs
     assert len(ours) == 2 * sent
     assert {r["peer"].split(":")[0] for r in rows if r["kind"] != "event"} == {"127.0.0.1"}
+
+
+@pytest.mark.peer
+@pytest.mark.skipif(not shutil.which("tshark"), reason="needs tshark")
+def test_wireshark_export_hands_mbap_frames_to_mbtcp(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The export keeps a Modbus TCP frame as it was and names Wireshark's `mbtcp`."""
+    out = tmp_path / "out.pcapng"
+    code, _, err = run(["export", str(eth_capture(tmp_path)), "-o", str(out)], capsys)
+    assert code == 0, err
+    fields = ["-T", "fields", "-e", "mbtcp.trans_id", "-e", "mbtcp.unit_id"]
+    result = subprocess.run(
+        ["tshark", "-r", str(out), "-Y", "mbtcp", *fields, "-e", "modbus.func_code"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    rows = [line.split("\t") for line in result.stdout.splitlines()]
+    assert rows == [["1", "1", "3"], ["1", "7", "4"], ["1", "1", "3"], ["1", "7", "4"]]
