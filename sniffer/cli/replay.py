@@ -146,7 +146,7 @@ examples:
   modscope replay site.pcapng --format jsonl      one JSON object per frame
   modscope replay eth.pcap --port 502 --stats      Modbus TCP, statistics per server
   modscope replay nport.pcap --carrier rtu-over-tcp --port 4001
-  tcpdump -i eth0 -U -w - 'tcp port 502' | modscope replay - --format text
+  tcpdump -i eth0 -U -w - -c 5000 'tcp port 502' | modscope replay - --format text
   modscope replay tcp.pcap serial.pcapng --stats   both sides of a gateway, linked
   modscope replay tcp.pcap serial.pcapng --offset serial.pcapng=-3.25
 
