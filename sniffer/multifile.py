@@ -192,7 +192,7 @@ def align(
         serial = transactions(s.store)
         guess = coarse_offset(ref_sides, serial)
         found = (
-            None if guess is None else estimate_offset(ref_sides, serial, window=0.5, guess=guess)
+            None if guess is None else estimate_offset(ref_sides, serial, window=0.1, guess=guess)
         )
         if found is None:
             out.append(Alignment(name, base, False))
