@@ -115,7 +115,7 @@ class Capture:
         return replace(chunk, t_end=t_end, t_start=t_start, channel=channel)
 
     def _name_warnings(self) -> None:
-        prefix = f"{self.info.path}: "
+        path = self.info.path
         for i, text in enumerate(self.warnings):
-            if not text.startswith(prefix):
-                self.warnings[i] = prefix + text
+            if not text.startswith(path):  # `FILE: ...`, `FILE line 12: ...` name it already
+                self.warnings[i] = f"{path}: {text}"
