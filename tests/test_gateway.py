@@ -7,7 +7,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
@@ -168,12 +168,31 @@ def polling(fates: list[str], period: float, tmp: Path) -> tuple[FrameStore, Fra
     return pipeline.store, frame_capture(chunks, LINE)
 
 
+def ambiguous(fates: list[str]) -> bool:
+    """Whether another clock offset explains the answered polls as well: a shift by whole
+    polls that maps every poll answered on both sides to one answered on the serial side
+    with the same request (k % 3) and the same answer (k // 10). No estimator can tell
+    such clocks apart; `--offset` is there for them."""
+    answered = {k for k, f in enumerate(fates) if f in ("ok", "answer lost")}
+    anchors = [k for k, f in enumerate(fates) if f == "ok"]
+    for shift in range(-len(fates), len(fates)):
+        if shift and all(
+            k + shift in answered and (k + shift) % 3 == k % 3 and (k + shift) // 10 == k // 10
+            for k in anchors
+        ):
+            return True
+    return False
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.lists(st.sampled_from(FATES), min_size=5, max_size=60).filter(lambda f: "ok" in f))
 def test_fast_repeated_polls_link_one_for_one(fates: list[str]) -> None:
     """Polls faster than the gateway timeout repeat the same request: a dropped one must
-    not take the next one's serial request, whatever the fates (estimated clocks)."""
+    not take the next one's serial request, whatever the fates (estimated clocks), where
+    the traffic tells the clocks apart at all."""
     from sniffer.gateway import coarse_offset
+
+    assume(not ambiguous(fates))
 
     with tempfile.TemporaryDirectory() as folder:
         tcp, serial = polling(fates, 0.05, Path(folder))
