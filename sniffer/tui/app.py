@@ -30,6 +30,7 @@ from sniffer.model import Chunk
 from sniffer.recorder import RecordError
 from sniffer.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
+from sniffer.store import FrameStore
 from sniffer.tui.feed import (
     FeedProgress,
     LiveSource,
@@ -450,6 +451,7 @@ class ModscopeApp(App[int]):
         j = model.partner(row)
         d = model.detail(row)
         other = model.detail(j) if j is not None else None
+        pane.where = where_text(model.describer.store, row)
         if partner_first and other is not None:
             pane.show(other, d)
         else:
@@ -504,7 +506,10 @@ class ModscopeApp(App[int]):
         if row is None:
             return
         j = self.model.partner(row)
-        if j is None:
+        across = link_peer(self.model.describer.store, row)
+        if across is not None and self.model.view.contains(across):
+            self.frames.go_to_row(across)  # both sides of a gateway: the other side
+        elif j is None:
             self.say("this frame has no paired request or answer")
         elif self.model.view.contains(j):
             self.frames.go_to_row(j)
@@ -940,6 +945,31 @@ def reopen_file(session: Session) -> tuple[Session, Capture]:
         bindings=session.annotator.bindings,
         timeout=session.pipeline.pairer.timeout,
     )
+
+
+def where_text(store: FrameStore, row: int) -> str:
+    """A network row's sender (`ip:port`) and a gateway link's verdict, for the detail
+    title; `p` then jumps across the link."""
+    parts = []
+    peer = store.peers.get(store.channel[row])
+    if peer:
+        parts.append(f"from {peer}")
+    link = store.links.get(row)
+    if link is not None:
+        text = f"gateway: {link['verdict']}"
+        if link.get("delay_ms") is not None:
+            text += f", +{link['delay_ms']} ms"
+        if link.get("peer") is not None:
+            text += f" (p: other side #{link['peer']})"
+        parts.append(text)
+    return "  ".join(parts)
+
+
+def link_peer(store: FrameStore, row: int) -> int | None:
+    """The row on the other side of a gateway linked to `row`, if any."""
+    link = store.links.get(row)
+    peer = None if link is None else link.get("peer")
+    return peer if isinstance(peer, int) else None
 
 
 def run_tui(
