@@ -68,7 +68,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.pcap and args.write and os.path.abspath(args.pcap) == os.path.abspath(args.write):
         raise UsageError("--pcap and -w name the same file; give each its own")
     bindings = (
-        published_bindings(args, source, notifier(err))
+        published_bindings(bindings_for(args), source, notifier(err))
         if source is not None
         else bindings_for(args)
     )

@@ -57,7 +57,7 @@ def _watch(args: argparse.Namespace) -> int:
 
     messages: list[str] = []
     reader = open_mqtt_source(args.file, args, messages.append)
-    bindings = published_bindings(args, reader, messages.append)
+    bindings = published_bindings(bindings_for(args), reader, messages.append)
     session = mqtt_session(reader, bindings, args.timeout)
     capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
     capture.messages.extend(messages)

@@ -203,16 +203,16 @@ def mqtt_source(args: argparse.Namespace, notify: Callable[[str], None]) -> Mqtt
 
 
 def published_bindings(
-    args: argparse.Namespace, reader: MqttReader, notify: Callable[[str], None]
+    given: Mapping[int, Binding], reader: MqttReader, notify: Callable[[str], None]
 ) -> dict[int, Binding]:
-    """The watcher's bindings: --bus, --unit and --dict when given, else the units the
-    publisher's `interface` names, where the model is one of modscope's dictionaries."""
+    """The watcher's bindings: those `given` (--bus, --unit, --dict) if any, else the
+    units the publisher's `interface` names, where the model is one of modscope's
+    dictionaries."""
     from dissectors.dictionary.errors import DictionaryError
     from dissectors.dictionary.loader import load_model
-    from sniffer.cli.options import bindings_for
 
-    if args.bus or args.unit or args.dict:
-        return bindings_for(args)
+    if given:
+        return dict(given)
     units = reader.interface.get("units")
     out: dict[int, Binding] = {}
     if not isinstance(units, dict):
