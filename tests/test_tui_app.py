@@ -69,8 +69,17 @@ def capture_of(chunks: list[Chunk], path: str = "test.pcapng") -> Capture:
 
 
 def lines(app: ModscopeApp) -> list[str]:
+    """The frame list's lines without their row number column (`numbers` gives those)."""
     frames = app.frames
-    return [frames.render_line(y).text for y in range(frames.page_height)]
+    cut = frames.columns().number + 1 if frames.columns().number else 0
+    return [frames.render_line(y).text[cut:] for y in range(frames.page_height)]
+
+
+def numbers(app: ModscopeApp) -> list[str]:
+    """The row numbers the frame list shows, top to bottom."""
+    frames = app.frames
+    cut = frames.columns().number
+    return [frames.render_line(y).text[:cut].strip() for y in range(frames.page_height)]
 
 
 # -- opening and moving ---------------------------------------------------------------------

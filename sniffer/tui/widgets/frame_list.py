@@ -23,7 +23,14 @@ from textual.strip import Strip
 from textual.widgets import Static
 
 from sniffer.tui.model import ViewModel
-from sniffer.tui.render import ROW_STATES, Columns, columns_for, header_text, time_width
+from sniffer.tui.render import (
+    ROW_STATES,
+    Columns,
+    columns_for,
+    header_text,
+    number_width,
+    time_width,
+)
 
 _PARTS = ("time", "dim", "unit", "label", "name", *ROW_STATES)
 
@@ -109,8 +116,14 @@ class FrameList(ScrollView, can_focus=True):
         model = self.model
         span = model.latest - model.origin
         cols = self._cols
-        if cols is None or cols.width != width or cols.time != time_width(span, model.absolute):
-            self._cols = cols = columns_for(width, model.absolute, span)
+        number = number_width(model.published)
+        if (
+            cols is None
+            or cols.width != width
+            or cols.time != time_width(span, model.absolute)
+            or cols.number != number
+        ):
+            self._cols = cols = columns_for(width, model.absolute, span, model.published)
             self._strips.clear()
             self.post_message(self.ColumnsChanged(cols))
         return cols
