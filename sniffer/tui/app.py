@@ -13,6 +13,7 @@ import time
 from array import array
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import replace
 from pathlib import Path
 
 from rich.text import Text
@@ -44,10 +45,13 @@ from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
 from sniffer.tui.navigate import find_row
 from sniffer.tui.query import Query, QueryError, parse_query, parse_time_point
+from sniffer.tui.regtable import RegisterTable
 from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
 from sniffer.tui.screens.dialogs import HelpScreen
+from sniffer.tui.screens.ladder import LadderScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
+from sniffer.tui.screens.regtable import TableScreen
 from sniffer.tui.theme import themes
 from sniffer.tui.watch import Watch
 from sniffer.tui.widgets.frame_list import FrameList
@@ -225,7 +229,12 @@ class ModscopeApp(App[int]):
                 self.say(w, title="capture", severity="warning")
         if not self.paused:
             self._show_new_rows()
+            self._refresh_ladder()
         self._status()
+
+    def _refresh_ladder(self) -> None:
+        if isinstance(self.screen, LadderScreen):
+            self.screen.refresh_rows()
 
     def on_port_notice(self, message: PortNotice) -> None:
         self.say(message.text, title="port", severity="warning")
@@ -291,6 +300,7 @@ class ModscopeApp(App[int]):
         self.model.update_view()
         self.frames.rows_changed()
         self._filter_info()
+        self._refresh_ladder()
 
     def _filter_info(self) -> None:
         model = self.model
@@ -355,6 +365,8 @@ class ModscopeApp(App[int]):
             return Context.INPUT
         if focused is main.units:
             return Context.UNITS
+        if focused is main.watch_panel:
+            return Context.WATCH
         return Context.ANY
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
@@ -526,6 +538,17 @@ class ModscopeApp(App[int]):
         else:
             self._start_watch()
             self._watch()
+
+    def action_ladder(self) -> None:
+        frames = self.frames
+        k = frames.cursor or 0
+        screen = LadderScreen(self.model, k, following=frames.following)
+        self.push_screen(screen, self._from_ladder)
+        self.call_after_refresh(self._status)
+
+    def _from_ladder(self, row: int | None) -> None:
+        if row is not None:
+            self.frames.go_to_row(row)
 
     def action_zoom(self) -> None:
         self.main.toggle_class("-zoom")
@@ -816,6 +839,8 @@ class ModscopeApp(App[int]):
             progress=self._index_progress(),
         )
         self.main.status.show(info)
+        if isinstance(self.screen, LadderScreen | TableScreen):
+            self.screen.status.show(info)
 
     def _index_progress(self) -> float | None:
         """How far indexing got, estimated from the file's size (pcap formats, raw)."""
@@ -831,6 +856,9 @@ class ModscopeApp(App[int]):
         labels = {u: b.label for u, b in self.session.annotator.bindings.items()}
         units = list(self.session.stats.units.values())
         rows = unit_rows(units, labels, dict(model.last_answer), model.latest, self.units_cache)
+        # `seen` is when the unit was last heard (its last answer), in every pane: a unit
+        # the master keeps asking but that never answers is SILENT and not `seen` lately
+        rows = [replace(r, last_seen=r.last_answer or 0.0) for r in rows]
         self.main.units.show(rows, model.latest)
 
     def _start_watch(self) -> None:
@@ -884,6 +912,58 @@ class ModscopeApp(App[int]):
         scanned = self._watch_progress()
         screen = RegisterScreen(series, self.model.origin, self.model.absolute, scanned)
         self.push_screen(screen, self._jump_to_row)
+
+    # -- the register table (x picks in the watch, R shows) -----------------------------------
+
+    def action_pick(self) -> None:
+        panel = self.main.watch_panel
+        key = panel.cursor_key()
+        if key is None:
+            return
+        picked = panel.toggle_pick(key)
+        n = len(panel.picked)
+        if picked:
+            self.say(f"picked {n} register{'s' if n > 1 else ''}: R shows them side by side")
+        else:
+            self.say(f"unpicked; {n} picked")
+
+    def action_register_table(self) -> None:
+        watch, panel = self.watch_model, self.main.watch_panel
+        if watch is None:
+            return
+        keys = list(panel.picked) or [k for k in [panel.cursor_key()] if k is not None]
+        with watch.lock:
+            series = [watch.series[k] for k in keys if k in watch.series]
+        if not series:
+            self.say("no register to show: pick some with x in the register watch")
+            return
+        table = RegisterTable(self.model.reader, self.session.annotator, [s.key for s in series])
+        screen = TableScreen(table, series, self.model.origin, self.model.absolute)
+        self.push_screen(screen, self._jump_to_row)
+        self._run_table(table, screen, self.generation)
+        self.call_after_refresh(self._status)
+
+    @work(thread=True, group="table", exclusive=True)
+    def _run_table(self, table: RegisterTable, screen: TableScreen, generation: int) -> None:
+        worker = get_current_worker()
+        version = -1
+        while not worker.is_cancelled and generation == self.generation:
+            more = table.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
+            done = self.model.done and table.next >= self.model.shown
+            if done:
+                table.finish()
+            if table.version != version or done:
+                version = table.version
+                scanned = None if done else table.next / max(1, self.model.published)
+                self.call_from_thread(self._table_progress, screen, scanned)
+            if done and not self.live:
+                break
+            if not more:
+                time.sleep(0.2)
+
+    def _table_progress(self, screen: TableScreen, scanned: float | None) -> None:
+        if screen.is_attached:
+            screen.progress(scanned)
 
     def _jump_to_row(self, row: int | None) -> None:
         if row is None:
