@@ -3,7 +3,7 @@
 A pass over the frames that carry the picked registers (requests that write them and
 answers that read them, as the register watch reads them), a slice at a time from a
 worker thread. A row is one poll: it gathers the picked registers' values in capture
-order and a new row begins when a register that already has a value in it comes again
+order and a new row begins with a frame that carries a register the row has already
 (so registers read by separate requests, or from separate units, share a row per round).
 Every value is kept as read (no thinning): the newest `MAX_ROWS` rows stay, and the
 table says how many older ones were let go. Nothing here imports Textual.
@@ -70,15 +70,20 @@ class RegisterTable:
                 and (k == Kind.REQUEST or (k == Kind.RESPONSE and fc[i] not in _ECHO_FUNCTIONS))
             ):
                 d = self.describer.detail(i)
-                for r in d.registers:
-                    n = self.index.get((d.view.unit, r.table, r.address, r.name))
-                    if n is None or r.partial:
-                        continue
-                    if self._current[n] is not None:
+                found = [
+                    (n, value_text(r))
+                    for r in d.registers
+                    if not r.partial
+                    and (n := self.index.get((d.view.unit, r.table, r.address, r.name))) is not None
+                ]
+                if found:
+                    # a frame belongs to one poll: a register it carries again starts the next
+                    if any(self._current[n] is not None for n, _ in found):
                         self._close()
                     if self._start is None:
                         self._start = (d.view.t, i)
-                    self._current[n] = value_text(r)
+                    for n, text in found:
+                        self._current[n] = text
             i += 1
             if i % 64 == 0 and _time.monotonic() > deadline:
                 break
