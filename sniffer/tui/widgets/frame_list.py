@@ -92,7 +92,7 @@ class FrameList(ScrollView, can_focus=True):
         self._cols: Columns | None = None
         self._last_row: int | None = None
         self.first_drawn: float | None = None  # perf_counter() when rows were first drawn
-        self.drawn_at = 0.0  # perf_counter() when the top line was last drawn
+        self.drawn_at = 0.0  # perf_counter() when a line was last drawn
 
     # -- state -----------------------------------------------------------------------------
 
@@ -263,10 +263,9 @@ class FrameList(ScrollView, can_focus=True):
         base = self.rich_style
         if k >= self.count:
             return Strip.blank(width, base)
-        if y == 0:
-            self.drawn_at = time.perf_counter()
-            if self.first_drawn is None:
-                self.first_drawn = self.drawn_at
+        self.drawn_at = time.perf_counter()  # any line: a cursor step redraws two
+        if y == 0 and self.first_drawn is None:
+            self.first_drawn = self.drawn_at
         row = self.model.view.row(k)
         key = (k, row, self.model.reader.status[row])
         strip = self._strips.get(key)
