@@ -139,6 +139,8 @@ class ModscopeApp(App[int]):
         self._rate: float | None = None
         self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
         self.applied_filter = ""  # the filter text that the rows show
+        self.filter_error = ""  # why the query on the bar was refused ('' if it was not)
+        self.filter_refused = ""  # the text that was refused
         self.search: Query | None = None  # what n/N look for
         self.search_text = ""
         self.search_from: tuple[int, int] | None = None  # (step, row) a cut-short scan reached
@@ -230,6 +232,10 @@ class ModscopeApp(App[int]):
         if not self.paused:
             self._show_new_rows()
             self._refresh_ladder()
+        # the header follows the columns here, not only through ColumnsChanged: that is
+        # posted while the list draws, and it was seen not to arrive (row numbers grew
+        # a digit and the header stayed as it was)
+        self.main.header.show(self.frames.columns())
         self._status()
 
     def _refresh_ladder(self) -> None:
@@ -306,6 +312,9 @@ class ModscopeApp(App[int]):
         model = self.model
         info = self.main.filter_info
         bar = self.main.filter_bar
+        if self.filter_error:  # a refused query stays said while it is on the bar
+            info.update(Text(self.filter_error))
+            return
         bar.set_class(model.problems_only, "-problems")
         bar.set_class(model.transactions, "-transactions")
         parts = []
@@ -335,7 +344,13 @@ class ModscopeApp(App[int]):
 
     def on_input_changed(self, event: Input.Changed) -> None:
         if event.input is self.main.filter_input:
+            if self.filter_error and event.value != self.filter_refused:
+                self._clear_filter_error()
             self._filter_info()
+
+    def _clear_filter_error(self) -> None:
+        self.filter_error = ""
+        self.main.filter_bar.remove_class("-error")
 
     def _apply_filter(self, text: str) -> None:
         bar = self.main.filter_bar
@@ -343,9 +358,13 @@ class ModscopeApp(App[int]):
             query = parse_query(text)
         except QueryError as exc:
             bar.add_class("-error")
-            self.main.filter_info.update(Text(str(exc)))
+            self.filter_error = str(exc)  # shown until the text is edited or Esc
+            self.filter_refused = text
+            self._filter_info()
+            self.say(self.filter_error, title="filter", severity="error")  # all of it
             self._focus(self.main.filter_input)  # to correct it
             return
+        self.filter_error = ""
         bar.remove_class("-error")
         self.model.query = query
         self.applied_filter = text
@@ -426,6 +445,7 @@ class ModscopeApp(App[int]):
             main.prompt.close(False)
 
     def _revert_filter(self) -> None:
+        self._clear_filter_error()
         self.main.filter_input.value = self.applied_filter  # the bar shows what is applied
         self._filter_info()
 

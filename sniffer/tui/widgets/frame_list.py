@@ -28,8 +28,6 @@ from sniffer.tui.render import (
     Columns,
     columns_for,
     header_text,
-    number_width,
-    time_width,
 )
 
 _PARTS = ("time", "dim", "unit", "label", "name", *ROW_STATES)
@@ -115,15 +113,9 @@ class FrameList(ScrollView, can_focus=True):
         width = max(20, self.scrollable_content_region.width)
         model = self.model
         span = model.latest - model.origin
-        cols = self._cols
-        number = number_width(model.published)
-        if (
-            cols is None
-            or cols.width != width
-            or cols.time != time_width(span, model.absolute)
-            or cols.number != number
-        ):
-            self._cols = cols = columns_for(width, model.absolute, span, model.published)
+        cols = columns_for(width, model.absolute, span, model.published)
+        if cols != self._cols:
+            self._cols = cols
             self._strips.clear()
             self.post_message(self.ColumnsChanged(cols))
         return cols
