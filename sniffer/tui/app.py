@@ -22,7 +22,7 @@ from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
 from textual.widget import Widget
-from textual.widgets import Input
+from textual.widgets import DataTable, Input
 from textual.worker import get_current_worker
 
 from sniffer.describe import Describer
@@ -399,6 +399,8 @@ class ModscopeApp(App[int]):
         here = self.focus_context()
         if context is Context.ANY:
             return here is not Context.INPUT
+        if action == "list":  # the moving keys move the units and watch tables too
+            return here in (Context.LIST, Context.UNITS, Context.WATCH)
         return here is context
 
     def _focus_changed(self) -> None:
@@ -406,6 +408,17 @@ class ModscopeApp(App[int]):
             self.main.keybar.show(self.focus_context())
 
     def action_list(self, name: str, step: int) -> None:
+        table = self.main.focused
+        if isinstance(table, DataTable):  # units or watch: moved here, in key order
+            if name == "cursor":
+                (table.action_cursor_up if step < 0 else table.action_cursor_down)()
+            elif name == "page":
+                (table.action_page_up if step < 0 else table.action_page_down)()
+            elif name == "first":
+                table.action_scroll_top()
+            else:
+                table.action_scroll_bottom()
+            return
         frames = self.frames
         if name == "cursor":
             frames.action_cursor(step)
@@ -934,6 +947,12 @@ class ModscopeApp(App[int]):
         self.push_screen(screen, self._jump_to_row)
 
     # -- the register table (x picks in the watch, R shows) -----------------------------------
+
+    def action_open_register(self) -> None:
+        panel = self.main.watch_panel
+        key = panel.cursor_key()
+        if key is not None:
+            panel.post_message(WatchPanel.Open(key))
 
     def action_pick(self) -> None:
         panel = self.main.watch_panel

@@ -75,6 +75,7 @@ KEYS: tuple[Key, ...] = (
     Key("end", "list('follow', 0)", "End", "last", Context.LIST, bar=False),
     Key("enter", "fields", "⏎", "fields", Context.LIST, bar=False),
     Key("enter", "filter_unit", "⏎", "unit", Context.UNITS),
+    Key("enter", "open_register", "⏎", "plot", Context.WATCH),
     Key("x", "pick", "x", "pick", Context.WATCH),
     Key("R", "register_table", "R", "table", Context.WATCH),
     Key("escape", "to_list", "esc", "back", bar=False),
