@@ -163,7 +163,7 @@ async def test_l_opens_the_ladder_and_enter_goes_back_to_the_row() -> None:
         await pilot.press("j", "j", "l")
         assert isinstance(app.screen, LadderScreen)
         text = screen_text(app)
-        assert "one line = " in text and "REPLAY" in text
+        assert "a line = " in text and "REPLAY" in text
         await pilot.press("j", "j", "j")
         await pilot.press("enter")
         assert not isinstance(app.screen, LadderScreen)

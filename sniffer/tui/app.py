@@ -434,6 +434,12 @@ class ModscopeApp(App[int]):
         they keep their order with the keys before and after them (see LineInput)."""
         if isinstance(event, events.Key) and not event.is_forwarded and self.screen is self.main:
             field = self.main.focused
+            if isinstance(field, LineInput) and event.key == "ctrl+j":
+                # a newline: Enter typed before the terminal was switched to raw mode
+                # (type-ahead while modscope starts) arrives as LF, not CR
+                event.stop()
+                self.action_submit()
+                return
             if isinstance(field, LineInput) and await field.type_key(event):
                 event.stop()
                 return
@@ -599,6 +605,9 @@ class ModscopeApp(App[int]):
             except ValueError:
                 self.say(f"{answer!r} is not a row number", severity="error")
                 return
+            if row >= model.published:
+                more = "" if model.done else " yet"
+                self.say(f"there is no #{row}{more} ({model.published:,} rows): the last is shown")
             frames.go_to_row(row)
             return
         try:

@@ -214,7 +214,7 @@ class Ladder:
         x0 = lanes.master
         xu = lanes.slaves.get(unit)
         far = max(lanes.slaves.values(), default=x0 + LANE_MIN)
-        end = xu if xu is not None else far + 2
+        end = xu if xu is not None else far + 2  # off the side: to the edge (notes say who)
         note = Text(no_wrap=True)
         state = ""
         if kind == Kind.NOISE:
@@ -240,8 +240,6 @@ class Ladder:
                 head = "╳" if status == Status.TIMEOUT else "▶"
                 arrow = dash * max(0, end - x0 - 2) + head
                 text = _overlay(text, x0 + 1, arrow, styles.get(state or "request"))
-                if xu is None:
-                    text = _overlay(text, end, f"u{unit}", styles.get("unit"))
             note.append(f"u{unit} ", styles.get("unit"))
             note.append(f"fc{store.fc[row]} ")
             tags = flag_tags(flags)
@@ -267,8 +265,6 @@ class Ladder:
                 mid = (len(arrow) - len(lat)) // 2
                 arrow = arrow[:mid] + lat + arrow[mid + len(lat) :]
             text = _overlay(text, start, arrow, styles.get(state or "answer"))
-            if xu is None:
-                text = _overlay(text, end, f"u{unit}", styles.get("unit"))
             note.append(f"u{unit} ", styles.get("unit"))
             if lat:
                 note.append(lat + " ", styles.get("latency"))

@@ -99,11 +99,12 @@ class LadderView(Widget, can_focus=True):
         width, height = self.size.width, max(1, self.size.height - 1)
         span = model.latest - model.origin
         tw = time_width(span, model.absolute)
-        lanes = self.lanes = lanes_for(width, tw, self.units())
+        units = self.units()
+        lanes = self.lanes = lanes_for(width, tw, units)
         styles = self.styles_map()
-        out = lane_header(lanes, styles)
         count = model.view.count
         if count == 0:
+            out = lane_header(lanes, styles)
             out.append("\n")
             out.append("no rows: the filter shows none, or nothing was read yet", styles["dim"])
             return out
@@ -112,6 +113,12 @@ class LadderView(Widget, can_focus=True):
         self.cursor = max(0, min(self.cursor, count - 1))
         ladder = self.ladder()
         lines = self._fit(ladder, height, lanes, styles)
+        if len(lanes.slaves) < len(units):  # too many for the width: those on screen
+            store = model.reader
+            here = {store.unit[r] for r in (x.row for x in lines) if r is not None}
+            lanes = self.lanes = lanes_for(width, tw, sorted(u for u in here if u in units))
+            lines = self._fit(ladder, height, lanes, styles)
+        out = lane_header(lanes, styles)
         for line in lines:
             out.append("\n")
             out.append_text(line.text)
@@ -210,15 +217,15 @@ class LadderScreen(Screen[int | None]):
         reader = self.model.reader
         title = Text("ladder", "bold")
         if view.scale is not None:
-            title.append(f"  one line = {scale_text(view.scale)}; gaps to scale (exact times)")
+            title.append(f"  a line = {scale_text(view.scale)} (exact times)")
         elif reader.stamps.name == "READ_END" and reader.resolution > 0:
-            title.append("  one line a frame: times are host reads, gaps are not to scale")
+            title.append("  gaps not to scale (host read times)")
         else:
-            title.append("  one line a frame: gaps written, not to scale")
+            title.append("  gaps not to scale")
         lanes = view.lanes
-        hidden = [u for u in view.units() if lanes is not None and u not in lanes.slaves]
-        if hidden:
-            title.append(f"  ({len(hidden)} units off the side: filter unit:N)")
+        units = view.units()
+        if lanes is not None and len(lanes.slaves) < len(units):
+            title.append(f"  {len(lanes.slaves)} of {len(units)} units (those on screen)")
         self.title_bar.update(title)
 
     def refresh_rows(self) -> None:
