@@ -178,3 +178,16 @@ async def test_a_row_not_read_yet_is_said() -> None:
         burst(app, ["g", *"#5000", "enter"])
         await until(pilot, lambda: any("there is no #5000" in s for s in app.said))
         assert app.frames.cursor_row == len(app.model.view) - 1
+
+
+@pytest.mark.asyncio
+async def test_escape_and_a_key_in_one_sequence_are_two_keys() -> None:
+    """Esc typed right before `w` reaches the app as alt+w (one terminal sequence): it
+    closes the ladder, then shows the register watch."""
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=(80, 24)) as pilot:
+        await ready(pilot, app)
+        await pilot.press("l")
+        assert app.screen is not app.main
+        burst(app, ["alt+w"])
+        await until(pilot, lambda: app.screen is app.main and app.main.lower.current == "watch")

@@ -431,7 +431,22 @@ class ModscopeApp(App[int]):
 
     async def on_event(self, event: events.Event) -> None:
         """Keys for the filter or the prompt are typed into it here, as they arrive, so
-        they keep their order with the keys before and after them (see LineInput)."""
+        they keep their order with the keys before and after them (see LineInput).
+
+        A terminal sends Esc and a key typed right after it as one sequence, which reads
+        as alt+key: no key of modscope uses alt, so it is taken as the two keys typed."""
+        if (
+            isinstance(event, events.Key)
+            and event.key.startswith("alt+")
+            and "+" not in event.key[4:]
+            and not event.is_forwarded
+        ):
+            event.stop()
+            for key, char in (("escape", "\x1b"), (event.key[4:], event.character)):
+                typed = events.Key(key, char)
+                typed.set_sender(self)
+                await self.on_event(typed)
+            return
         if isinstance(event, events.Key) and not event.is_forwarded and self.screen is self.main:
             field = self.main.focused
             if isinstance(field, LineInput) and event.key == "ctrl+j":
@@ -928,8 +943,8 @@ class ModscopeApp(App[int]):
         watch, model = self.watch_model, self.model
         if watch is None:
             return 0.0
-        if model.done and watch.next >= model.published:
-            return None
+        if watch.next >= model.published and (model.done or self.live is not None):
+            return None  # all of it (a live line is never done: caught up is complete)
         return watch.next / max(1, model.published)
 
     def _watch(self) -> None:
@@ -994,15 +1009,17 @@ class ModscopeApp(App[int]):
     @work(thread=True, group="table", exclusive=True)
     def _run_table(self, table: RegisterTable, screen: TableScreen, generation: int) -> None:
         worker = get_current_worker()
-        version = -1
+        sent = (-1, False)
         while not worker.is_cancelled and generation == self.generation:
             more = table.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
-            done = self.model.done and table.next >= self.model.shown
+            caught_up = table.next >= self.model.shown
+            done = self.model.done and caught_up
             if done:
                 table.finish()
-            if table.version != version or done:
-                version = table.version
-                scanned = None if done else table.next / max(1, self.model.published)
+            complete = done or (caught_up and self.live is not None)
+            if (table.version, complete) != sent:
+                sent = (table.version, complete)
+                scanned = None if complete else table.next / max(1, self.model.published)
                 self.call_from_thread(self._table_progress, screen, scanned)
             if done and not self.live:
                 break
