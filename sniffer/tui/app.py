@@ -984,11 +984,8 @@ class ModscopeApp(App[int]):
         if key is None:
             return
         picked = panel.toggle_pick(key)
-        n = len(panel.picked)
-        if picked:
-            self.say(f"picked {n} register{'s' if n > 1 else ''}: R shows them side by side")
-        else:
-            self.say(f"unpicked; {n} picked")
+        if picked and len(panel.picked) == 1:  # the ✓ shows the others: say it once
+            self.say("picked (✓): x picks more, R shows them side by side")
 
     def action_register_table(self) -> None:
         watch, panel = self.watch_model, self.main.watch_panel

@@ -90,7 +90,8 @@ def lane_header(lanes: Lanes, styles: Styles) -> Text:
         name = f"u{unit}"
         _put(cells, x - len(name) // 2, name)
     _put(cells, lanes.notes, "what")
-    text = Text("".join(cells).rstrip(), no_wrap=True, style=styles.get("head") or "")
+    text = Text(no_wrap=True)
+    text.append("".join(cells).rstrip(), styles.get("head"))
     text.pad_right(lanes.width - len(text))
     return text
 
@@ -194,7 +195,9 @@ class Ladder:
                 cells[x] = fill
         for x in xs:
             cells[x] = "│"
-        return Text("".join(cells), no_wrap=True, style=styles.get("rail") or "")
+        text = Text(no_wrap=True)
+        text.append("".join(cells), styles.get("rail"))
+        return text
 
     def line(
         self, row: int, previous: int | None, lanes: Lanes, styles: Styles, selected: bool
