@@ -688,17 +688,22 @@ class ModscopeApp(App[int]):
         rows: Iterable[int] = (
             range(view.count) if view.rows is None else array("Q", view.rows[: view.count])
         )
-        self._write_export(Path(answer).expanduser(), rows)
+        # the rows, store and options of now: `s` may start the capture again (a new
+        # store) while the file is being written
+        model = self.model
+        describer = Describer(model.reader, self.session.annotator, size=256)
+        self._write_export(Path(answer).expanduser(), rows, describer, model.absolute)
 
     @work(thread=True, group="export")
-    def _write_export(self, path: Path, rows: Iterable[int]) -> None:
+    def _write_export(
+        self, path: Path, rows: Iterable[int], describer: Describer, absolute: bool
+    ) -> None:
         suffix = path.suffix.lower().lstrip(".")
         fmt = EXPORT_FORMATS.get(suffix, "text")
         assert fmt in FORMATS
-        describer = Describer(self.model.reader, self.session.annotator, size=256)
         try:
             with path.open("w", encoding="utf-8", newline="" if fmt == "csv" else None) as out:
-                lister = Lister(out, fmt, describer, absolute=self.model.absolute)
+                lister = Lister(out, fmt, describer, absolute=absolute)
                 n = lister.write(rows, flush=False)
         except OSError as exc:
             reason = f"cannot write {path}: {exc.strerror or exc}"
