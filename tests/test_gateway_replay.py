@@ -359,3 +359,23 @@ def test_wireshark_export_hands_mbap_frames_to_mbtcp(
     assert [r[1:] for r in rows] == [["1", "3"], ["7", "4"], ["1", "3"], ["7", "4"]]
     ids = [r[0] for r in rows]
     assert len(set(ids)) == 2 and ids[0] != ids[1]
+
+
+def test_export_and_diff_take_the_network_options(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    conv = Conversation(server_port=4001)
+    request, answer = with_crc(bytes.fromhex("110300000001")), with_crc(bytes.fromhex("1103020007"))
+    packets = [*conv.handshake(), conv.client(request), conv.server(answer)]
+    path = tmp_path / "nport.pcap"
+    path.write_bytes(pcap(1, [(T0 + k * 0.01, p) for k, p in enumerate(packets)]))
+    out = tmp_path / "frames.jsonl"
+    code, _, err = run(
+        ["export", str(path), "-o", str(out), "--carrier", "rtu-over-tcp", "--port", "4001"],
+        capsys,
+    )
+    assert code == 0, err
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["raw"] for r in rows if r["kind"] != "event"] == [request.hex(), answer.hex()]
+    code, _, err = run(["diff", str(path), str(path), "--carrier", "rtu-over-tcp"], capsys)
+    assert code == 0, err

@@ -11,6 +11,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_network_options,
     bindings_for,
     read_options,
 )
@@ -85,6 +86,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate for mqtts://")
     add_line_options(p)
+    add_network_options(p)
     add_device_options(p)
     p.add_argument(
         "--speed",
