@@ -191,3 +191,26 @@ async def test_escape_and_a_key_in_one_sequence_are_two_keys() -> None:
         assert app.screen is not app.main
         burst(app, ["alt+w"])
         await until(pilot, lambda: app.screen is app.main and app.main.lower.current == "watch")
+
+
+@pytest.mark.asyncio
+@pytest.mark.parametrize("opener", ["l", "question_mark"])
+@pytest.mark.parametrize("keys", [("escape", "w"), ("alt+w",), ("escape", "u"), ("alt+u",)])
+async def test_a_key_right_after_the_esc_that_closes_a_screen_is_not_lost(
+    opener: str, keys: tuple[str, ...]
+) -> None:
+    # A terminal sends Esc and a key typed right after it as one sequence (alt+key); the
+    # screen Esc closes is gone before the key is handled, so the key reaches the list.
+    from sniffer.tui.screens.dialogs import HelpScreen
+    from sniffer.tui.screens.ladder import LadderScreen
+    from tests.test_tui_ladder import exact_session
+
+    app = ModscopeApp(exact_session())
+    async with app.run_test(size=(80, 24)) as pilot:
+        await ready(pilot, app)
+        await pilot.press(opener)
+        assert isinstance(app.screen, LadderScreen | HelpScreen)
+        await pilot.press(*keys)
+        await pilot.pause(0.1)
+        assert not isinstance(app.screen, LadderScreen | HelpScreen)
+        assert app.main.lower.current == {"w": "watch", "u": "units"}[keys[-1][-1]]

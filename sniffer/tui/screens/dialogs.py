@@ -57,7 +57,7 @@ filter language (terms separated by spaces, all must hold)
 
 class HelpScreen(ModalScreen[None]):
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("escape,q,question_mark", "close", "close"),
+        Binding("escape,q,question_mark", "close", "close", priority=True),
     ]
 
     def compose(self) -> ComposeResult:

@@ -37,7 +37,7 @@ class RegisterScreen(Screen[int | None]):
     """Dismissed with the row to jump to (Enter on a frame), or None (Esc)."""
 
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("escape,q", "close", "back"),
+        Binding("escape,q", "close", "back", priority=True),
         Binding("enter", "jump", "go to frame"),
     ]
 
