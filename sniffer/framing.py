@@ -34,6 +34,7 @@ from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
 
 if TYPE_CHECKING:
+    from sniffer.reads import Reads
     from sniffer.store import FrameStore
 
 MAX_RTU = 256
@@ -106,31 +107,35 @@ class _Timeline:
         self.cur_rate = 0.0
 
     def add(self, chunk: Chunk) -> None:
-        n = len(chunk.data)
+        self.add_read(len(chunk.data), chunk.t_start, chunk.t_end)
+
+    def add_read(self, n: int, chunk_start: float | None, chunk_end: float) -> None:
+        """A read of `n` bytes that ended at `chunk_end` (first byte at `chunk_start`, if
+        the source knows it)."""
         start = self.offset
-        if chunk.t_start is not None:
-            t_start = chunk.t_start
+        if chunk_start is not None:
+            t_start = chunk_start
         else:
-            t_start = chunk.t_end - n * self.char
+            t_start = chunk_end - n * self.char
             if self.last_end is not None and t_start < self.last_end:
                 if t_start < self.last_end - self.slack:
                     # the bytes need longer on the wire than the stamps leave them
                     self.too_fast += 1
                     if self.first_too_fast is None:
-                        self.first_too_fast = chunk.t_end
+                        self.first_too_fast = chunk_end
                 t_start = self.last_end
         gap = float("inf") if self.last_end is None else t_start - self.last_end
-        if t_start > chunk.t_end:
-            t_start = chunk.t_end
-        self.spans.append(_Span(start, start + n, t_start, chunk.t_end, gap))
+        if t_start > chunk_end:
+            t_start = chunk_end
+        self.spans.append(_Span(start, start + n, t_start, chunk_end, gap))
         self.starts.append(start)
         self.cur_start = start
         self.cur_t0 = t_start
-        self.cur_rate = (chunk.t_end - t_start) / n if n else 0.0
+        self.cur_rate = (chunk_end - t_start) / n if n else 0.0
         if gap >= self.t35:
             self.boundaries.append(start)
         self.offset += n
-        self.last_end = chunk.t_end
+        self.last_end = chunk_end
 
     def mark_error(self) -> None:
         """The last byte read had a framing or parity error."""
@@ -240,6 +245,11 @@ class _Framer:
         self.stream += chunk.data
         self._scan(final=False)
 
+    def feed_reads(self, reads: Reads) -> None:
+        """A batch of reads: framed read by read, exactly as `feed` would frame each."""
+        for chunk in reads.split():
+            self.feed(chunk)
+
     def finish(self) -> None:
         self._scan(final=True)
 
@@ -303,6 +313,7 @@ class RtuFramer(_Framer):
         self.pairs: list[int] = []  # rows the fast path paired, flat: request, answer, ...
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
+        self.scan_end = 0  # the end of the bytes the scan in progress may see
 
     def idle(self) -> None:
         """The line has been silent for at least t3.5: decide everything buffered."""
@@ -310,13 +321,34 @@ class RtuFramer(_Framer):
 
     # -- the scanner ---------------------------------------------------------------------
 
+    def feed_reads(self, reads: Reads) -> None:
+        """A batch of reads: the bytes join the stream at once, then each read is scanned
+        as `feed` scans a chunk, seeing only the bytes read so far, so the rows are the
+        same as from the reads one by one."""
+        if not reads.data:
+            return
+        tl = self.timeline
+        add = tl.add_read
+        base = len(self.stream)
+        self.stream += reads.data
+        scan = self._scan_bytes
+        buf = self.stream
+        prev = 0
+        for end, t0, t1 in zip(reads.ends, reads.t_starts, reads.t_ends, strict=True):
+            add(end - prev, t0, t1)
+            prev = end
+            scan(buf, False, base + end)
+            if len(tl.spans) > 64:
+                tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+
     def _scan(self, final: bool) -> None:
         self._scan_bytes(self.stream, final)
         if len(self.timeline.spans) > 64:
             self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
 
-    def _scan_bytes(self, buf: bytearray, final: bool) -> None:
-        end = len(buf)
+    def _scan_bytes(self, buf: bytearray, final: bool, limit: int = -1) -> None:
+        """Frame from `self.pos` up to `limit` (default: the end of `buf`)."""
+        end = self.scan_end = len(buf) if limit < 0 else limit
         pos = self.pos
         (
             request_base,
@@ -651,7 +683,8 @@ class RtuFramer(_Framer):
         predicted = EXCEPTION_LENGTH if fc & 0x80 else self.pending_len
         if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc and length == predicted:
             return True
-        return any(rule.length(buf, start, len(buf)) == length for rule, _ in self.rules[fc])
+        # the bytes seen so far, as when each read came alone (see feed_reads)
+        return any(rule.length(buf, start, self.scan_end) == length for rule, _ in self.rules[fc])
 
     def _kind_of(self, start: int) -> int:
         fc = self.stream[start + 1]

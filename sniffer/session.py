@@ -14,6 +14,7 @@ from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
 from sniffer.model import Chunk, Labels, LineSettings, Stamp
 from sniffer.pipeline import MERGE_SLACK, Pipeline
+from sniffer.reads import Reads, batching
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
@@ -75,7 +76,7 @@ class Session:
 
     def feed(self, chunk: Chunk) -> None:
         self.pipeline.feed(chunk)
-        self.chunks += 1
+        self.chunks += len(chunk) if isinstance(chunk, Reads) else 1
 
     def refresh(self) -> None:
         """Bring pairing, annotation state and statistics up to date with the store."""
@@ -104,17 +105,20 @@ class Session:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
         last = time.monotonic()
         done = 0
-        for chunk in chunks:
-            self.feed(chunk)
-            done += len(chunk.data)
-            now = time.monotonic()
-            if now - last >= every:
-                last = now
-                self.refresh()
-                if progress is not None:
-                    progress(done, len(self.store))
-                if should_stop is not None and should_stop():
-                    return
+        # readers may pass runs of reads as one batch (sniffer.reads): the pipeline
+        # frames them read by read, so the rows are the same
+        with batching():
+            for chunk in chunks:
+                self.feed(chunk)
+                done += len(chunk.data)
+                now = time.monotonic()
+                if now - last >= every:
+                    last = now
+                    self.refresh()
+                    if progress is not None:
+                        progress(done, len(self.store))
+                    if should_stop is not None and should_stop():
+                        return
         self.finish()
         if progress is not None:
             progress(done, len(self.store))
