@@ -69,6 +69,7 @@ class Session:
         self.warnings: list[str] = []
         self.notes: list[str] = []  # what the user should know, not faults
         self.chunks = 0
+        self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
 
     @property
     def mode(self) -> str:
@@ -107,7 +108,7 @@ class Session:
         done = 0
         # readers may pass runs of reads as one batch (sniffer.reads): the pipeline
         # frames them read by read, so the rows are the same
-        with batching():
+        with batching(self.batch_reads):
             for chunk in chunks:
                 self.feed(chunk)
                 done += len(chunk.data)
