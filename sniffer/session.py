@@ -70,6 +70,9 @@ class Session:
         self.notes: list[str] = []  # what the user should know, not faults
         self.chunks = 0
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
+        # the sidecar index (sniffer.index): where it came from, or what to save it as
+        self.indexed_from: Path | None = None
+        self._sidecar: tuple[Path, Capture, str] | None = None
 
     @property
     def mode(self) -> str:
@@ -104,6 +107,11 @@ class Session:
         should_stop: Callable[[], bool] | None = None,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
+        if self.indexed_from is not None:
+            # read back from the sidecar index: every row is there already
+            if progress is not None:
+                progress(self._sidecar_bytes(), len(self.store))
+            return
         last = time.monotonic()
         done = 0
         # readers may pass runs of reads as one batch (sniffer.reads): the pipeline
@@ -121,8 +129,17 @@ class Session:
                     if should_stop is not None and should_stop():
                         return
         self.finish()
+        if self._sidecar is not None:
+            from sniffer import index
+
+            path, capture, key = self._sidecar
+            if capture.finished:  # read to its end
+                index.save(self, capture, path, key)
         if progress is not None:
             progress(done, len(self.store))
+
+    def _sidecar_bytes(self) -> int:
+        return sum(len(s) for s in self.store.streams.values())
 
 
 def open_session(
@@ -131,8 +148,14 @@ def open_session(
     *,
     bindings: Mapping[int, Binding] | None = None,
     timeout: float | None = None,
+    index: bool = True,
 ) -> tuple[Session, Capture]:
-    """A session for a capture file, not yet ingested: feed it `capture.chunks()`."""
+    """A session for a capture file, not yet ingested: feed it `capture.chunks()`.
+
+    With `index` (and MODSCOPE_NO_INDEX unset), a capture of at least
+    `sniffer.index.MIN_SIZE` bytes is read back from its sidecar index when one fits it
+    (`Session.ingest` then reads nothing), and gets one once it has been read to its end.
+    """
     options = options or ReadOptions()
     capture = open_capture(path, options)
     line = options.line(capture.info.line)
@@ -146,7 +169,27 @@ def open_session(
         stamps=capture.info.stamps,
         resolution=capture.info.resolution,
     )
+    if index:
+        _sidecar(session, capture, Path(path), options, timeout)
     return session, capture
+
+
+def _sidecar(
+    session: Session, capture: Capture, path: Path, options: ReadOptions, timeout: float | None
+) -> None:
+    from sniffer import index
+
+    try:
+        if not index.enabled() or not path.is_file() or path.stat().st_size < index.MIN_SIZE:
+            return
+    except OSError:
+        return
+    key = index.settings_key(session, options, timeout)
+    found = index.load(session, capture, path, key)
+    if found is not None:
+        session.indexed_from = found
+    else:
+        session._sidecar = (path, capture, key)
 
 
 def replay_file(
