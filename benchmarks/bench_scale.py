@@ -124,13 +124,19 @@ class Run:
     rss_mb: float
 
 
-def run(argv: list[str], runs: int) -> Run:
+COLD = {**os.environ, "MODSCOPE_NO_INDEX": "1"}  # no sidecar index read or written
+WARM = {k: v for k, v in os.environ.items() if k != "MODSCOPE_NO_INDEX"}
+
+
+def run(argv: list[str], runs: int, env: dict[str, str] | None = None) -> Run:
     """Median wall time and the largest peak RSS of `runs` runs of `argv`."""
     times: list[float] = []
     rss = 0.0
     for _ in range(runs):
         t = time.perf_counter()
-        with subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
+        with subprocess.Popen(
+            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env or COLD
+        ) as proc:
             _, status, usage = os.wait4(proc.pid, 0)
             proc.returncode = os.waitstatus_to_exitcode(status)
             assert proc.stderr is not None
@@ -178,8 +184,15 @@ class Figure:
         return (self.n - SMALL) / max(self.big.seconds - self.small.seconds, 1e-6)
 
 
-def measure(label: str, n: int, big: list[str], small: list[str], runs: int) -> Figure:
-    fig = Figure(label, n, run(big, runs), run(small, runs))
+def measure(
+    label: str,
+    n: int,
+    big: list[str],
+    small: list[str],
+    runs: int,
+    env: dict[str, str] | None = None,
+) -> Figure:
+    fig = Figure(label, n, run(big, runs, env), run(small, runs, env))
     print(
         f"  {label:<44} {fig.big.seconds:8.2f} s {fig.whole:>11,.0f}/s whole "
         f"{fig.per_frame:>11,.0f}/s per frame  start {fig.small.seconds:.2f} s  "
@@ -231,6 +244,27 @@ def main() -> None:
         modscope("replay", str(one10), "--stats"),
         runs,
     )
+    index_only = "import sys; from sniffer.session import replay_file; replay_file(sys.argv[1])"
+    only = measure(
+        "modscope index only (16 ms reads)",
+        n,
+        [sys.executable, "-c", index_only, str(reads)],
+        [sys.executable, "-c", index_only, str(reads10)],
+        runs,
+    )
+    # reopening: the first run writes the sidecar index, the others read it
+    for path in (reads, reads10):
+        run(modscope("replay", str(path), "-c", "1"), 1, WARM)
+    measure(
+        "modscope replay --stats, sidecar index",
+        n,
+        modscope("replay", str(reads), "--stats"),
+        modscope("replay", str(reads10), "--stats"),
+        runs,
+        WARM,
+    )
+    first = run(modscope("replay", str(reads), "-c", "40", "--format", "text"), runs, WARM)
+    print(f"  {'first 40 rows, sidecar index (whole process)':<44} {first.seconds:8.2f} s")
     if tshark:
         ts = measure(
             "tshark plain summary (frame per packet)",
@@ -241,6 +275,7 @@ def main() -> None:
         )
         compare(ix, ts)
         compare(ix1, ts)
+        compare(only, ts)
     if args.only_index:
         return
 
