@@ -28,6 +28,7 @@ from dissectors.dissect import dissect
 from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
 from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.sunspec import SunSpecTracker
 from sniffer.vocab import Flag, Kind
 
 REGISTER_TABLES = ("holding_registers", "input_registers")
@@ -95,6 +96,8 @@ class Annotator:
         self.tracks: dict[tuple[int, int], _WindowTrack] = {}
         self.last_write: dict[int, tuple[float, int]] = {}  # unit -> (time, fc) of a write
         self.windows_of: dict[int, list[_WindowTrack]] = {}
+        # units with no dictionary that show the SunSpec marker annotate themselves
+        self.sunspec = SunSpecTracker(skip=self.bindings)
         for unit, b in self.bindings.items():
             for n, window in enumerate(b.dictionary.windows):
                 track = self.tracks[(unit, n)] = _WindowTrack(window)
@@ -102,22 +105,23 @@ class Annotator:
 
     def label(self, unit: int) -> str:
         b = self.bindings.get(unit)
-        return b.label if b is not None else ""
+        return b.label if b is not None else self.sunspec.label(unit)
 
     # -- following the capture -----------------------------------------------------------
 
     def update(self, store: FrameStore) -> None:
-        if not self.bindings:
-            self.next = len(store)
-            return
         store.sync()
         bound = self.bindings
-        kind, unit = store.kind, store.unit
+        kind, unit, fc = store.kind, store.unit, store.fc
         for i in range(self.next, len(store)):
             u = unit[i]
-            if u not in bound or kind[i] == Kind.NOISE:
+            if u not in bound:
+                if fc[i] == 3 and kind[i] == Kind.RESPONSE:
+                    self.sunspec.follow(store, i)  # reads that may show a SunSpec device
                 continue
             k = kind[i]
+            if k == Kind.NOISE:
+                continue
             if k == Kind.REQUEST:
                 self._request(store, i, u)
             elif k in (Kind.RESPONSE, Kind.EXCEPTION):
@@ -168,7 +172,7 @@ class Annotator:
         """Named values a frame carries, for a bound unit (empty for others)."""
         b = self.bindings.get(unit)
         if b is None:
-            return []
+            return self.sunspec.registers(unit, row, dissection)
         out: list[RegisterValue] = []
         for data in dissection.data:
             if data.address is None or not data.values:

@@ -1,14 +1,28 @@
 """Provides the exporters: frames for Wireshark (pcapng, link type 252), CSV/JSONL tables.
 
-Wireshark export: one packet per frame, link type 252 (exported PDU) naming the `mbrtu`
-dissector, so Wireshark and tshark decode it with no configuration. The packet flags
-carry the direction as seen from the master: requests outbound (2), answers and
-exceptions inbound (1), frames whose direction is unknown neither. A frame whose CRC
-or LRC is wrong has the CRC-error bit (bit 24) set; every problem modscope found is in
-the packet comment. Noise spans and source events (reconnect, data lost) go out as
-packets for the `data` dissector, with a comment. Wireshark has no Modbus ASCII
-dissector: an ASCII frame is exported as the equivalent RTU frame (its unit and PDU
-with a computed CRC), and the comment says it was carried as ASCII with its LRC.
+Wireshark export (the default, `modbus-tcp`): one packet per frame, link type 252
+(exported PDU) naming Wireshark's Modbus/TCP dissector (`mbtcp`) with address tags, then
+the frame's unit and PDU behind an MBAP header. Requests go from 192.0.2.1 port 1024
+(the master) to 192.0.2.2 port 502 (the slaves), answers and exceptions back, so
+Wireshark classifies every function code as query or response with no configuration;
+the MBAP transaction id is the request's row number (modulo 65536), so Wireshark pairs
+each answer with its request and shows the time between them. The packet comment
+starts with the frame as it was on the line (`RTU 01 03 ... c4 0b; CRC c4 0b right`, or
+`ASCII ":0103...\\r\\n"; LRC FA right` for a Modbus ASCII frame, as a JSON string), then
+every problem modscope found. A frame whose CRC or LRC is wrong also has the EPB
+CRC-error bit (bit 24). EPB flags carry the direction as seen from the master:
+requests outbound (2), answers inbound (1). Rows whose direction is unknown go out as
+queries (their comment says so). Noise spans and source events (reconnect, data lost)
+go out for the `data` dissector, with a comment. A Modbus TCP row of a network
+capture goes out the same way, its own MBAP header in the comment (`Modbus/TCP 00 07
+...`). modscope reads such an export back as
+the same frames: the comment gives back the bytes of the line, CRC and all.
+
+`rtu` export (`export --as rtu`): the same packets, but each holds the RTU frame byte
+for byte for Wireshark's `mbrtu` dissector (which classifies only FC 1-4, 15, 16 and
+exceptions without a port preference, decodes nothing under 5 bytes and no unit 0); an
+ASCII frame is given as the equivalent RTU frame with a computed CRC, and its comment
+says so.
 
 Tables: `frames` (the listing: text, JSONL or CSV), `transactions` (one row per request
 with its answer, latency and status; answers without a request get a row too) and
@@ -19,14 +33,17 @@ units, raw 16-bit words or bits for the others).
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Iterable, Iterator
 from typing import Any, BinaryIO, TextIO
 
-from dissectors.envelope import open_ascii, rtu_frame
+from dissectors import mbap
+from dissectors.envelope import open_ascii, open_rtu, rtu_frame
 from sniffer import __version__
 from sniffer.describe import Describer, FrameDetail
 from sniffer.listing import FORMATS, KIND_NAMES
 from sniffer.model import LineSettings
+from sniffer.sources.linktypes import MBTCP_PORT, TcpEnds, build_mbtcp_pdu
 from sniffer.sources.pcapng_writer import (
     EPB_FLAG_CRC_ERROR,
     EPB_FLAG_INBOUND,
@@ -37,10 +54,17 @@ from sniffer.sources.pcapng_writer import (
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
+from sniffer.tcpframing import MBAP
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 WHATS = ("frames", "transactions", "registers")
+PCAP_STYLES = ("modbus-tcp", "rtu")  # export --as: what each packet hands Wireshark
+MASTER_IP = bytes((192, 0, 2, 1))  # TEST-NET-1 (RFC 5737): never a real host
+SLAVE_IP = bytes((192, 0, 2, 2))
+MASTER_PORT = 1024
+TO_SLAVE = TcpEnds(MASTER_IP, SLAVE_IP, MASTER_PORT, MBTCP_PORT)
+TO_MASTER = TcpEnds(SLAVE_IP, MASTER_IP, MBTCP_PORT, MASTER_PORT)
 EXPORT_FORMATS = (*FORMATS, "pcapng", "parquet")
 EXTENSIONS = {
     ".pcapng": "pcapng",
@@ -67,7 +91,7 @@ REGISTER_COLUMNS = (
 
 
 def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
-    """(link type 252 packet, EPB flags, comment) for one row."""
+    """(link type 252 packet for `mbrtu`, EPB flags, comment) for one row (`--as rtu`)."""
     v = d.view
     problems = list(d.problem_texts)
     if v.kind == Kind.EVENT:
@@ -81,6 +105,8 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         flags |= EPB_FLAG_INBOUND
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
+    if v.flags & MBAP:  # a Modbus TCP row of a network capture: the frame as captured
+        return upper_pdu_record(v.raw, "mbtcp"), flags, "; ".join(problems)
     if v.ascii:
         envelope = open_ascii(v.raw)
         sent, want = envelope.sent, envelope.expected
@@ -95,8 +121,69 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     return upper_pdu_record(v.raw), flags, "; ".join(problems)
 
 
+def _transaction_id(d: FrameDetail) -> int:
+    """The MBAP transaction id: the request's row number, so an answer shares its
+    request's id; an answer with no request, a broadcast or an unknown frame its own."""
+    v = d.view
+    if v.kind != Kind.REQUEST and v.partner != NO_PARTNER:
+        return v.partner & 0xFFFF
+    return v.index & 0xFFFF
+
+
+def line_bytes_text(raw: bytes, ascii_mode: bool) -> tuple[str, str, bytes | None]:
+    """(`RTU 01 03 ...` or `ASCII ":01..\\r\\n"`, the check and its verdict, the unit and
+    PDU) of a frame's bytes as the line carried them; the body is None when an ASCII
+    frame is not hex."""
+    if ascii_mode:
+        envelope = open_ascii(raw)
+        text = "ASCII " + json.dumps(raw.decode("latin-1"))
+        sent, want = envelope.sent, envelope.expected
+        if sent is None or want is None:
+            return text, envelope.check_text or "no LRC", None
+        check = envelope.check_text or f"LRC {sent:02X} right"
+        return text, check, envelope.body
+    rtu = open_rtu(raw)
+    text = "RTU " + raw.hex(" ")
+    if rtu.sent is None:
+        return text, rtu.check_text, rtu.body or None
+    return text, rtu.check_text or f"CRC {raw[-2]:02x} {raw[-1]:02x} right", rtu.body
+
+
+def tcp_packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
+    """(link type 252 packet for `mbtcp`, EPB flags, comment) for one row (the default
+    export: see the module's docstring)."""
+    v = d.view
+    problems = list(d.problem_texts)
+    if v.kind in (Kind.EVENT, Kind.NOISE):
+        return packet_for(d)
+    flags = 0
+    if v.kind == Kind.REQUEST:
+        flags |= EPB_FLAG_OUTBOUND
+    elif v.kind in (Kind.RESPONSE, Kind.EXCEPTION):
+        flags |= EPB_FLAG_INBOUND
+    if v.flags & Flag.CHECK_BAD:
+        flags |= EPB_FLAG_CRC_ERROR
+    if v.flags & MBAP:  # a Modbus TCP row: its own header goes in the comment
+        body: bytes | None = mbap.body(v.raw)
+        head = "Modbus/TCP " + v.raw.hex(" ")
+    else:
+        shown, check, body = line_bytes_text(v.raw, v.ascii)
+        problems = [p for p in problems if p != check]
+        head = f"{shown}; {check}"
+    if body is None or len(body) < 2:
+        note = "not a Modbus frame that Wireshark can take; exported as bytes"
+        return upper_pdu_record(v.raw, "data"), flags, "; ".join([head, note, *problems])
+    if v.kind == Kind.UNKNOWN:
+        problems.insert(0, "direction unknown; exported as a query")
+    ends = TO_MASTER if v.kind in (Kind.RESPONSE, Kind.EXCEPTION) else TO_SLAVE
+    packet = build_mbtcp_pdu(ends, _transaction_id(d), body[0], body[1:])
+    return packet, flags, "; ".join([head, *problems])
+
+
 class PcapExporter:
-    """Writes rows of a session's store as link type 252 packets, flushed per packet."""
+    """Writes rows of a session's store as link type 252 packets, flushed per packet:
+    for Wireshark's Modbus/TCP dissector (`style` "modbus-tcp", the default) or byte for
+    byte for its RTU dissector ("rtu")."""
 
     def __init__(
         self,
@@ -105,7 +192,11 @@ class PcapExporter:
         line: LineSettings,
         *,
         name: str = "modscope",
+        style: str = "modbus-tcp",
     ) -> None:
+        if style not in PCAP_STYLES:
+            raise ValueError(f"style must be one of {', '.join(PCAP_STYLES)}, not {style!r}")
+        self.packet_for = tcp_packet_for if style == "modbus-tcp" else packet_for
         self.describer = describer
         self.writer = PcapngWriter(stream, application=f"modscope {__version__}")
         self.interface = self.writer.add_interface(
@@ -117,7 +208,7 @@ class PcapExporter:
         n = 0
         for i in rows:
             d = self.describer.detail(i)
-            packet, flags, comment = packet_for(d)
+            packet, flags, comment = self.packet_for(d)
             self.writer.write_packet(
                 self.interface,
                 max(d.view.t_end, 0.0),

@@ -420,7 +420,14 @@ class RtuFramer(_Framer):
                     if stop > end:
                         if not final:
                             break  # wait for the rest of it
-                    elif inline and pos >= cur_start and check(buf[pos:stop]) == 0:
+                    elif (
+                        inline
+                        and pos >= cur_start
+                        # a counted answer whose byte count is not the one its request
+                        # asked for goes the slow way (see _candidates)
+                        and (fc != pf or answer_pos[pf] < 0 or buf[pos + 2] == pl - 5)
+                        and check(buf[pos:stop]) == 0
+                    ):
                         t0 = cur_t0 + (pos - cur_start) * cur_rate
                         a_off(pos)
                         a_len(length)
@@ -563,7 +570,14 @@ class RtuFramer(_Framer):
             if fc & 0x80:
                 cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
             else:
-                cands.append((self.pending_len, 0, int(Kind.RESPONSE)))
+                # A counted answer whose byte count is not the one its request asked for
+                # is still the answer (a slave's mistake, shown as a problem), unless a
+                # request passes its check in the same bytes: a request followed by a 00
+                # byte passes the CRC one byte longer, at the length an unanswered
+                # request's answer would have.
+                counted = self.answer_pos[fc] >= 0
+                agrees = not counted or buf[pos + 2] == self.pending_len - 5
+                cands.append((self.pending_len, 0 if agrees else 3, int(Kind.RESPONSE)))
         for rule, rkind in self.rules[fc]:
             length = rule.length(buf, pos, end)
             if length == IMPOSSIBLE:

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Sequence
 from datetime import UTC, datetime
 from typing import Any, TextIO
 
+from dissectors.values import Field
 from sniffer.describe import Describer, FrameDetail
 from sniffer.model import Stamp
-from sniffer.store import NO_PARTNER
+from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Kind
 
@@ -38,6 +39,7 @@ CSV_COLUMNS = (
     "summary",
     "problems",
     "raw",
+    "fields",
 )
 
 
@@ -58,13 +60,73 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def record(d: FrameDetail) -> dict[str, Any]:
-    """The JSONL object of a row. Keys keep their meaning as fields are added."""
+def field_record(f: Field) -> dict[str, Any]:
+    """One decoded field as JSON: name, value, text, span and, for a record or a list of
+    records (FC 20/21 file records, FC 23's parts, FC 43/14 objects), `children` of the
+    same shape. A list of register words or bits has every element in `value` and no
+    `children` (element i spans 2 bytes from the field's start, or holds bit i % 8 of
+    byte i // 8): that keeps a 125-register answer one short line."""
+    rec: dict[str, Any] = {
+        "name": f.name,
+        "value": _jsonable(f.value),
+        "text": f.text,
+        "span": list(f.span),
+    }
+    if not isinstance(f.value, tuple):  # arrays make their children only when read
+        children = f.children
+        if children:
+            rec["children"] = [field_record(c) for c in children]
+    return rec
+
+
+def _segment(child: Field, parent: Field) -> str:
+    """A child's part of a dotted name: `3` for `objects[3]` under `objects`, else its name."""
+    name = child.name
+    if name.startswith(parent.name + "[") and name.endswith("]"):
+        return name[len(parent.name) + 1 : -1]
+    return name
+
+
+def _flat_value(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple):
+        return " ".join(_flat_value(v) for v in value)
+    return str(value)
+
+
+def flat_fields(fields: Sequence[Field]) -> Iterator[tuple[str, str]]:
+    """(dotted name, value) of every field that has a value, children after their parent:
+    `sub_requests.0.file_number`, `objects.VendorName.value`. Lists of words or bits give
+    one item with their values separated by spaces."""
+    for f in fields:
+        yield from _flat(f, f.name)
+
+
+def _flat(f: Field, path: str) -> Iterator[tuple[str, str]]:
+    if f.value is not None:
+        yield path, _flat_value(f.value)
+    if not isinstance(f.value, tuple):
+        for child in f.children:
+            yield from _flat(child, f"{path}.{_segment(child, f)}")
+
+
+def fields_cell(fields: Sequence[Field]) -> str:
+    """The CSV `fields` cell: `name=value` pairs joined by `; ` (values as plain text)."""
+    return "; ".join(f"{name}={value}" for name, value in flat_fields(fields))
+
+
+def record(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any]:
+    """The JSONL object of a row. Keys keep their meaning as fields are added. With the
+    `store`, `latency_ms` is the difference of the row times as listed (see
+    `shown_latency_ms`)."""
     v = d.view
     rec: dict[str, Any] = {
         "index": v.index,
-        "t": v.t,
-        "t_end": v.t_end,
+        "t": round(v.t, 6),  # to the microsecond, as recordings keep a start time
+        "t_end": round(v.t_end, 6),
         "raw": v.raw.hex(),
         "mode": "ascii" if v.ascii else "rtu",
         "kind": KIND_NAMES[v.kind],
@@ -78,32 +140,14 @@ def record(d: FrameDetail) -> dict[str, Any]:
         "summary": d.summary,
     }
     if d.problems:
-        rec["problem_details"] = [
-            {
-                "kind": p.kind,
-                "severity": p.severity,
-                "text": p.text,
-                "span": None if p.span is None else list(p.span),
-            }
-            for p in d.problems
-        ]
+        rec["problem_details"] = problem_details(d)
     if d.label:
         rec["device"] = d.label
     if d.dissection is not None:
-        rec["fields"] = [
-            {"name": f.name, "value": _jsonable(f.value), "text": f.text, "span": list(f.span)}
-            for f in d.dissection.fields
-        ]
-    if v.kind in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) and v.status:
-        req = v.index if v.kind == Kind.REQUEST or v.partner == NO_PARTNER else v.partner
-        rec["transaction"] = {
-            "id": req,
-            "role": "request" if v.kind == Kind.REQUEST else "response",
-            "latency_ms": None if d.latency_ms is None else round(d.latency_ms, 3),
-            "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
-            "status": STATUS_NAMES[v.status],
-            "partner": None if v.partner == NO_PARTNER else v.partner,
-        }
+        rec["fields"] = [field_record(f) for f in d.dissection.fields]
+    transaction = transaction_of(d, store)
+    if transaction is not None:
+        rec["transaction"] = transaction
     if d.registers:
         rec["registers"] = [
             {
@@ -119,6 +163,86 @@ def record(d: FrameDetail) -> dict[str, Any]:
             for r in d.registers
         ]
     return rec
+
+
+def problem_details(d: FrameDetail) -> list[dict[str, Any]]:
+    """Each problem of a row as kind, severity, text and byte span (or null)."""
+    return [
+        {
+            "kind": p.kind,
+            "severity": p.severity,
+            "text": p.text,
+            "span": None if p.span is None else list(p.span),
+        }
+        for p in d.problems
+    ]
+
+
+def shown_latency_ms(d: FrameDetail, store: FrameStore | None) -> float | None:
+    """A measured latency in ms to the microsecond: with the `store`, the answer's `t`
+    minus the request's `t_end` as the listing gives them (to the microsecond), so the
+    number is the same whether the times came from a live clock or from a recording
+    that keeps microseconds; without it, the measured value rounded."""
+    if d.latency_ms is None:
+        return None
+    v = d.view
+    if store is None or v.partner == NO_PARTNER:
+        return round(d.latency_ms, 3)
+    req, resp = (v.index, v.partner) if v.kind == Kind.REQUEST else (v.partner, v.index)
+    return round((round(store.t[resp], 6) - round(store.t_end[req], 6)) * 1000, 3)
+
+
+def transaction_of(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any] | None:
+    """The `transaction` object of a row that is part of one (None for noise, events and
+    frames that are not paired)."""
+    v = d.view
+    if v.kind not in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN) or not v.status:
+        return None
+    req = v.index if v.kind == Kind.REQUEST or v.partner == NO_PARTNER else v.partner
+    return {
+        "id": req,
+        "role": "request" if v.kind == Kind.REQUEST else "response",
+        "latency_ms": shown_latency_ms(d, store),
+        "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
+        "status": STATUS_NAMES[v.status],
+        "partner": None if v.partner == NO_PARTNER else v.partner,
+    }
+
+
+UPDATED_KEYS = ("transaction", "problems", "problem_details")
+
+
+def update_record(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any]:
+    """What the live listing learnt later about a row it listed earlier (its answer came,
+    it timed out): `{"update": 40, "transaction": {...}, "problems": [...]}`, the keys of
+    UPDATED_KEYS as they are now (`problem_details` only when there are problems, as in
+    a row). It has no `raw`, so `select(.raw)` keeps only frames."""
+    rec: dict[str, Any] = {
+        "update": d.view.index,
+        "transaction": transaction_of(d, store),
+        "problems": list(d.problem_texts),
+    }
+    if d.problems:
+        rec["problem_details"] = problem_details(d)
+    return rec
+
+
+def update_text(d: FrameDetail) -> str:
+    """The text listing's line for an update: `update #40: timeout`, or `update #40: ok,
+    answer #41 12.3ms`."""
+    v = d.view
+    line = f"update #{v.index}: {STATUS_NAMES[v.status]}"
+    if v.partner != NO_PARTNER:
+        line += f", answer #{v.partner}"
+    if d.latency_ms is not None:
+        line += f" {d.latency_ms:.1f}ms"
+    elif d.latency_max_ms is not None:
+        line += f" <{d.latency_max_ms:.0f}ms"
+    return line
+
+
+def _ms(value: float | None) -> str:
+    return "" if value is None else f"{value:.3f}"
 
 
 def time_text(t: float, origin: float, absolute: bool) -> str:
@@ -191,7 +315,7 @@ class Lister:
             if self.fmt == "text":
                 self.out.write(text_line(d, self.origin, self.absolute) + "\n")
             elif self.fmt == "jsonl":
-                rec = record(d)
+                rec = record(d, store)
                 rec["timing"] = TIMING_NAMES[store.stamps]
                 self.out.write(json_line(rec) + "\n")
             else:
@@ -210,15 +334,38 @@ class Lister:
                         len(v.raw),
                         v.check_ok,
                         d.status,
-                        "" if d.latency_ms is None else f"{d.latency_ms:.3f}",
+                        _ms(shown_latency_ms(d, store)),
                         d.summary,
                         "; ".join(d.problem_texts),
                         v.raw.hex(),
+                        "" if d.dissection is None else fields_cell(d.dissection.fields),
                     )
                 )
             n += 1
             if flush:
                 self.out.flush()
+        return n
+
+    def write_updates(self, rows: Iterable[int]) -> int:
+        """One update per row listed earlier whose transaction has settled since (see
+        `update_record`): a JSONL object, a text line, or a CSV row of kind `update`
+        whose index is the row updated (status, latency and partner in their columns,
+        the other cells empty)."""
+        n = 0
+        store = self.describer.store
+        for i in rows:
+            d = self.describer.detail(i)
+            if self.fmt == "text":
+                self.out.write(f"{'':12}  {update_text(d)}\n")
+            elif self.fmt == "jsonl":
+                self.out.write(json_line(update_record(d, store)) + "\n")
+            else:
+                v = d.view
+                latency = _ms(shown_latency_ms(d, store))
+                answer = "" if v.partner == NO_PARTNER else f"answer #{v.partner}"
+                cells = (v.index, "", "", "", "update", "", "", "", "", "", d.status, latency)
+                self._csv_row((*cells, answer, "", "", ""))
+            n += 1
         return n
 
     def _csv_row(self, cells: tuple[object, ...]) -> None:

@@ -182,7 +182,11 @@ def _rank(trials: Sequence[Trial]) -> list[Trial]:
     rest = sorted((t for t in trials if not t.valid), key=lambda t: (-t.score, t.line.baud))
     if not valid:
         return rest
-    rate = max(t.frames / max(t.seconds, 1e-9) for t in valid)
+    # the frame rate to be near is set by the cleanest readings: a setting that garbles
+    # most bytes but happened to listen over a busier stretch must not set the bar
+    cleanest = min(t.error_rate for t in valid)
+    trusted = [t for t in valid if t.error_rate <= cleanest + 0.05]
+    rate = max(t.frames / max(t.seconds, 1e-9) for t in trusted)
     near = [t for t in valid if t.frames / max(t.seconds, 1e-9) >= 0.6 * rate]
     lowest = min(t.error_rate for t in near)
 
@@ -394,12 +398,12 @@ class PortListener:
         name: str,
         *,
         factory: PortFactory | None = None,
-        counters: CounterReader = driver_counters,
+        counters: CounterReader | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.name = name
         self.factory = factory
-        self.counters = counters
+        self.counters = counters if counters is not None else driver_counters
         self.clock = clock
         self.wall = WallClock()
         self.warnings: list[str] = []

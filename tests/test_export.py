@@ -1,6 +1,6 @@
-"""Export: pcapng for Wireshark (link type 252, mbrtu; direction and CRC-error flags,
-problems in comments, noise as data, ASCII as the equivalent RTU frame), and CSV/JSONL
-tables of frames, transactions and register values."""
+"""Export: pcapng for Wireshark as RTU (`--as rtu`: link type 252, mbrtu; direction and
+CRC-error flags, problems in comments, noise as data, ASCII as the equivalent RTU frame),
+and CSV/JSONL tables of frames, transactions and register values."""
 
 from __future__ import annotations
 
@@ -83,9 +83,10 @@ def ascii_session() -> Session:
     return s
 
 
-def export_bytes(s: Session) -> bytes:
+def export_bytes(s: Session, style: str = "rtu") -> bytes:
+    """The `--as rtu` export (the default one: tests/test_wireshark_export.py)."""
     buf = io.BytesIO()
-    PcapExporter(buf, s.describer, s.line).write(range(len(s.store)))
+    PcapExporter(buf, s.describer, s.line, style=style).write(range(len(s.store)))
     return buf.getvalue()
 
 

@@ -415,3 +415,19 @@ def test_a_byte_with_a_parity_error_flags_the_frame_that_holds_it() -> None:
     assert [r.raw for r in found] == [READ_REQ, bytes(bad), READ_REQ]
     assert [bool(r.flags & Flag.LINE_ERROR) for r in found] == [False, True, False]
     assert Kind.EVENT in {Kind(k) for k in store.kind}  # and the event stays in the listing
+
+
+def test_a_request_after_an_unanswered_one_is_not_taken_for_its_answer() -> None:
+    # Found by the property above (seed 1518): unit 1 asks for 2 registers and gets no
+    # answer; its next request, followed by a 00 byte, passes the CRC at 9 bytes, the
+    # length the first request's answer would have. A counted answer's byte count must
+    # be the one its request asked for (4 here, not 5).
+    unanswered = bytes.fromhex("0103047700027521")
+    nxt = bytes.fromhex("01030542001924d8")
+    answer = with_crc(bytes([1, 3, 50]) + bytes(50))
+    rows = [r for r in one_burst(unanswered + b"\x00" + nxt + answer) if r.kind != Kind.NOISE]
+    assert [(r.raw, r.kind) for r in rows] == [
+        (unanswered, Kind.REQUEST),
+        (nxt, Kind.REQUEST),
+        (answer, Kind.RESPONSE),
+    ]

@@ -291,7 +291,7 @@ def test_listing_streams_each_frame_as_it_comes(bus: VirtualBus, tmp_path: Path)
         first = json.loads(proc.stdout.readline())  # arrives while modscope still runs
         second = json.loads(proc.stdout.readline())
         assert proc.poll() is None
-        bus.inject(req(4, 3, 0, 1), source="master")  # no answer: listed, then listed again
+        bus.inject(req(4, 3, 0, 1), source="master")  # no answer: listed, then an update
         third = json.loads(proc.stdout.readline())
         again = json.loads(proc.stdout.readline())
     finally:
@@ -302,7 +302,8 @@ def test_listing_streams_each_frame_as_it_comes(bus: VirtualBus, tmp_path: Path)
     assert second["transaction"]["status"] == "ok"
     assert [f["value"] for f in second["fields"] if f["name"] == "values"] == [[7, 8]]
     assert (third["index"], third["transaction"]["status"]) == (2, "open")
-    assert (again["index"], again["transaction"]["status"]) == (2, "timeout")
+    assert (again["update"], again["transaction"]["status"]) == (2, "timeout")
+    assert "raw" not in again and "index" not in again  # not a frame: `select(.raw)` skips it
     assert out == ""
 
 

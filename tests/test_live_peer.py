@@ -142,12 +142,17 @@ def stop(proc: subprocess.Popen[bytes]) -> tuple[bytes, str]:
 
 
 def records(jsonl: bytes | str) -> list[dict[str, Any]]:
-    """Rows by index; a row listed twice (a request that then timed out) counts once,
-    as last listed."""
+    """Rows by index, each listed once, with the update records of the live listing (a
+    request's answer came, or it timed out) applied to the rows they name."""
     text = jsonl.decode() if isinstance(jsonl, bytes) else jsonl
     by_index: dict[int, dict[str, Any]] = {}
     for line in text.splitlines():
         rec = json.loads(line)
+        if "update" in rec:
+            assert "raw" not in rec
+            by_index[rec.pop("update")].update(rec)
+            continue
+        assert rec["index"] not in by_index, "a frame listed twice"
         by_index[rec["index"]] = rec
     return [by_index[i] for i in sorted(by_index)]
 
@@ -170,7 +175,7 @@ def check_transactions(rows: list[dict[str, Any]], done: list[Done]) -> None:
     }
     for req, d in zip(requests, done, strict=True):
         # a request is listed as soon as it is framed ("open"); its answer's row tells
-        # the transaction, and a request that got none is listed again as "timeout"
+        # the transaction, and an update record gives the request its outcome
         answer = answers.get(req["index"])
         if d.outcome == "timeout":
             assert answer is None
@@ -221,14 +226,24 @@ def test_every_transaction_is_seen_live_and_from_the_recording(
     check_transactions(again, bench.done)
 
     def frames(rows: list[dict[str, Any]]) -> list[tuple[Any, ...]]:
-        # live lists a request while it waits ("open"); its answer's row has the outcome
-        return [
-            (r["raw"], r["kind"], r.get("transaction", {}).get("status"))
-            for r in rows
-            if r["kind"] != "request"
-        ] + [(r["raw"], r["kind"]) for r in rows if r["kind"] == "request"]
+        # the updates applied, live and replay agree on every frame and outcome
+        return [(r["raw"], r["kind"], r.get("transaction", {}).get("status")) for r in rows]
 
     assert frames(again) == frames(live)
+    # every key of every frame, the updates applied, with the differences docs/output.md
+    # names for frames that shared one read: times and latencies 1 us apart at most, and
+    # a latency bound from the read interval known so far (live) or from the whole file
+    for a, b in zip(again, live, strict=True):
+        for key in ("t", "t_end"):
+            assert abs(a.pop(key) - b.pop(key)) <= 1.5e-6
+        ta, tb = a.get("transaction"), b.get("transaction")
+        if ta is not None and tb is not None:
+            la, lb = ta.pop("latency_ms"), tb.pop("latency_ms")
+            # (one side may call a 1 us latency "one read" and give no value)
+            assert abs((la or 0) - (lb or 0)) <= 0.0015
+            ta.pop("latency_max_ms")
+            tb.pop("latency_max_ms")
+    assert again == live  # every key of every frame, the updates applied (docs/output.md)
 
 
 @pytest.mark.skipif(TSHARK is None, reason="tshark is not installed")
@@ -252,7 +267,7 @@ def test_tshark_reads_the_export_of_a_live_recording(bench: Bench, tmp_path: Pat
     )
     assert malformed.returncode == 0 and malformed.stdout == ""
     fields = subprocess.run(
-        [TSHARK, "-r", str(exported), "-T", "fields", "-e", "mbrtu.unit_id", "-e",
+        [TSHARK, "-r", str(exported), "-T", "fields", "-e", "mbtcp.unit_id", "-e",
          "modbus.func_code"],
         capture_output=True,
         text=True,
@@ -271,7 +286,7 @@ def test_pcap_to_stdout_feeds_tshark_and_nothing_else(bench: Bench, tmp_path: Pa
     stream = tmp_path / "stdout.pcapng"
     stream.write_bytes(out)
     read = subprocess.run(
-        [TSHARK, "-r", "-", "-T", "fields", "-e", "mbrtu.unit_id", "-e", "modbus.func_code",
+        [TSHARK, "-r", "-", "-T", "fields", "-e", "mbtcp.unit_id", "-e", "modbus.func_code",
          "-e", "_ws.malformed"],
         input=out,
         capture_output=True,

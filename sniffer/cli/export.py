@@ -18,12 +18,13 @@ from sniffer.cli.options import (
     bindings_for,
     line_warnings,
     read_options,
-    read_status,
 )
+from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.export import (
     EXPORT_FORMATS,
     EXTENSIONS,
+    PCAP_STYLES,
     REGISTER_COLUMNS,
     TRANSACTION_COLUMNS,
     WHATS,
@@ -34,6 +35,15 @@ from sniffer.export import (
 )
 from sniffer.listing import Lister
 from sniffer.text import plain
+
+EXPORT_EXAMPLES = """\
+examples:
+  modscope export bus.pcapng -o frames.pcapng          for Wireshark, decoded as it opens
+  modscope export bus.pcapng -o raw.pcapng --as rtu    the RTU bytes as on the line
+  modscope export bus.pcapng -o frames.jsonl           one JSON object per frame
+  modscope export bus.pcapng -o regs.csv --what registers
+
+"""
 
 
 def output_format(path: str, fmt: str | None) -> str:
@@ -58,6 +68,8 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     source = Path(args.file)
     fmt = output_format(args.output, args.format)
     what = args.what
+    if args.style != "modbus-tcp" and fmt != "pcapng":
+        raise UsageError(f"--as {args.style} is for a pcapng export; drop it or write .pcapng")
     if fmt == "pcapng" and what != "frames":
         raise UsageError(f"a pcapng export holds frames; --what {what} needs csv or jsonl")
     if fmt == "text" and what != "frames":
@@ -76,7 +88,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     rows = Selection(session, query, args.count).take(len(session.store), final=True)
-    status = read_status(capture.warnings, len(rows))
+    status = finish_read(capture, session, err)
     describer = session.describer
     if fmt == "parquet":
         from sniffer.parquet import ParquetError, write_parquet
@@ -92,11 +104,19 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if fmt == "pcapng":
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
         try:
-            n = PcapExporter(binary, describer, session.line, name=source.name).write(rows)
+            exporter = PcapExporter(
+                binary, describer, session.line, name=source.name, style=args.style
+            )
+            n = exporter.write(rows)
         finally:
             if args.output != "-":
                 binary.close()
-        err.write(f"{plain(args.output)}: {n} packets (link type 252, Modbus RTU)\n")
+        carried = (
+            "Modbus/TCP, decoded by Wireshark as is"
+            if args.style == "modbus-tcp"
+            else ("Modbus RTU byte for byte")
+        )
+        err.write(f"{plain(args.output)}: {n} packets (link type 252, {carried})\n")
         return status
     text = out if args.output == "-" else _open_text(args.output)
     raw = bool(args.raw_csv)
@@ -145,12 +165,14 @@ def register(sub: SubParsers) -> None:
         "CSV or JSONL",
         description=(
             "Frame, pair and decode a capture, then write it out: as pcapng that Wireshark "
-            "decodes as Modbus RTU with no configuration (requests outbound, answers "
-            "inbound, CRC errors flagged, problems in packet comments), or as CSV/JSONL "
-            "tables of frames, transactions or register values. The format follows the "
-            "output's extension (.pcapng, .csv, .jsonl, .txt) unless --format says."
+            "opens decoded with no configuration (every request a query, every answer a "
+            "response, paired by transaction id with the time between them; the RTU or "
+            "ASCII bytes, the CRC or LRC verdict and every problem in the packet "
+            "comment; CRC errors flagged), or as CSV/JSONL tables of frames, "
+            "transactions or register values. The format follows the output's extension "
+            "(.pcapng, .csv, .jsonl, .txt) unless --format says."
         ),
-        epilog=READ_EPILOG,
+        epilog=EXPORT_EXAMPLES + READ_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", help="capture file (any format replay reads)")
@@ -162,6 +184,15 @@ def register(sub: SubParsers) -> None:
         help="frames (default), transactions (request + answer per row) or registers",
     )
     p.add_argument("--format", choices=EXPORT_FORMATS, help="default: from OUT's extension")
+    p.add_argument(
+        "--as",
+        dest="style",
+        choices=PCAP_STYLES,
+        default="modbus-tcp",
+        help="pcapng: each frame's PDU for Wireshark's Modbus/TCP dissector (modbus-tcp, "
+        "the default: every function code classified and paired) or the RTU frame byte "
+        "for byte for its RTU dissector (rtu)",
+    )
     p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
     add_raw_csv_option(p)
     add_line_options(p)

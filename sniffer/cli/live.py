@@ -32,6 +32,7 @@ from sniffer.cli.lines import (
     stop_requests,
 )
 from sniffer.cli.options import SubParsers, add_device_options, add_output_options, bindings_for
+from sniffer.cli.scan import AUTO, accept_auto_baud, scan_for_live
 from sniffer.errors import UsageError
 from sniffer.export import PcapExporter
 from sniffer.listing import Lister
@@ -45,6 +46,8 @@ STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    if args.baud == AUTO:
+        scan_for_live(args, err)  # the line's settings into args, before anything opens
     specs = port_specs(args)
     ring = ring_options(args)
     deadline = duration_option(args)
@@ -198,7 +201,7 @@ def stream(
     end = None if duration is None else time.monotonic() + duration
     assert capture.session is not None
     store = capture.session.store
-    waiting: list[int] = []  # requests listed while they waited for their answer
+    waiting: list[int] = []  # requests listed while open: each gets one update record
     sink = io.StringIO()
     if lister is not None:
         if not isinstance(lister.out, io.StringIO):
@@ -216,22 +219,30 @@ def stream(
         picked: list[int] | None = None  # the rows a filter or -c lets through
         if selection is not None and (selection.query is not None or selection.left is not None):
             picked = selection.take(rows.stop, final=final) if rows.stop else []
-        todo = picked
+        todo: list[int] | range = rows if picked is None else picked
         if lister is not None and backlog is not None:
-            if todo is None:
-                store.sync()
-                status = store.status
-                # a request listed as open that then got no answer is listed again
-                again = [i for i in waiting if status[i] == Status.TIMEOUT]
-                waiting = [i for i in waiting if status[i] == Status.OPEN]
-                waiting += [i for i in rows if status[i] == Status.OPEN]
-                todo = [*again, *rows]
+            # each frame is listed once; what is learnt later about a request listed
+            # while open (its answer, its timeout) follows as one update record
+            store.sync()
+            status = store.status
+            settled = [i for i in waiting if status[i] != Status.OPEN]
+            waiting = [i for i in waiting if status[i] == Status.OPEN]
+            if settled:
+                if backlog.full:
+                    backlog.drop(len(settled))
+                else:
+                    lister.write_updates(settled)
+                    backlog.add(sink.getvalue())
+                    sink.seek(0)
+                    sink.truncate()
             for k in range(0, len(todo), RENDER_ROWS):
                 late = deadline is not None and time.monotonic() >= deadline
                 if backlog.full or late:
                     backlog.drop(len(todo) - k)
                     break
-                lister.write(todo[k : k + RENDER_ROWS], flush=False)
+                part = todo[k : k + RENDER_ROWS]
+                lister.write(part, flush=False)
+                waiting += [i for i in part if status[i] == Status.OPEN]
                 backlog.add(sink.getvalue())
                 sink.seek(0)
                 sink.truncate()
@@ -291,18 +302,25 @@ def register(sub: SubParsers) -> None:
         description=(
             "Listen to one or two serial ports without ever transmitting (RTS and DTR are "
             "not asserted, nothing is written) and show every frame as it comes: in the "
-            "TUI on a terminal, else as a listing flushed per line (--format). --write "
+            "TUI on a terminal, else as a listing flushed per line (--format). Each frame "
+            "is listed once; a request's later answer or timeout follows as an update "
+            'record naming its row (JSONL {"update": N, ...}, with no raw: jq '
+            "'select(.raw)' keeps the frames; see docs/output.md). --write "
             "records what the ports read; --pcap streams frames for Wireshark "
-            "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -)."
+            "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -). --baud auto first "
+            "scans the port for its baud rate and format, as `modscope scan` does, and "
+            "says what it chose."
         ),
     )
     add_port_options(p)
+    accept_auto_baud(p)
     add_device_options(p)
     add_output_options(p)
     p.add_argument(
         "--pcap",
         metavar="FILE",
-        help="also write frames as Wireshark pcapng (link type 252, Modbus RTU); - for "
+        help="also write frames as Wireshark pcapng (each PDU for Wireshark's Modbus/TCP "
+        "dissector, decoded and paired with no setup; see modscope export); - for "
         "standard output, which then carries nothing else",
     )
     add_recording_options(p, required=False)

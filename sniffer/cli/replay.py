@@ -22,8 +22,8 @@ from sniffer.cli.options import (
     bindings_for,
     line_warnings,
     read_options,
-    read_status,
 )
+from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.listing import Lister
 from sniffer.session import Session
@@ -107,7 +107,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    status = read_status(capture.warnings, len(session.store))
+    status = finish_read(capture, session, err)
     if args.stats:
         labels = {u: plain(b.label) for u, b in bindings.items()}
         out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")

@@ -4,11 +4,24 @@ transmitting) at each common setting in turn."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import TextIO
 
+import sniffer.scan as scanning
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
-from sniffer.scan import BAUDS, DWELL, FORMATS, MAX_DWELL, PortListener, Trial, live_command, scan
+from sniffer.scan import (
+    BAUDS,
+    DWELL,
+    FORMATS,
+    MAX_DWELL,
+    PortListener,
+    ScanResult,
+    Trial,
+    format_of,
+    live_command,
+    scan,
+)
 from sniffer.serial_source import PortError
 from sniffer.text import plain
 
@@ -49,6 +62,121 @@ def _formats(text: str | None) -> tuple[str, ...]:
         except ValueError as exc:
             raise UsageError(f"--formats: {exc}") from None
     return found
+
+
+AUTO = "auto"  # --baud auto on live: scan first
+
+
+def parse_baud(text: str) -> int | str:
+    """`--baud N`, or `auto` where the command can scan for the line's settings."""
+    if text.strip().lower() == AUTO:
+        return AUTO
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a baud rate; give a number (19200) or auto to scan for it"
+        ) from None
+
+
+def accept_auto_baud(p: argparse.ArgumentParser) -> None:
+    """Let the parser's -b/--baud take `auto` (added by add_line_options as a number)."""
+    for action in p._actions:
+        if action.dest == "baud":
+            action.type = parse_baud
+            action.metavar = "N|auto"
+            action.help = (
+                "baud rate (-b as in mbpoll), or auto: scan the first port for its baud rate "
+                "and format first (as `modscope scan` does), then listen with the winner"
+            )
+
+
+def _progress(err: TextIO, port: str) -> Callable[[Trial], None]:
+    show = err.isatty()
+
+    def progress(trial: Trial) -> None:
+        if show:
+            err.write(f"\r\x1b[Kscanning {port}: {trial.settings()} {trial.frames} frames")
+            err.flush()
+
+    return progress
+
+
+def _wanted_formats(args: argparse.Namespace) -> tuple[str, ...]:
+    """The scan's formats that agree with the line flags given beside --baud auto."""
+    out = []
+    for text in FORMATS:
+        bytesize, parity, stopbits = scanning.parse_format(text)
+        if args.bytesize is not None and args.bytesize != bytesize:
+            continue
+        if args.parity is not None and args.parity != parity:
+            continue
+        if args.stopbits is not None and args.stopbits != stopbits:
+            continue
+        if args.mode == "ascii" and bytesize != 7 and args.bytesize is None:
+            continue  # ASCII lines at 8 bits are rare; give --bytesize 8 to include them
+        out.append(text)
+    if not out:
+        raise UsageError(
+            "--baud auto: no common format fits the --bytesize/--parity/--stopbits given "
+            f"(the scan tries {', '.join(FORMATS)}); drop the flag that rules them all out"
+        )
+    return tuple(out)
+
+
+def scan_for_live(args: argparse.Namespace, err: TextIO) -> ScanResult | None:
+    """`live --baud auto`: scan the first port and put the winner's settings into `args`
+    (baud, format, ASCII mode), saying on `err` what was chosen. No winner is a user
+    error (exit 2) that says why and points at `modscope scan`. Nothing is done when no
+    port is named (port_specs says so)."""
+    names = [*args.ports, *args.extra_ports]
+    if not names:
+        args.baud = None
+        return None
+    port = names[0]
+    formats = _wanted_formats(args)
+    listener = PortListener(port)
+    try:
+        result = scan(
+            listener,
+            scanning.BAUDS,
+            formats,
+            dwell=scanning.DWELL,
+            max_dwell=scanning.MAX_DWELL,
+            progress=_progress(err, port),
+        )
+    except PortError as exc:
+        raise UsageError(str(exc)) from None
+    finally:
+        if err.isatty():
+            err.write("\r\x1b[K")
+    for w in listener.warnings:
+        err.write(f"modscope: warning: {plain(w)}\n")
+    seconds = sum(t.seconds for t in result.trials)
+    if result.winner is None:
+        hint = (
+            f"start the master (or check A/B), then `modscope scan {port}` shows what each "
+            "setting read"
+            if result.quiet
+            else f"`modscope scan {port}` shows what each setting read"
+        )
+        raise UsageError(f"--baud auto on {port}: {result.verdict} ({hint})")
+    win = result.winner
+    args.baud = win.line.baud
+    args.bytesize = win.line.bytesize
+    args.parity = win.line.parity
+    args.stopbits = win.line.stopbits
+    if win.mode == "ascii":
+        args.mode = "ascii"
+    err.write(
+        f"modscope: --baud auto: {len(result.trials)} settings of {port} in {seconds:.1f} s; "
+        f"chose {result.verdict}; listening at {win.line.baud} {format_of(win.line)}\n"
+    )
+    for doubt in result.doubts:
+        err.write(f"modscope: note: {doubt}\n")
+    if len(names) > 1:
+        err.write(f"modscope: note: the other ports are opened at the setting {port} gave\n")
+    return result
 
 
 def cmd_scan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

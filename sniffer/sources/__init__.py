@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from sniffer.errors import CaptureError
 from sniffer.model import SourceInfo, Stamp
 from sniffer.sources import detect
-from sniffer.sources.base import Capture, CaptureError, ReadOptions
+from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.hexdump import open_hexdump, open_socat
 from sniffer.sources.logs import LOG_FORMATS, open_log
 from sniffer.sources.pcap import open_pcap, open_pcapng

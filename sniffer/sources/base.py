@@ -1,4 +1,5 @@
-"""Provides the reader interface every capture reader shares: options, captures, errors."""
+"""Provides the reader interface every capture reader shares: options, captures, errors
+(`CaptureError` lives with the other user errors in `sniffer.errors`)."""
 
 from __future__ import annotations
 
@@ -12,10 +13,6 @@ from sniffer.model import Chunk, LineSettings, SourceInfo
 # pcapng can hold; `Capture` gives such a record the time of the one before.
 MAX_TIME = 1e10
 MAX_CHANNEL = 255  # the frame store keeps a channel in one byte
-
-
-class CaptureError(Exception):
-    """A capture file cannot be read at all. The message names the file and what to do."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,7 +115,7 @@ class Capture:
         return replace(chunk, t_end=t_end, t_start=t_start, channel=channel)
 
     def _name_warnings(self) -> None:
-        prefix = f"{self.info.path}: "
+        path = self.info.path
         for i, text in enumerate(self.warnings):
-            if not text.startswith(prefix):
-                self.warnings[i] = prefix + text
+            if not text.startswith(path):  # `FILE: ...`, `FILE line 12: ...` name it already
+                self.warnings[i] = f"{path}: {text}"

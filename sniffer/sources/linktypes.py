@@ -7,7 +7,13 @@ Three link types carry serial data:
   seconds (u32), microseconds (u32), event type (u8), control lines (u8), footer (u16).
 - 252 (Wireshark upper PDU, `exported_pdu`): TLVs (u16 tag, u16 length, both big-endian),
   the dissector-name tag (12) carrying `mbrtu`, the end-of-options tag (0, length 0), then
-  one RTU frame.
+  one RTU frame. modscope's default Wireshark export names `mbtcp` instead and adds
+  address tags (IPv4 source 20 and destination 21, port type 24 = TCP, source port 25,
+  destination port 26; values big-endian u32), then one Modbus/TCP ADU: the MBAP header
+  (transaction id, protocol 0, length, unit) and the PDU. Wireshark's Modbus/TCP
+  dissector tells a query from a response by port 502 and pairs them by transaction id,
+  so every function code opens classified with no preferences (its RTU dissector
+  cannot: see the design notes).
 
 The modscope interface description records the line format in a pcapng IDB's
 `if_description`: the word `modscope`, then in any order a baud rate, a character format
@@ -99,6 +105,14 @@ EXP_PDU_TAG_END_OF_OPT = 0
 EXP_PDU_TAG_DISSECTOR_NAME = 12
 EXP_PDU_TAG_HEUR_DISSECTOR_NAME = 13
 EXP_PDU_TAG_DISSECTOR_TABLE_NAME = 14
+EXP_PDU_TAG_IPV4_SRC = 20
+EXP_PDU_TAG_IPV4_DST = 21
+EXP_PDU_TAG_PORT_TYPE = 24
+EXP_PDU_TAG_SRC_PORT = 25
+EXP_PDU_TAG_DST_PORT = 26
+EXP_PDU_PORT_TYPE_TCP = 2
+MBTCP_PORT = 502
+MBAP_HEADER = struct.Struct(">HHHB")  # transaction id, protocol id (0), length, unit
 _EXP_PDU_NAME_TAGS = (
     EXP_PDU_TAG_DISSECTOR_NAME,
     EXP_PDU_TAG_HEUR_DISSECTOR_NAME,
@@ -176,6 +190,52 @@ def build_upper_pdu(frame: bytes, dissector: str) -> bytes:
         + _TLV.pack(EXP_PDU_TAG_END_OF_OPT, 0)
         + frame
     )
+
+
+@dataclass(frozen=True, slots=True)
+class TcpEnds:
+    """The addresses an exported Modbus/TCP PDU claims: IPv4 source and destination (4
+    bytes each) and TCP ports. The answering side has port 502."""
+
+    src: bytes
+    dst: bytes
+    sport: int
+    dport: int
+
+
+def build_mbtcp_pdu(ends: TcpEnds, transaction: int, unit: int, pdu: bytes) -> bytes:
+    """An exported-PDU packet for Wireshark's `mbtcp` dissector: dissector name, address
+    and port tags, end tag, then the MBAP header and `pdu`."""
+    name = b"mbtcp\0\0\0"
+    u32 = struct.Struct(">I")
+    return (
+        _TLV.pack(EXP_PDU_TAG_DISSECTOR_NAME, len(name))
+        + name
+        + _TLV.pack(EXP_PDU_TAG_IPV4_SRC, 4)
+        + ends.src
+        + _TLV.pack(EXP_PDU_TAG_IPV4_DST, 4)
+        + ends.dst
+        + _TLV.pack(EXP_PDU_TAG_PORT_TYPE, 4)
+        + u32.pack(EXP_PDU_PORT_TYPE_TCP)
+        + _TLV.pack(EXP_PDU_TAG_SRC_PORT, 4)
+        + u32.pack(ends.sport)
+        + _TLV.pack(EXP_PDU_TAG_DST_PORT, 4)
+        + u32.pack(ends.dport)
+        + _TLV.pack(EXP_PDU_TAG_END_OF_OPT, 0)
+        + MBAP_HEADER.pack(transaction & 0xFFFF, 0, len(pdu) + 1, unit & 0xFF)
+        + pdu
+    )
+
+
+def open_mbap(adu: bytes) -> bytes | None:
+    """The unit and PDU of one Modbus/TCP ADU (MBAP header, then the PDU); None unless the
+    protocol id is 0 and the length field covers exactly the rest."""
+    if len(adu) < MBAP_HEADER.size + 1:
+        return None
+    _tid, protocol, length, _unit = MBAP_HEADER.unpack_from(adu)
+    if protocol != 0 or length != len(adu) - 6:
+        return None
+    return bytes(adu[6:])
 
 
 _FORMAT = re.compile(r"^([78])([NEOMS])([12])$", re.IGNORECASE)

@@ -25,7 +25,10 @@ packet time (by less than a minute); RTAC events become event chunks ("framing e
 "parity error", "data lost", "break", "control lines" with the line states as note),
 after the data chunk when the record carries bytes too.
 
-Link type 252: each packet is one frame; requests and answers stay on their interface's
+Link type 252: packets for `mbrtu` hold one RTU frame; packets for `mbtcp` (modscope's
+default Wireshark export) hold one MBAP header and PDU, read back as the line's bytes the
+packet comment gives (`RTU 01 03 ...`, `ASCII ":01..."`) or else as the RTU frame of the
+unit and PDU. Each packet is one frame; requests and answers stay on their interface's
 channel, in file order, their EPB flags a hint (see `sniffer.pipeline`). `t_end` is the
 packet time and `t_start` one
 frame length earlier, moved later where needed so that every frame starts at least t3.5
@@ -40,6 +43,7 @@ character time per byte after the interface's previous packet.
 
 from __future__ import annotations
 
+import json
 import os
 import struct
 from collections.abc import Generator, Iterator
@@ -47,9 +51,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
+import sniffer.sources.net as net
+from dissectors.envelope import open_ascii, rtu_frame
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads, batching_enabled
-from sniffer.sources import net
 from sniffer.sources.base import MAX_TIME, Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
@@ -78,7 +83,9 @@ from sniffer.sources.linktypes import (
     RTAC_HEADER_LEN,
     RTAC_STATUS_CHANGE,
     InterfaceNote,
+    UpperPdu,
     control_lines_text,
+    open_mbap,
     parse_interface_description,
     parse_rtac,
     parse_upper_pdu,
@@ -245,12 +252,21 @@ class _PacketDecoder:
                 f"exported-PDU packet at byte offset {offset} has broken tags; skipped"
             )
             return
-        known = ("mbrtu", "data")  # data: noise and events in modscope's own exports
+        known = ("mbrtu", "mbtcp", "data")  # data: noise and events in modscope's exports
+        if record.dissector == "mbtcp":
+            frame = exported_mbtcp_frame(record.pdu, comment)
+            if frame is None:
+                self.warnings.append(
+                    f"{iface.label}: exported PDU for 'mbtcp' at byte offset {offset} is not "
+                    "one Modbus/TCP frame; passed on as bytes"
+                )
+            else:
+                record = UpperPdu(record.dissector, frame)
         if record.dissector not in known and record.dissector not in self.other_dissectors:
             self.other_dissectors.add(record.dissector)
             self.warnings.append(
                 f"{iface.label}: exported PDUs for dissector {record.dissector!r}, expected "
-                "'mbrtu'; passed on as bytes"
+                "'mbrtu' or 'mbtcp'; passed on as bytes"
             )
         if not record.pdu:
             return
@@ -269,6 +285,33 @@ class _PacketDecoder:
             direction=direction,
             note=comment,
         )
+
+
+def exported_mbtcp_frame(adu: bytes, comment: str) -> bytes | None:
+    """The serial frame of one exported Modbus/TCP PDU: the line's bytes that modscope's
+    export keeps at the head of the comment (`RTU 01 03 ...` or `ASCII ":01..."`) when
+    they carry the same unit and PDU, else the RTU frame of the unit and PDU with its
+    CRC. None unless `adu` is one MBAP header and its PDU."""
+    body = open_mbap(adu)
+    if body is None:
+        return None
+    head = comment.split(";", 1)[0]
+    if head.startswith("RTU "):
+        try:
+            raw = bytes.fromhex(head[4:])
+        except ValueError:
+            raw = b""
+        if raw[:-2] == body:
+            return raw
+    elif head.startswith("ASCII "):
+        try:
+            text, _end = json.JSONDecoder().raw_decode(comment, 6)
+            raw = text.encode("latin-1") if isinstance(text, str) else b""
+        except (ValueError, UnicodeEncodeError):
+            raw = b""
+        if raw and open_ascii(raw).body == body:
+            return raw
+    return rtu_frame(body)
 
 
 def _stamps(linktype: int) -> Stamp:

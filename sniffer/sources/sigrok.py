@@ -30,8 +30,9 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from sniffer.errors import CaptureError
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.sources.base import Capture, CaptureError, ReadOptions
+from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.zipscan import Archive, ArchiveError
 
 READ_BLOCK = 1 << 22  # sample bytes decoded per step

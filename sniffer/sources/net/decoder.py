@@ -20,8 +20,8 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
+import sniffer.sources.net.carrier as carriers
 from sniffer.model import Chunk, Direction
-from sniffer.sources.net import carrier as carriers
 from sniffer.sources.net.packets import TCP_ACK, TCP_FIN, TCP_RST, TCP_SYN, Segment, Skip, decode
 from sniffer.sources.net.tcp import Piece, TcpHalf
 

@@ -1,18 +1,25 @@
 """Provides the units panel: per-unit requests, answers, exceptions, timeouts, check errors,
-latency median and p95, last seen; units that stopped answering stand out."""
+latency median and p95, last seen, and the poll cycle (period, jitter, gaps of the
+unit's main poll); units that stopped answering stand out."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 from rich.style import Style
 from rich.text import Text
 from textual.widgets import DataTable
 
+from dissectors.envelope import ascii_body
+from sniffer.pollcycle import GAP_FACTOR, MIN_REPEATS
 from sniffer.stats import UnitStats
+from sniffer.store import FrameStore
 from sniffer.text import plain
 from sniffer.tui.render import ago_text, fit_columns
+from sniffer.vocab import Flag, Kind
 
 # fixed widths: columns that grew with whatever was shown first would jump about
 COLUMNS = (
@@ -26,10 +33,28 @@ COLUMNS = (
     ("chk", 5),
     ("median", 7),
     ("p95", 7),
+    ("period", 6),
+    ("jitter", 6),
+    ("gaps", 4),
     ("seen", 10),
 )
 # what stays when the pane is narrow, most important first
-PRIORITY = ("unit", "state", "seen", "exc", "t/o", "chk", "median", "p95", "ans", "req", "device")
+PRIORITY = (
+    "unit",
+    "state",
+    "seen",
+    "exc",
+    "t/o",
+    "chk",
+    "median",
+    "p95",
+    "period",
+    "ans",
+    "req",
+    "device",
+    "gaps",
+    "jitter",
+)
 SILENT_AFTER = 2.0  # seconds without an answer, at least, before a polled unit is silent
 
 
@@ -47,6 +72,9 @@ class UnitRow:
     last_seen: float
     last_answer: float | None
     silent: bool
+    period: float | None = None  # seconds between sendings of the unit's main poll
+    jitter: float | None = None  # p95 - p5 of those seconds
+    gaps: int = 0  # waits of more than GAP_FACTOR periods, over all its polls
 
 
 Cache = dict[tuple[int, str], tuple[int, float | None, float | None]]
@@ -116,8 +144,140 @@ def unit_rows(
     return out
 
 
+# -- the poll cycle, followed as rows arrive ------------------------------------------------
+
+WINDOW = 512  # the latest waits a period and jitter are measured over
+REMEASURE = 32  # sendings between two measurements of a long-running poll
+
+
+def _quantile(ordered: list[float], q: float) -> float:
+    return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
+
+
+@dataclass
+class _Poll:
+    """One repeating request: its latest waits, period and jitter, and gaps so far."""
+
+    count: int = 0
+    last: float | None = None
+    waits: deque[float] = field(default_factory=lambda: deque(maxlen=WINDOW))
+    period: float | None = None
+    jitter: float | None = None
+    measured_at: int = 0  # `count` when period and jitter were last measured
+    gaps: int = 0
+
+    def send(self, t: float) -> None:
+        self.count += 1
+        if self.last is not None:
+            wait = t - self.last
+            if self.period is not None and wait > GAP_FACTOR * self.period:
+                self.gaps += 1
+            self.waits.append(wait)
+            if self.count < 2 * REMEASURE or self.count - self.measured_at >= REMEASURE:
+                self.measure()
+        self.last = t
+
+    def measure(self) -> None:
+        if self.count < MIN_REPEATS:
+            return
+        ordered = sorted(self.waits)
+        self.period = _quantile(ordered, 0.5)
+        self.jitter = _quantile(ordered, 0.95) - _quantile(ordered, 0.05)
+        self.measured_at = self.count
+
+
+@dataclass(frozen=True, slots=True)
+class CycleSummary:
+    """A unit's poll cycle as the pane shows it."""
+
+    period: float | None
+    jitter: float | None
+    gaps: int
+
+
+def request_key(body: bytes) -> bytes:
+    """What makes two requests the same poll: unit, function, address and count; the
+    values a write carries are left out (as sniffer.pollcycle does)."""
+    if len(body) < 2:
+        return body
+    fc = body[1]
+    if fc in (5, 6):
+        return body[:4]
+    if fc in (15, 16, 23):
+        return body[:6]
+    return body
+
+
+class PollWatch:
+    """Each unit's repeating requests, followed incrementally over a store.
+
+    The same polls as `sniffer.pollcycle.poll_cycles` (which the --stats table uses), but
+    measured over each poll's latest WINDOW waits so the pane stays cheap on a long
+    capture; a gap is a wait of more than GAP_FACTOR times the period known when it ended.
+    """
+
+    def __init__(self) -> None:
+        self.store: FrameStore | None = None
+        self.next = 0
+        self.polls: dict[int, dict[bytes, _Poll]] = {}
+
+    def update(self, store: FrameStore, upto: int) -> None:
+        """Take in rows below `upto` (rows another thread has finished writing)."""
+        if store is not self.store or upto < self.next:
+            self.store, self.next, self.polls = store, 0, {}
+        kind, flags, unit, t = store.kind, store.flags, store.unit, store.t
+        for i in range(self.next, upto):
+            if kind[i] != Kind.REQUEST or flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
+                continue
+            raw = store.raw(i)
+            if flags[i] & Flag.ASCII:
+                decoded = ascii_body(raw)
+                body = decoded[:-1] if decoded else b""
+            else:
+                body = raw[:-2]
+            mine = self.polls.setdefault(unit[i], {})
+            poll = mine.get(request_key(body))
+            if poll is None:
+                poll = mine[request_key(body)] = _Poll()
+            poll.send(t[i])
+        self.next = max(self.next, upto)
+
+    def summary(self, unit: int) -> CycleSummary:
+        """The unit's main poll (the request sent most often) and all its polls' gaps."""
+        repeating = [p for p in self.polls.get(unit, {}).values() if p.count >= MIN_REPEATS]
+        if not repeating:
+            return CycleSummary(None, None, 0)
+        main = max(repeating, key=lambda p: (p.count, -(p.period or 0.0)))
+        if main.measured_at != main.count:
+            main.measure()  # up to date when shown, however seldom it is re-measured
+        return CycleSummary(main.period, main.jitter, sum(p.gaps for p in repeating))
+
+    def summaries(self) -> dict[int, CycleSummary]:
+        return {unit: self.summary(unit) for unit in self.polls}
+
+
+def with_cycles(rows: list[UnitRow], cycles: Mapping[int, CycleSummary]) -> list[UnitRow]:
+    """The rows with each unit's poll cycle filled in."""
+    out = []
+    for r in rows:
+        c = cycles.get(r.unit)
+        out.append(r if c is None else replace(r, period=c.period, jitter=c.jitter, gaps=c.gaps))
+    return out
+
+
 def _ms(v: float | None) -> str:
     return "-" if v is None else f"{v:.1f}"
+
+
+def _span(seconds: float | None) -> str:
+    """A period or jitter in at most 6 cells: 250ms, 2501ms, 11.3s, 1.2h."""
+    if seconds is None:
+        return "-"
+    if seconds < 10:
+        return f"{seconds * 1000:.0f}ms"
+    if seconds < 3600:
+        return f"{seconds:.1f}s" if seconds < 1000 else f"{seconds / 60:.0f}m"
+    return f"{seconds / 3600:.1f}h"
 
 
 class UnitsPanel(DataTable[Text]):
@@ -130,6 +290,7 @@ class UnitsPanel(DataTable[Text]):
         self.zebra_stripes = True
         self.shown: list[str] = []
         self.last: tuple[list[UnitRow], float] = ([], 0.0)
+        self.polls = PollWatch()
         self._columns(fit_columns(COLUMNS, PRIORITY, 200))
 
     def _columns(self, names: list[str]) -> None:
@@ -147,9 +308,23 @@ class UnitsPanel(DataTable[Text]):
         names = fit_columns(COLUMNS, PRIORITY, self.size.width - 1)
         if names != self.shown:
             self._columns(names)
-            self.show(*self.last)
+            self._fill(*self.last)
+
+    def _follow(self, rows: list[UnitRow]) -> list[UnitRow]:
+        """The rows with the poll cycle, followed over the rows the app has published
+        (the pane reads the store itself, so the app hands it only the counts)."""
+        model = getattr(self.app, "model", None)
+        reader = getattr(model, "reader", None)
+        upto = getattr(model, "published", None)
+        if not isinstance(reader, FrameStore) or not isinstance(upto, int):
+            return rows
+        self.polls.update(reader, upto)
+        return with_cycles(rows, self.polls.summaries())
 
     def show(self, rows: list[UnitRow], now: float) -> None:
+        self._fill(self._follow(rows), now)
+
+    def _fill(self, rows: list[UnitRow], now: float) -> None:
         self.last = (rows, now)
         silent = self.get_component_rich_style("units-panel--silent", partial=True)
         bad = self.get_component_rich_style("units-panel--bad", partial=True)
@@ -184,5 +359,8 @@ class UnitsPanel(DataTable[Text]):
             cell(str(r.check_errors), bad if r.check_errors else None),
             cell(_ms(r.median_ms)),
             cell(_ms(r.p95_ms)),
+            cell(_span(r.period)),
+            cell(_span(r.jitter)),
+            cell(str(r.gaps) if r.gaps else "-", bad if r.gaps else None),
             cell(seen),
         ]
