@@ -34,7 +34,7 @@ from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
 
 if TYPE_CHECKING:
-    from sniffer.reads import Reads
+    from sniffer.sources.reads import Reads
     from sniffer.store import FrameStore
 
 MAX_RTU = 256

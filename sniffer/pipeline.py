@@ -27,7 +27,7 @@ from dissectors.functions import FUNCTIONS, Registry
 from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.pairing import Pairer, default_timeout
-from sniffer.reads import Reads
+from sniffer.sources.reads import Reads
 from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind
 
@@ -144,8 +144,9 @@ class Pipeline:
             self._release(final=False)
 
     def _feed_reads(self, reads: Reads) -> None:
-        """A batch of reads of one channel (see `sniffer.reads`): handed to the framer in
-        one call where that frames it as the reads one by one would; else read by read."""
+        """A batch of reads of one channel (see `sniffer.sources.reads`): handed to the
+        framer in one call where that frames it as the reads one by one would; else read
+        by read."""
         ch = self.channels.get(reads.channel)
         if (
             ch is None

@@ -14,8 +14,8 @@ from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
 from sniffer.model import Chunk, Labels, LineSettings, Stamp
 from sniffer.pipeline import MERGE_SLACK, Pipeline
-from sniffer.reads import Reads, batching
 from sniffer.sources import Capture, ReadOptions, open_capture
+from sniffer.sources.reads import Reads, batching
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
 
@@ -114,8 +114,8 @@ class Session:
             return
         last = time.monotonic()
         done = 0
-        # readers may pass runs of reads as one batch (sniffer.reads): the pipeline
-        # frames them read by read, so the rows are the same
+        # readers may pass runs of reads as one batch (sniffer.sources.reads): the
+        # pipeline frames them read by read, so the rows are the same
         with batching(self.batch_reads):
             for chunk in chunks:
                 self.feed(chunk)

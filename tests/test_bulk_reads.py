@@ -1,8 +1,8 @@
 """The bulk pcapng walk and batches of reads give what the block-by-block walk gives.
 
 `Session.ingest` lets the pcapng reader pass runs of link type 250 reads as one
-`sniffer.reads.Reads`; everything else reads a capture one chunk per read. Both must
-agree on every chunk, warning and row, for clean, odd and damaged files alike.
+`sniffer.sources.reads.Reads`; everything else reads a capture one chunk per read. Both
+must agree on every chunk, warning and row, for clean, odd and damaged files alike.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sniffer.model import Chunk, LineSettings
-from sniffer.reads import Reads, batching
 from sniffer.session import Session, open_session
 from sniffer.sources import open_capture
 from sniffer.sources.linktypes import (
@@ -27,6 +26,7 @@ from sniffer.sources.linktypes import (
     RTAC_FRAMING_ERROR,
 )
 from sniffer.sources.pcapng_writer import describe_interface, rtac_record
+from sniffer.sources.reads import Reads, batching
 from sniffer.synth import polling_frames
 
 T0 = 1_714_564_800.0
@@ -178,7 +178,19 @@ def _store_of(path: Path, batched: bool) -> Session:
     return session
 
 
-COLUMNS = "offset length t t_end kind unit fc flags channel partner status".split()
+COLUMNS = [
+    "offset",
+    "length",
+    "t",
+    "t_end",
+    "kind",
+    "unit",
+    "fc",
+    "flags",
+    "channel",
+    "partner",
+    "status",
+]
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

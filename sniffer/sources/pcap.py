@@ -54,7 +54,6 @@ from typing import BinaryIO
 import sniffer.sources.net as net
 from dissectors.envelope import open_ascii, rtu_frame
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads, batching_enabled
 from sniffer.sources.base import MAX_TIME, Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
@@ -90,6 +89,7 @@ from sniffer.sources.linktypes import (
     parse_rtac,
     parse_upper_pdu,
 )
+from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads, batching_enabled
 
 MAX_BLOCK = 1 << 26  # 64 MiB: anything larger is taken as damage, not data
 LINKTYPE_NAMES = {
