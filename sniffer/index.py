@@ -336,12 +336,18 @@ def _restore(
     columns: dict[str, array[Any]],
     streams: dict[int, bytearray],
 ) -> None:
+    # into the store's own objects: views (the TUI's reader) hold on to its columns
     store = session.store
     store.streams.clear()
     store.streams.update(streams)
     for name, col in columns.items():
-        setattr(store, name, col)
-    store.notes = {int(i): str(text) for i, text in header["notes"].items()}
+        target = getattr(store, name)
+        del target[:]
+        target.frombytes(memoryview(col).cast("B"))
+        del col
+    columns.clear()
+    store.notes.clear()
+    store.notes.update({int(i): str(text) for i, text in header["notes"].items()})
     store.stamps = Stamp[header["stamps"]]
     store.resolution = float(header["resolution"])
     store.fill_channel = int(header["fill_channel"])

@@ -107,8 +107,14 @@ class Session:
         should_stop: Callable[[], bool] | None = None,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
+        if self._sidecar is not None and self.indexed_from is None and not len(self.store):
+            # read back from the sidecar index where one fits: every row is there already
+            # (here rather than in open_session: the TUI draws while this thread reads)
+            from sniffer import index
+
+            path, capture, key = self._sidecar
+            self.indexed_from = index.load(self, capture, path, key)
         if self.indexed_from is not None:
-            # read back from the sidecar index: every row is there already
             if progress is not None:
                 progress(self._sidecar_bytes(), len(self.store))
             return
@@ -135,6 +141,7 @@ class Session:
             path, capture, key = self._sidecar
             if capture.finished:  # read to its end
                 index.save(self, capture, path, key)
+                self._sidecar = None
         if progress is not None:
             progress(done, len(self.store))
 
@@ -153,8 +160,9 @@ def open_session(
     """A session for a capture file, not yet ingested: feed it `capture.chunks()`.
 
     With `index` (and MODSCOPE_NO_INDEX unset), a capture of at least
-    `sniffer.index.MIN_SIZE` bytes is read back from its sidecar index when one fits it
-    (`Session.ingest` then reads nothing), and gets one once it has been read to its end.
+    `sniffer.index.MIN_SIZE` bytes is read back by `Session.ingest` from its sidecar index
+    when one fits it (the capture itself is then not read), and gets one once it has been
+    read to its end.
     """
     options = options or ReadOptions()
     capture = open_capture(path, options)
@@ -184,12 +192,7 @@ def _sidecar(
             return
     except OSError:
         return
-    key = index.settings_key(session, options, timeout)
-    found = index.load(session, capture, path, key)
-    if found is not None:
-        session.indexed_from = found
-    else:
-        session._sidecar = (path, capture, key)
+    session._sidecar = (path, capture, index.settings_key(session, options, timeout))
 
 
 def replay_file(
