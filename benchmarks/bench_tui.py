@@ -6,7 +6,8 @@ Writes a synthetic polling capture (pcapng, link type 147, one packet per frame)
 child process, then opens it in the app headless at 120x36 and prints: time to the
 first screen (target < 1 s), time to the full index, the time of a jump to the middle
 and of a page down (target < 50 ms each: the widget's work, and the round trip through
-the app's event loop), a column filter and a transaction view over every row, and the
+the app's event loop), the worst key typed while indexing (target < 100 ms), a column
+filter and a transaction view over every row, the ladder opened at the middle, and the
 peak memory of the process (ru_maxrss).
 """
 
@@ -56,6 +57,7 @@ async def measure(path: Path) -> dict[str, float]:
     from textual.widgets import Input
 
     from sniffer.tui.app import ModscopeApp
+    from sniffer.tui.screens.ladder import LadderScreen
 
     out: dict[str, float] = {}
     start = time.perf_counter()
@@ -67,6 +69,19 @@ async def measure(path: Path) -> dict[str, float]:
             await asyncio.sleep(0.002)
         out["first screen s"] = frames.first_drawn - start
         out["rows at first screen"] = frames.count
+        # keys typed while the capture is still being indexed (target < 100 ms each)
+        frames.focus()
+        waits = []
+        for key in ("j", "j", "pagedown", "k", "end", "home"):
+            if app.indexed.is_set():
+                break
+            t = time.perf_counter()
+            app.simulate_key(key)
+            while frames.drawn_at < t:
+                await asyncio.sleep(0.0005)
+            waits.append(frames.drawn_at - t)
+        if waits:
+            out["key while indexing ms (worst)"] = max(waits) * 1000
         while not app.indexed.is_set():
             await asyncio.sleep(0.01)
         out["full index s"] = time.perf_counter() - start
@@ -129,6 +144,24 @@ async def measure(path: Path) -> dict[str, float]:
             await asyncio.sleep(0.01)
             job = app.model.job
         out["free text filter rows/s"] = job.checked / (time.perf_counter() - t)
+        await pilot.press("escape")
+        filter_input.value = ""
+        await pilot.press("slash", "enter")
+        await pilot.pause()
+        # the ladder at the middle: only the lines on screen are built
+        frames.go_to(frames.count // 2)
+        await pilot.pause()
+        t = time.perf_counter()
+        await pilot.press("l")
+        screen = app.screen
+        assert isinstance(screen, LadderScreen)
+        screen.view.render()
+        out["ladder at middle ms (key and draw)"] = (time.perf_counter() - t) * 1000
+        t = time.perf_counter()
+        screen.view.page(1)
+        screen.view.render()
+        out["ladder page down ms (draw)"] = (time.perf_counter() - t) * 1000
+        await pilot.press("escape")
         out["store MB"] = session.store.memory_bytes() / 1e6
     out["peak RSS MB"] = peak_mb()
     return out

@@ -16,12 +16,13 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Protocol
 
 from sniffer.model import Chunk
 from sniffer.recorder import Recorder, RecordError
-from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, LiveReader
+from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
@@ -29,6 +30,47 @@ PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
 RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
 
 Notify = Callable[[str], None]
+
+
+class Clock(Protocol):
+    def now(self) -> float: ...
+
+
+class Reader(Protocol):
+    """What LiveCapture reads from: the serial `LiveReader`, or `MqttReader` (a bus
+    another modscope publishes)."""
+
+    @property
+    def specs(self) -> Sequence[PortSpec]: ...
+    @property
+    def clock(self) -> Clock: ...
+    @property
+    def stats(self) -> Sequence[PortStats]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def failure(self) -> str | None: ...
+    @property
+    def error(self) -> Exception | None: ...
+    @property
+    def running(self) -> bool: ...
+    def subscribe(self, maxsize: int = DEFAULT_QUEUE) -> ChunkFeed: ...
+    def attach(self, maxsize: int = DEFAULT_QUEUE) -> ChunkFeed: ...
+    def detach(self, feed: ChunkFeed) -> None: ...
+    def start(self) -> None: ...
+    def stop(self, timeout: float = 2.0) -> None: ...
+
+
+class Publisher(Protocol):
+    """An output fed as the session is (`sniffer.mqtt.publish.BusPublisher`): every chunk
+    as it is read, then the new rows after each pump. It must never block for long."""
+
+    def chunk(self, chunk: Chunk) -> None: ...
+    def rows(self, final: bool = False) -> None: ...
+    def close(self, drain: float = 10.0) -> str: ...
+
+
+PUBLISH_DRAIN = 5.0  # seconds a stopping capture waits for its publisher's buffer
 
 
 def event_text(chunk: Chunk) -> str:
@@ -40,17 +82,22 @@ class LiveCapture:
 
     def __init__(
         self,
-        reader: LiveReader,
+        reader: Reader,
         session: Session | None,
         *,
         recorder: Recorder | None = None,
         queue_size: int = DEFAULT_QUEUE,
         notify: Notify | None = None,
         quiet: float | None = None,
+        publisher: Publisher | None = None,
     ) -> None:
+        if publisher is not None and session is None:
+            raise ValueError("a publisher is fed from the session: give the capture one")
         self.reader = reader
         self.session = session
         self.recorder = recorder
+        self.publisher = publisher
+        self.publish_report: str | None = None
         self.notify = notify
         self.queue_size = queue_size
         line = session.line if session is not None else reader.specs[0].line
@@ -94,6 +141,9 @@ class LiveCapture:
                     self._take(self.feed.get(0))
                 self.session.finish()
                 rows = self._new_rows()
+                if self.publisher is not None:
+                    self.publish_report = self.publisher.close(PUBLISH_DRAIN)
+                    self._report(self.publish_report)
         if self._rec_thread is not None:
             self._rec_thread.join(30)
             if self._rec_thread.is_alive():
@@ -163,15 +213,20 @@ class LiveCapture:
                 self.session.idle(self.reader.clock.now())
             else:
                 self.session.refresh()
+            if self.publisher is not None:
+                self.publisher.rows()
             return self._new_rows()
 
     def _take(self, chunks: list[Chunk]) -> None:
         assert self.session is not None
         feed = self.session.feed
+        publish = self.publisher.chunk if self.publisher is not None else None
         got_data = False
         for chunk in chunks:
             if chunk.event:
                 self._report(event_text(chunk))
+            if publish is not None:
+                publish(chunk)
             feed(chunk)
             got_data = got_data or bool(chunk.data)
         if got_data:

@@ -152,6 +152,9 @@ class Describer:
             code = d.field("exception_code")
             if code is not None and isinstance(code.value, int):
                 meaning = self.annotator.exception_meaning(view.unit, code.value)
+                said = d.summary.split(" ", 2)[-1].lower()  # the standard name, said already
+                if meaning.lower().startswith(said):
+                    meaning = meaning[len(said) :].lstrip(" :;,-")
                 if meaning:
                     extra_summary = f"device says: {meaning}"
                 if view.partner != NO_PARTNER:

@@ -105,7 +105,7 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         flags |= EPB_FLAG_INBOUND
     if v.flags & Flag.CHECK_BAD:
         flags |= EPB_FLAG_CRC_ERROR
-    if v.flags & MBAP:  # a Modbus TCP row of a network capture: the frame as captured
+    if v.mbap:  # a Modbus TCP frame as it was, MBAP header and PDU
         return upper_pdu_record(v.raw, "mbtcp"), flags, "; ".join(problems)
     if v.ascii:
         envelope = open_ascii(v.raw)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import enum
 import statistics
+from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
 
 from dissectors import mbap
@@ -102,24 +103,75 @@ def transactions(store: FrameStore) -> list[Side]:
     return out
 
 
+PAIRS_PER_KEY = 20_000  # votes one transaction key may cast (long runs of one poll)
+
+
+def _key(side: Side) -> bytes:
+    """What makes a transaction recognisable on both sides: its request, and its answer
+    when it has one (values change where requests repeat)."""
+    return side.body + b"|" + (side.answer_body or b"")
+
+
+def coarse_offset(tcp: list[Side], serial: list[Side], step: float = 0.05) -> float | None:
+    """A first guess of the seconds to add to serial times, for clocks that may be any
+    distance apart. Transactions are matched by request and answer (request alone where
+    no answer matches anything): every (TCP request end - serial request start) of a
+    matching pair votes, and the `step`-wide bin with the most votes, with its two
+    neighbours, wins. A poll repeated with the same answer votes for the multiples of its
+    period too, but the true offset gets the most votes: every transaction gives one.
+    None when nothing matches."""
+    for key in (_key, lambda x: x.body):
+        by_key: dict[bytes, list[float]] = {}
+        for s in serial:
+            by_key.setdefault(key(s), []).append(s.t_request)
+        tcp_by_key: dict[bytes, list[float]] = {}
+        for t in tcp:
+            if key(t) in by_key:
+                tcp_by_key.setdefault(key(t), []).append(t.t_request_end)
+        votes: dict[int, int] = {}
+        for k, ends in tcp_by_key.items():
+            starts = by_key[k]
+            # for long runs, every so many TCP transactions (each with all its matches,
+            # so that the true pair is always among them)
+            every = max(1, len(ends) * len(starts) // PAIRS_PER_KEY)
+            for end in ends[::every]:
+                for start in starts:
+                    b = round((end - start) / step)
+                    votes[b] = votes.get(b, 0) + 1
+        if votes:
+            best = max(
+                votes,
+                key=lambda b: (votes.get(b - 1, 0) + votes[b] + votes.get(b + 1, 0), -abs(b)),
+            )
+            return best * step
+    return None
+
+
 def estimate_offset(
-    tcp: list[Side], serial: list[Side], window: float = 5.0
+    tcp: list[Side], serial: list[Side], window: float = 5.0, guess: float = 0.0
 ) -> tuple[float, float, int] | None:
     """(offset, spread, samples): seconds to add to serial times, the median absolute
     deviation of the samples, and how many answered transactions were unique enough on
-    both sides to use. None without any."""
+    both sides to use (within `window` of each other once `guess` is added to the serial
+    times). None without any."""
     by_body: dict[bytes, list[Side]] = {}
     for s in serial:
         if s.t_answer_end is not None:
             by_body.setdefault(s.body, []).append(s)
+    starts: dict[bytes, list[float]] = {}
+    for body, sides in by_body.items():
+        sides.sort(key=lambda x: x.t_request)
+        starts[body] = [x.t_request + guess for x in sides]
     samples = []
     for t in tcp:
-        if t.t_answer is None:
+        if t.t_answer is None or t.body not in starts:
             continue
-        near = [s for s in by_body.get(t.body, ()) if abs(s.t_request - t.t_request_end) <= window]
-        if len(near) != 1:
+        times = starts[t.body]
+        lo = bisect_left(times, t.t_request_end - window)
+        hi = bisect_right(times, t.t_request_end + window)
+        if hi - lo != 1:
             continue
-        s = near[0]
+        s = by_body[t.body][lo]
         assert s.t_answer_end is not None
         samples.append(((t.t_request_end + t.t_answer) - (s.t_request + s.t_answer_end)) / 2)
     if not samples:
@@ -138,23 +190,67 @@ def link(
     slack: float = 0.05,
 ) -> list[Link]:
     """Link every TCP transaction to its serial one (module doc)."""
-    serial = transactions(serial_store)
+    return link_sides(
+        transactions(tcp_store),
+        transactions(serial_store),
+        offset=offset,
+        timeout=timeout,
+        slack=slack,
+    )
+
+
+def link_sides(
+    tcp: list[Side],
+    serial: list[Side],
+    *,
+    offset: float = 0.0,
+    timeout: float = 1.0,
+    slack: float = 0.05,
+) -> list[Link]:
+    """`link` over transactions already taken from their stores.
+
+    Polls repeat: the same request may be on the serial line every few tens of
+    milliseconds, so "the first one after" can belong to the next TCP request. Links are
+    made in two passes: first every TCP transaction whose answer is the device's answer,
+    to the first such serial transaction after it; then the others, to the candidate
+    whose gateway delay is nearest the delay the first pass measured (median), the
+    nearest pairs first."""
+    serial = sorted(serial, key=lambda x: x.t_request)
+    starts = [x.t_request + offset for x in serial]
+
+    def candidates(t: Side) -> range:
+        lo = bisect_left(starts, t.t_request_end - slack)
+        hi = bisect_right(starts, t.t_request_end + timeout)
+        return range(lo, hi)
+
+    found: dict[int, int] = {}  # TCP transaction -> serial transaction (list positions)
     used: set[int] = set()
-    links = []
-    for t in transactions(tcp_store):
-        found: Side | None = None
-        for s in serial:
-            start = s.t_request + offset
-            if start < t.t_request_end - slack:
-                continue
-            if start > t.t_request_end + timeout:
+    for n, t in enumerate(tcp):
+        if t.answer_body is None:
+            continue
+        for k in candidates(t):
+            s = serial[k]
+            if k not in used and s.body == t.body and s.answer_body == t.answer_body:
+                found[n] = k
+                used.add(k)
                 break
-            if s.request not in used and s.body == t.body:
-                found = s
-                used.add(s.request)
-                break
-        links.append(_verdict(t, found, offset))
-    return links
+    delays = [starts[k] - tcp[n].t_request_end for n, k in found.items()]
+    typical = statistics.median(delays) if delays else 0.0
+    pairs = [
+        (abs(starts[k] - t.t_request_end - typical), n, k)
+        for n, t in enumerate(tcp)
+        if n not in found
+        for k in candidates(t)
+        if k not in used and serial[k].body == t.body
+    ]
+    pairs.sort()
+    for _, n, k in pairs:
+        if n not in found and k not in used:
+            found[n] = k
+            used.add(k)
+    return [
+        _verdict(t, serial[found[n]] if n in found else None, offset) for n, t in enumerate(tcp)
+    ]
 
 
 def _verdict(t: Side, s: Side | None, offset: float) -> Link:

@@ -40,6 +40,8 @@ CSV_COLUMNS = (
     "problems",
     "raw",
     "fields",
+    "channel",
+    "peer",  # network captures: the sender's ip:port
 )
 
 
@@ -128,7 +130,7 @@ def record(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any]:
         "t": round(v.t, 6),  # to the microsecond, as recordings keep a start time
         "t_end": round(v.t_end, 6),
         "raw": v.raw.hex(),
-        "mode": "ascii" if v.ascii else "rtu",
+        "mode": "ascii" if v.ascii else "tcp" if v.mbap else "rtu",
         "kind": KIND_NAMES[v.kind],
         "unit": v.unit if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
         "function": v.function if v.kind not in (Kind.NOISE, Kind.EVENT) else None,
@@ -252,9 +254,12 @@ def time_text(t: float, origin: float, absolute: bool) -> str:
     return f"{t - origin:12.6f}"
 
 
-def text_line(d: FrameDetail, origin: float, absolute: bool = False) -> str:
+def text_line(d: FrameDetail, origin: float, absolute: bool = False, peer: str = "") -> str:
+    """One row as text; `peer` (a network row's sender, `ip:port`) follows the time."""
     v = d.view
     when = time_text(v.t, origin, absolute)
+    if peer:
+        when += f"  {peer:<21}"
     if v.kind == Kind.EVENT:
         return f"{when}  ---  {d.summary}"
     if v.kind == Kind.NOISE:
@@ -312,11 +317,18 @@ class Lister:
                 if self.fmt == "text" and store.stamps == Stamp.NONE:
                     self.out.write(SYNTHETIC_HEADER + "\n")
             d = self.describer.detail(i)
+            peer = store.peers.get(store.channel[i], "") if store.peers else ""
             if self.fmt == "text":
-                self.out.write(text_line(d, self.origin, self.absolute) + "\n")
+                # with network rows about, the others name their channel in that column
+                where = peer or (f"ch{store.channel[i]}" if store.peers else "")
+                self.out.write(text_line(d, self.origin, self.absolute, where) + "\n")
             elif self.fmt == "jsonl":
                 rec = record(d, store)
                 rec["timing"] = TIMING_NAMES[store.stamps]
+                if peer:
+                    rec["peer"] = peer
+                if i in store.links:
+                    rec["gateway"] = store.links[i]
                 self.out.write(json_line(rec) + "\n")
             else:
                 assert self._csv is not None
@@ -339,6 +351,8 @@ class Lister:
                         "; ".join(d.problem_texts),
                         v.raw.hex(),
                         "" if d.dissection is None else fields_cell(d.dissection.fields),
+                        v.channel,
+                        peer,
                     )
                 )
             n += 1
@@ -364,7 +378,8 @@ class Lister:
                 latency = _ms(shown_latency_ms(d, store))
                 answer = "" if v.partner == NO_PARTNER else f"answer #{v.partner}"
                 cells = (v.index, "", "", "", "update", "", "", "", "", "", d.status, latency)
-                self._csv_row((*cells, answer, "", "", ""))
+                row = (*cells, answer)
+                self._csv_row((*row, *("",) * (len(CSV_COLUMNS) - len(row))))
             n += 1
         return n
 

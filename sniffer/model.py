@@ -118,7 +118,9 @@ class SourceInfo:
     0 when exact, 1e-3 for a logger printing milliseconds); `labels` how far the
     direction carried by the chunks can be trusted. `line` is what the capture is read
     with (the command line over the file's own); `recorded_line` what the file itself
-    recorded, if it did.
+    recorded, if it did. `network` is true for an Ethernet-family capture: its channels
+    are TCP or UDP connection directions, labelled as `sniffer.sources.net` says, and it
+    is framed by `sniffer.tcpframing.NetPipeline`.
     """
 
     path: str
@@ -132,3 +134,4 @@ class SourceInfo:
     labels: Labels = Labels.NONE
     notes: tuple[str, ...] = ()  # what the reader decided for the user (not warnings)
     recorded_line: LineSettings | None = None
+    network: bool = False

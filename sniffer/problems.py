@@ -9,7 +9,7 @@ the check's span runs past the body over the CRC or LRC. Meanings come from
 
 from __future__ import annotations
 
-from dissectors.envelope import open_ascii, open_rtu
+from dissectors.envelope import open_ascii, open_mbap, open_rtu
 from dissectors.values import Problem
 from sniffer.store import FrameView
 from sniffer.vocab import (
@@ -25,11 +25,12 @@ from sniffer.vocab import (
 
 # flags whose sentence has numbers in it: the check's here, the device's timing in the
 # describer (which knows the dictionary); an event row says its own note
-_SAID_ELSEWHERE = Flag.CHECK_BAD | Flag.DEVICE_SLOW | Flag.LINE_EVENT
+_SAID_ELSEWHERE = Flag.CHECK_BAD | Flag.DEVICE_SLOW | Flag.LINE_EVENT | Flag.ENVELOPE_BAD
 _LISTED = tuple(
     (int(flag), m) for flag, m in FLAGS if flag & PROBLEM_MASK and not flag & _SAID_ELSEWHERE
 )
 _CHECK = dict(FLAGS)[Flag.CHECK_BAD]
+_ENVELOPE = dict(FLAGS)[Flag.ENVELOPE_BAD]
 
 
 def check_text(frame: FrameView) -> str:
@@ -62,6 +63,11 @@ def frame_problems(frame: FrameView, note: str = "") -> list[Problem]:
     text = check_text(frame)
     if text:
         out.append(Problem(_CHECK.kind, _CHECK.severity, text, _check_span(frame)))
+    if frame.flags & Flag.ENVELOPE_BAD:
+        # the header's own sentences; its spans lie before the body, so none is given
+        m = _ENVELOPE
+        for p in open_mbap(frame.raw).problems:
+            out.append(Problem(m.kind, m.severity, f"MBAP: {p.text}", None))
     flags = frame.flags
     if flags:
         out.extend(Problem(m.kind, m.severity, m.text, None) for f, m in _LISTED if flags & f)

@@ -126,7 +126,7 @@ def _numbers(key: str, value: str, low: int, high: int) -> set[int]:
     for part in value.split(","):
         part = part.strip()
         if not part:
-            continue
+            raise QueryError(f"{key}:{value}: an empty value between commas; write e.g. {key}:1,2")
         a, sep, b = part.partition("-")
         try:
             first = int(a, 0)
@@ -147,6 +147,10 @@ def _numbers(key: str, value: str, low: int, high: int) -> set[int]:
 def _words(key: str, value: str, table: dict[str, int] | dict[str, str]) -> list[str]:
     out = []
     for part in value.lower().split(","):
+        if not part:
+            raise QueryError(
+                f"{key}:{value}: an empty value between commas; write e.g. {EXAMPLES[key]}"
+            )
         if part not in table:
             names = ", ".join(sorted({str(k) for k in table}))
             raise QueryError(f"{key}:{part} is not known; use one of {names}")
@@ -168,6 +172,11 @@ def parse_time_point(text: str) -> TimePoint:
         while len(numbers) < 3:
             numbers.append(0.0)
         h, m, s = numbers
+        if not (0 <= h < 24 and 0 <= m < 60 and 0 <= s < 60) or h != int(h) or m != int(m):
+            raise QueryError(
+                f"{text!r} is not a clock time: hours go from 0 to 23, minutes and seconds "
+                "from 0 to 59 (14:03:07.25)"
+            )
         return TimePoint(h * 3600 + m * 60 + s, clock=True)
     match = re.fullmatch(r"([0-9]*\.?[0-9]+)\s*(ms|s|min|m|h)?", text)
     if match is None:
@@ -180,6 +189,8 @@ def parse_time_point(text: str) -> TimePoint:
 
 def parse_time_span(value: str) -> TimeSpan:
     """`10-20`, `10-` (from 10 on), `-20` (up to 20), `14:00-14:05`."""
+    if value == "-":
+        raise QueryError("t:-: give a start, an end or both, e.g. t:10-20, t:10- or t:-20")
     if value.startswith("-"):
         return TimeSpan(None, parse_time_point(value[1:]))
     if value.endswith("-"):
@@ -188,7 +199,17 @@ def parse_time_span(value: str) -> TimeSpan:
     if not sep:
         start = parse_time_point(a)
         return TimeSpan(start, TimePoint(start.seconds + 1.0, start.clock))
-    return TimeSpan(parse_time_point(a), parse_time_point(b))
+    start, end = parse_time_point(a), parse_time_point(b)
+    if start.clock != end.clock:
+        raise QueryError(
+            f"t:{value}: both ends are seconds from the start (t:10-20) or both clock "
+            "times (t:14:03-14:05)"
+        )
+    if end.seconds < start.seconds:
+        raise QueryError(
+            f"t:{value}: the end comes before the start; write the earlier time first (t:{b}-{a})"
+        )
+    return TimeSpan(start, end)
 
 
 def parse_query(text: str) -> Query:
@@ -212,8 +233,28 @@ def parse_query(text: str) -> Query:
             if neg:
                 raise QueryError("-: write the term to leave out right after it, e.g. -fc:3")
             continue
+        term = f"{'-' if neg else ''}{key + ':' if key else ''}{value}"
+        if '"' in value[1:-1] or (value.endswith('"') and not value.startswith('"')):
+            raise QueryError(
+                f"{term}: a quote inside a term; put quotes around the whole value or "
+                'text (reg:"Under Voltage", "two words")'
+            )
+        if value.startswith('"') and pos < len(text) and not text[pos].isspace():
+            raise QueryError(
+                f"{term}{text[pos:].split()[0]}: text right after a closing quote; "
+                "leave a space after it"
+            )
         if value.startswith('"'):
-            value = value[1:-1] if value.endswith('"') and len(value) > 1 else value[1:]
+            if len(value) < 2 or not value.endswith('"'):
+                raise QueryError(
+                    f'{term}: the quote is not closed; end the text with " '
+                    f'(e.g. reg:"Under Voltage")'
+                )
+            value = value[1:-1]
+            if not value.strip():
+                raise QueryError(
+                    f'{key + ":" if key else ""}"": empty quotes; put the text between them'
+                )
         if key is None:
             if neg:
                 raise QueryError(f"-{value}: only unit, fc, kind and status terms can be negated")
@@ -227,7 +268,7 @@ def parse_query(text: str) -> Query:
                 f'(put text with a colon in quotes: "{key}:{value}")'
             )
         if neg and key in ("reg", "t"):
-            raise QueryError(f"-{key}: only unit, fc, kind and status terms can be negated")
+            raise QueryError(f"-{key}:{value}: only unit, fc, kind and status terms can be negated")
         if not value:
             raise QueryError(f"{key}: needs a value, e.g. {EXAMPLES[key]}")
         slot = ("not_" if neg else "") + key
@@ -244,7 +285,15 @@ def parse_query(text: str) -> Query:
         elif key == "reg":
             registers.append(value.lower())
         else:
-            time = parse_time_span(value)
+            if time is not None:
+                raise QueryError(f"t:{value}: one time span per filter; keep one t: term")
+            try:
+                time = parse_time_span(value)
+            except QueryError as exc:
+                text_ = str(exc)
+                raise QueryError(
+                    text_ if text_.startswith("t:") else f"t:{value}: {text_}"
+                ) from None
 
     def ints(slot: str) -> frozenset[int]:
         return frozenset(numbers.get(slot, ()))

@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
@@ -48,12 +49,22 @@ class Session:
         labels: Labels = Labels.CERTAIN,
         stamps: Stamp = Stamp.READ_END,
         resolution: float = 0.0,
+        network: Mapping[int, str] | None = None,
     ) -> None:
+        """`network`: the channel labels of a network capture (`SourceInfo.channels`),
+        which is then framed by `NetPipeline` (Modbus TCP, RTU over TCP/UDP)."""
         self.line = line
         self.source = source
         self.store = FrameStore()
         self.annotator = Annotator(bindings or {})
-        self.pipeline = Pipeline(
+        pipeline_class: type[Pipeline] = Pipeline
+        extra: dict[str, Any] = {}
+        if network is not None:
+            from sniffer.tcpframing import NetPipeline
+
+            pipeline_class = NetPipeline
+            extra["channels"] = network
+        self.pipeline = pipeline_class(
             line,
             self.store,
             exact_timing=exact_timing,
@@ -63,6 +74,7 @@ class Session:
             labels=labels,
             stamps=stamps,
             resolution=resolution,
+            **extra,
         )
         self.stats = Stats(self.store)
         self.describer = Describer(self.store, self.annotator)
@@ -176,6 +188,7 @@ def open_session(
         labels=capture.info.labels,
         stamps=capture.info.stamps,
         resolution=capture.info.resolution,
+        network=capture.info.channels if capture.info.network else None,
     )
     if index:
         _sidecar(session, capture, Path(path), options, timeout)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass
 
+from dissectors import mbap
 from dissectors.envelope import ascii_body
 from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
@@ -39,13 +40,21 @@ class FrameView:
         return bool(self.flags & Flag.ASCII)
 
     @property
+    def mbap(self) -> bool:
+        """A Modbus TCP frame: raw is the MBAP header and the PDU."""
+        return bool(self.flags & Flag.MBAP)
+
+    @property
     def check_ok(self) -> bool:
         return self.kind != Kind.NOISE and not self.flags & BAD_CHECK
 
     def body(self) -> bytes:
-        """Unit byte and PDU, without the CRC or LRC (empty for noise and events)."""
+        """Unit byte and PDU, without the CRC or LRC or MBAP header (empty for noise and
+        events)."""
         if self.kind in (Kind.NOISE, Kind.EVENT):
             return b""
+        if self.flags & Flag.MBAP:
+            return mbap.body(self.raw)
         if self.ascii:
             decoded = ascii_body(self.raw)
             return decoded[:-1] if decoded else b""
@@ -79,6 +88,13 @@ class FrameStore:
         # seconds (0: not known); latencies are measured with them (pairing.measure)
         self.stamps = Stamp.READ_END
         self.resolution = 0.0
+        # network captures, per channel: the sender's and the server's `ip:port` (see
+        # sniffer.tcpframing.NetPipeline)
+        self.peers: dict[int, str] = {}
+        self.servers: dict[int, str] = {}
+        # both sides of a gateway: row -> its link (`peer` row, `delay_ms`, `verdict`,
+        # `text`; see sniffer.gateway.mark_links)
+        self.links: dict[int, dict[str, object]] = {}
 
     def __len__(self) -> int:
         return len(self.t)
@@ -129,6 +145,9 @@ class FrameStore:
                 body = ascii_body(bytes(stream[offset : offset + length]))
                 if body is not None and len(body) > 1:
                     unit, fc = body[0], body[1]
+            elif flags & Flag.MBAP:
+                if length > mbap.HEADER_SIZE:
+                    unit, fc = stream[offset + 6], stream[offset + 7]
             elif length >= 2:
                 unit, fc = stream[offset], stream[offset + 1]
         self.offset.append(offset)

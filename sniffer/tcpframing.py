@@ -40,18 +40,11 @@ from sniffer.vocab import Flag, Kind, Status
 if TYPE_CHECKING:
     from sniffer.framing import Framer
 
-# Flag bits of network rows. They lie outside the bits framing.Flag names today; the
-# proposal is to name them in the shared flag table (see docs/ethernet.md).
-MBAP = 1 << 25  # the row is a Modbus TCP frame: raw = MBAP header + PDU (a fact)
-ENVELOPE_BAD = 1 << 17  # MBAP protocol id not 0, or a length that disagrees or is out of range
-TID_REUSED = 1 << 18  # a request reusing a transaction id still waiting for its answer
-CUT_SHORT = 1 << 19  # the frame was cut by a gap in the captured stream or its end
-
-NET_FLAG_TEXT: tuple[tuple[int, str], ...] = (
-    (ENVELOPE_BAD, "MBAP header wrong (protocol id or length)"),
-    (TID_REUSED, "transaction id reused while a request with it waits"),
-    (CUT_SHORT, "frame cut short by a gap in the capture or its end"),
-)
+# Flag bits of network rows, named in the one table of meanings (sniffer.vocab)
+MBAP = int(Flag.MBAP)  # the row is a Modbus TCP frame: raw = MBAP header + PDU (a fact)
+ENVELOPE_BAD = int(Flag.ENVELOPE_BAD)  # MBAP protocol id not 0, or a length wrong
+TID_REUSED = int(Flag.TID_REUSED)  # a request reusing a transaction id still waiting
+CUT_SHORT = int(Flag.CUT_SHORT)  # the frame was cut by a gap in the captured stream
 
 TCP_TIMEOUT = 3.0  # seconds: Modbus TCP clients (pymodbus, libmodbus) wait about this long
 
@@ -375,8 +368,16 @@ class NetPipeline(Pipeline):
                 ch.framer.gap()
         super().feed(chunk)
 
+    def too_fast(self) -> tuple[int, float | None]:
+        """Packets carry bytes as fast as the network does: no line speed applies."""
+        return 0, None
+
     def _start_framer(self, ch: _Channel) -> None:
         label = parse_label(self.channel_labels.get(ch.number, ""))
+        if label is not None:
+            self.store.peers[ch.number] = label.sender
+            server = label.sender if label.role == Direction.SLAVE else label.receiver
+            self.store.servers[ch.number] = server
         if label is None or label.carrier not in MBAP_CARRIERS:
             super()._start_framer(ch)
             return

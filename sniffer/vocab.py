@@ -36,7 +36,8 @@ class Flag(enum.IntFlag):
     """Problems and facts about a row, stored per row as one integer.
 
     The stage that sets each one is in `FLAGS`; framing sets bits 0-10, pairing and
-    annotation set 11-15 on stored rows, sources 16. Bit 24 and up are facts.
+    annotation set 11-15 on stored rows, sources 16; Modbus TCP framing and pairing
+    (`sniffer.tcpframing`) set 17-19. Bit 24 and up are facts.
     """
 
     NONE = 0
@@ -57,7 +58,11 @@ class Flag(enum.IntFlag):
     DEVICE_SLOW = 1 << 14
     QUIET_VIOLATED = 1 << 15
     LINE_EVENT = 1 << 16
+    ENVELOPE_BAD = 1 << 17  # MBAP protocol id not 0, or a length wrong or out of range
+    TID_REUSED = 1 << 18  # a Modbus TCP request reusing an id still waiting for its answer
+    CUT_SHORT = 1 << 19  # cut by a gap in the captured TCP stream or by its end
     ASCII = 1 << 24  # the frame was sent in ASCII mode (a fact, not a problem)
+    MBAP = 1 << 25  # a Modbus TCP frame: raw = MBAP header + PDU (a fact, not a problem)
 
 
 class Status(enum.IntEnum):
@@ -217,6 +222,36 @@ FLAGS: tuple[tuple[Flag, Meaning], ...] = (
         Flag.LINE_EVENT,
         Meaning("line-event", WARNING, "the source reported something here", "", SOURCE),
     ),
+    (
+        Flag.ENVELOPE_BAD,
+        Meaning(
+            "mbap-header",
+            ERROR,
+            "MBAP header wrong (protocol id or length)",
+            "mbap",
+            FRAMING,
+        ),
+    ),
+    (
+        Flag.TID_REUSED,
+        Meaning(
+            "tid-reused",
+            WARNING,
+            "transaction id reused while a request with it waits",
+            "tid-reused",
+            PAIRING,
+        ),
+    ),
+    (
+        Flag.CUT_SHORT,
+        Meaning(
+            "cut-short",
+            ERROR,
+            "frame cut short by a gap in the capture or its end",
+            "cut-short",
+            FRAMING,
+        ),
+    ),
 )
 FLAG_MEANINGS: dict[Flag, Meaning] = dict(FLAGS)
 
@@ -230,6 +265,7 @@ NOISE_MEANING = Meaning("noise", WARNING, "bytes no frame claims", "", FRAMING)
 EVENT_MEANING = Meaning("event", INFO, "the source reported an event", "", SOURCE)
 
 # Masks, each defined here once.
-BAD_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX)  # the frame's check cannot be trusted
+# the frame's check cannot be trusted (a Modbus TCP frame's only check is its header)
+BAD_CHECK = int(Flag.CHECK_BAD | Flag.NON_HEX | Flag.ENVELOPE_BAD)
 PROBLEM_MASK = int(sum(int(f) for f, m in FLAGS if m.severity != INFO))  # flags worth a look
 PAIRING_FLAGS = int(sum(int(f) for f, m in FLAGS if m.stage == PAIRING))

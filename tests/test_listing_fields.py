@@ -100,7 +100,7 @@ def test_device_identification_objects_in_jsonl_and_csv() -> None:
 def test_csv_has_a_fields_column_with_dotted_names() -> None:
     s = session_of([READ_FILE, READ_FILE_ANSWER])
     header = listing(s, "csv").splitlines()[0].split(",")
-    assert header[-1] == "fields"
+    assert "fields" in header
     request, answer = csv_fields(s)
     assert request == {
         "byte_count": "7",

@@ -25,6 +25,7 @@ from sniffer.tui.widgets.watch import WatchPanel
 from tests.test_tui_support import (
     HOSTILE_SHOWN,
     LINE,
+    burst,
     hostile_chunks,
     hostile_session,
     screen_text,
@@ -69,8 +70,17 @@ def capture_of(chunks: list[Chunk], path: str = "test.pcapng") -> Capture:
 
 
 def lines(app: ModscopeApp) -> list[str]:
+    """The frame list's lines without their row number column (`numbers` gives those)."""
     frames = app.frames
-    return [frames.render_line(y).text for y in range(frames.page_height)]
+    cut = frames.columns().number + 1 if frames.columns().number else 0
+    return [frames.render_line(y).text[cut:] for y in range(frames.page_height)]
+
+
+def numbers(app: ModscopeApp) -> list[str]:
+    """The row numbers the frame list shows, top to bottom."""
+    frames = app.frames
+    cut = frames.columns().number
+    return [frames.render_line(y).text[:cut].strip() for y in range(frames.page_height)]
 
 
 # -- opening and moving ---------------------------------------------------------------------
@@ -640,3 +650,22 @@ async def test_an_empty_capture_is_calm() -> None:
         await pilot.pause()
         assert app.is_running and app.frames.count == 0
         assert "0 fr " in screen_text(app)
+
+
+async def test_an_export_then_s_writes_the_rows_that_were_shown(tmp_path: Path) -> None:
+    """`s` starts the capture again (a new store) while the export is being written: the
+    file still holds the rows shown when Enter was pressed (found in tmux: IndexError)."""
+
+    def reopen() -> tuple[Session, Capture]:
+        session = Session(LINE, exact_timing=True, source="hostile.pcapng")
+        return session, capture_of(hostile_chunks())
+
+    session, capture = reopen()
+    app = ModscopeApp(session, capture, reopen=reopen)
+    out = tmp_path / "rows.jsonl"
+    async with app.run_test(size=SIZE) as pilot:
+        await ready(pilot, app)
+        burst(app, ["e", *str(out), "enter", "s"])
+        await wait_said(pilot, app, f"wrote 17 rows to {out}")
+    lines = out.read_text().splitlines()
+    assert [json.loads(line)["index"] for line in lines] == list(range(17))

@@ -67,6 +67,7 @@ def test_serve_runs_the_tui_command_for_each_visitor(
         "host": "localhost",
         "port": 9001,
         "title": "modscope",
+        "public_url": "http://localhost:9001",
     }
     command = made["command"]
     assert command.startswith(sys.executable) and "-m sniffer.cli tui" in command

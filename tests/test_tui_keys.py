@@ -140,3 +140,54 @@ def test_a_key_bar_that_cannot_hold_every_key_says_where_they_are() -> None:
     text = key_lines(keys, 80, plain, plain).plain
     assert text.startswith("⏎ unit") and text.endswith("? more")
     assert len(text.split("\n")) == 2
+
+
+@pytest.mark.asyncio
+async def test_a_newline_typed_ahead_ends_the_prompt_like_enter() -> None:
+    """Keys typed while modscope starts reach it through a terminal still in line mode,
+    where Enter arrives as a newline (ctrl+j): `g#1234` and a newline still go to #1234."""
+    app = ModscopeApp(synthetic_session(2000))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await ready(pilot, app)
+        burst(app, ["g", *"#1234", "ctrl+j", "j"])
+        await until(pilot, lambda: app.frames.cursor_row == 1235)
+        assert not app.main.prompt.open and app.frames.has_focus
+
+
+@pytest.mark.asyncio
+async def test_moves_in_the_watch_keep_their_order_with_the_keys_after_them() -> None:
+    """Tab, x, Down, x, Down, Down, x typed at once pick three different registers."""
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=(120, 36)) as pilot:
+        await ready(pilot, app)
+        await pilot.press("w")
+        await until(pilot, lambda: app.watch_model is not None and app.watch_model.next >= 17)
+        app._watch()
+        await pilot.pause()
+        keys = app.main.watch_panel.keys
+        burst(app, ["tab", "x", "down", "x", "j", "j", "x"])
+        await until(pilot, lambda: len(app.main.watch_panel.picked) == 3)
+        assert list(app.main.watch_panel.picked) == [keys[0], keys[1], keys[3]]
+
+
+@pytest.mark.asyncio
+async def test_a_row_not_read_yet_is_said() -> None:
+    app = ModscopeApp(synthetic_session(200))
+    async with app.run_test(size=(80, 24)) as pilot:
+        await ready(pilot, app)
+        burst(app, ["g", *"#5000", "enter"])
+        await until(pilot, lambda: any("there is no #5000" in s for s in app.said))
+        assert app.frames.cursor_row == len(app.model.view) - 1
+
+
+@pytest.mark.asyncio
+async def test_escape_and_a_key_in_one_sequence_are_two_keys() -> None:
+    """Esc typed right before `w` reaches the app as alt+w (one terminal sequence): it
+    closes the ladder, then shows the register watch."""
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=(80, 24)) as pilot:
+        await ready(pilot, app)
+        await pilot.press("l")
+        assert app.screen is not app.main
+        burst(app, ["alt+w"])
+        await until(pilot, lambda: app.screen is app.main and app.main.lower.current == "watch")

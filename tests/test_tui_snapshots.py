@@ -150,3 +150,48 @@ def test_edited_filter_is_marked(snap_compare: SnapCompare, size: tuple[int, int
         await pilot.pause()
 
     assert snap_compare(demo_app(), terminal_size=size, run_before=edit)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_ladder(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    """The demo's transactions as a ladder (host read times: one line a frame)."""
+    run = after("slash", *"unit:3", "enter", "j", "j", "j", "l")
+    assert snap_compare(demo_app(), terminal_size=size, run_before=run)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_ladder_to_scale(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    """Exact stamps: gaps to scale, a timeout, noise and a bad check."""
+    from tests.test_tui_ladder import exact_session
+
+    app = ModscopeApp(exact_session(), blink=False)
+    assert snap_compare(app, terminal_size=size, run_before=after("j", "l"))
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_register_table(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    run = after("w", watch=True)
+
+    async def table(pilot: Pilot[Any]) -> None:
+        await run(pilot)
+        await pilot.press("tab", "x", "down", "x", "down", "down", "x", "down", "x", "R")
+        app = pilot.app
+        screen = app.screen
+        deadline = time.monotonic() + 20
+        while getattr(screen, "scanned", None) is not None:
+            assert time.monotonic() < deadline
+            await pilot.pause(0.05)
+        await pilot.press("home", "down", "down")
+        await pilot.pause()
+
+    assert snap_compare(demo_app(), terminal_size=size, run_before=table)
+
+
+@pytest.mark.parametrize("size", NEW_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_filter_refused(snap_compare: SnapCompare, size: tuple[int, int]) -> None:
+    async def refused(pilot: Pilot[Any]) -> None:
+        await after()(pilot)
+        await pilot.press("slash", *"t:20-10", "enter")
+        await pilot.pause()
+
+    assert snap_compare(demo_app(), terminal_size=size, run_before=refused)

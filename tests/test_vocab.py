@@ -24,7 +24,7 @@ from sniffer.vocab import (
 
 
 def test_every_flag_but_facts_has_one_meaning() -> None:
-    facts = {Flag.NONE, Flag.ASCII}
+    facts = {Flag.NONE, Flag.ASCII, Flag.MBAP}
     assert {f for f in Flag if f not in facts} == set(FLAG_MEANINGS)
     assert len(FLAGS) == len(FLAG_MEANINGS)  # no flag listed twice
     kinds = [m.kind for _, m in FLAGS]
@@ -33,7 +33,10 @@ def test_every_flag_but_facts_has_one_meaning() -> None:
 
 
 def test_masks_follow_the_table() -> None:
-    assert BAD_CHECK == Flag.CHECK_BAD | Flag.NON_HEX
+    # a Modbus TCP frame has no CRC: its header is the check
+    assert BAD_CHECK == Flag.CHECK_BAD | Flag.NON_HEX | Flag.ENVELOPE_BAD
+    assert not PROBLEM_MASK & Flag.MBAP
+    assert PROBLEM_MASK & Flag.TID_REUSED and PROBLEM_MASK & Flag.CUT_SHORT
     assert not PROBLEM_MASK & Flag.SILENCE_FRAMED  # a fact about framing, not a problem
     assert not PROBLEM_MASK & Flag.ASCII
     assert PROBLEM_MASK & Flag.RETRY and PROBLEM_MASK & Flag.CHECK_BAD

@@ -8,8 +8,9 @@ apart, whatever envelope it came in.
 
 - `rtu`: unit byte, PDU, CRC-16 (low byte first).
 - `ascii`: `:`, the hex of unit, PDU and LRC, CR LF.
+- `mbap`: Modbus TCP's header (transaction id, protocol id, length, unit), then the PDU.
 
-A new transport (Modbus TCP's MBAP header, RTU over TCP) is a new module here with a
+RTU over TCP or UDP is the `rtu` envelope. A new transport is a new module here with a
 frozen class that has the attributes of `Envelope` and a function that opens raw bytes
 into it; nothing in the PDU dissector changes.
 """
@@ -19,6 +20,7 @@ from __future__ import annotations
 from typing import Protocol
 
 from dissectors.envelope.ascii import AsciiFrame, ascii_body, ascii_frame, open_ascii
+from dissectors.envelope.mbap import MbapFrame, open_mbap
 from dissectors.envelope.rtu import RtuFrame, open_rtu, rtu_frame
 
 Span = tuple[int, int]
@@ -62,11 +64,13 @@ class Envelope(Protocol):
 __all__ = [
     "AsciiFrame",
     "Envelope",
+    "MbapFrame",
     "RtuFrame",
     "Span",
     "ascii_body",
     "ascii_frame",
     "open_ascii",
+    "open_mbap",
     "open_rtu",
     "rtu_frame",
 ]

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TextIO
 
-from sniffer.cli.options import SubParsers, add_line_options, read_options
+from sniffer.cli.options import SubParsers, add_line_options, add_network_options, read_options
 from sniffer.text import plain
 
 
@@ -42,4 +42,5 @@ def register(sub: SubParsers) -> None:
     p.add_argument("a", metavar="A", help="the earlier capture")
     p.add_argument("b", metavar="B", help="the later capture")
     add_line_options(p)
+    add_network_options(p)
     p.set_defaults(func=cmd_diff)

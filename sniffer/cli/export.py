@@ -14,6 +14,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_network_options,
     add_raw_csv_option,
     bindings_for,
     line_warnings,
@@ -196,6 +197,7 @@ def register(sub: SubParsers) -> None:
     p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
     add_raw_csv_option(p)
     add_line_options(p)
+    add_network_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
     g.add_argument("--invert", action="store_true", help="idle-low levels")

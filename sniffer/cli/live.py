@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from typing import TextIO
 
-from sniffer.capture import PUMP_SECONDS, LiveCapture, Notify
+from sniffer.capture import PUMP_SECONDS, LiveCapture, Notify, Reader
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
@@ -46,9 +46,18 @@ STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    if args.baud == AUTO:
+    from sniffer.mqtt.command import (
+        MQTT_QUIET,
+        live_publisher,
+        mqtt_session,
+        mqtt_source,
+        published_bindings,
+    )
+
+    source = mqtt_source(args, notifier(err))  # a bus another modscope publishes
+    if source is None and args.baud == AUTO:
         scan_for_live(args, err)  # the line's settings into args, before anything opens
-    specs = port_specs(args)
+    specs = list(source.specs) if source is not None else port_specs(args)
     ring = ring_options(args)
     deadline = duration_option(args)
     queue = queue_option(args)
@@ -58,13 +67,21 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError("--pcap - takes standard output for itself; drop --format")
     if args.pcap and args.write and os.path.abspath(args.pcap) == os.path.abspath(args.write):
         raise UsageError("--pcap and -w name the same file; give each its own")
-    bindings = bindings_for(args)
-    session = Session(
-        specs[0].line,
-        bindings=bindings,
-        timeout=args.timeout,
-        source=", ".join(s.name for s in specs),
-        merge_slack=LIVE_MERGE_SLACK,
+    bindings = (
+        published_bindings(bindings_for(args), source, notifier(err))
+        if source is not None
+        else bindings_for(args)
+    )
+    session = (
+        mqtt_session(source, bindings, args.timeout)
+        if source is not None
+        else Session(
+            specs[0].line,
+            bindings=bindings,
+            timeout=args.timeout,
+            source=", ".join(s.name for s in specs),
+            merge_slack=LIVE_MERGE_SLACK,
+        )
     )
     use_tui = (
         args.format is None
@@ -73,19 +90,35 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         and sys.stdin.isatty()
         and _tui_available()
     )
-    reader = open_reader(specs, err)
+    reader: Reader = source if source is not None else open_reader(specs, err)
+    notify = notifier(err)
+
+    def tell(text: str) -> None:  # the publisher's news: in the TUI, or on stderr
+        if use_tui:
+            capture.messages.append(text)
+        else:
+            notify(text)
+
     try:
         recorder = open_recorder(args, specs, ring)
     except BaseException:
         reader.stop()
         raise
-    notify = notifier(err)
+    try:
+        publisher = live_publisher(args, session, bindings, specs, reader.clock.now, tell, err)
+    except BaseException:
+        reader.stop()
+        if recorder is not None:
+            recorder.close(reader.clock.now())
+        raise
     capture = LiveCapture(
         reader,
         session,
         recorder=recorder,
         queue_size=queue,
         notify=None if use_tui else notify,
+        quiet=MQTT_QUIET if source is not None else None,
+        publisher=publisher,
     )
     exporter: PcapExporter | None = None
     pcap_file = None
@@ -309,7 +342,9 @@ def register(sub: SubParsers) -> None:
             "records what the ports read; --pcap streams frames for Wireshark "
             "(modscope live /dev/ttyUSB0 --pcap - | wireshark -k -i -). --baud auto first "
             "scans the port for its baud rate and format, as `modscope scan` does, and "
-            "says what it chose."
+            "says what it chose. --mqtt URL publishes the bus to a broker; a broker URL "
+            "instead of a port watches a bus another modscope publishes (modscope live "
+            "mqtt://broker/modscope/line1). See docs/mqtt.md."
         ),
     )
     add_port_options(p)
@@ -335,4 +370,7 @@ def register(sub: SubParsers) -> None:
         help="print the statistics and poll cycle to stderr every S seconds (default 10); "
         "they are printed once anyway when the capture ends",
     )
+    from sniffer.mqtt.command import add_mqtt_options
+
+    add_mqtt_options(p)
     p.set_defaults(func=cmd_live)

@@ -39,7 +39,27 @@ def add_line_options(p: argparse.ArgumentParser) -> None:
         "--timeout",
         type=float,
         metavar="S",
-        help="response timeout in seconds (default: 0.2 s plus a longest frame's time)",
+        help="response timeout in seconds (default: 0.2 s plus a longest frame's time; "
+        "3 s for Modbus TCP)",
+    )
+
+
+def add_network_options(p: argparse.ArgumentParser) -> None:
+    """`--carrier` and `--port` for network captures (commands that read files; `live`
+    has its own `--port`, the serial port)."""
+    n = p.add_argument_group("network captures (pcap/pcapng of Ethernet, Wi-Fi, loopback)")
+    n.add_argument(
+        "--carrier",
+        choices=("tcp", "rtu-over-tcp", "rtu-over-udp"),
+        help="what every connection carries: Modbus TCP (MBAP header) or raw RTU frames "
+        "in TCP or UDP (default: told from the content of each connection)",
+    )
+    n.add_argument(
+        "--port",
+        type=int,
+        metavar="N",
+        help="read only traffic to or from port N, and take the side on N for the server "
+        "(e.g. --port 4001 for a serial server's RTU over TCP)",
     )
 
 
@@ -96,7 +116,12 @@ def read_options(args: argparse.Namespace) -> ReadOptions:
         mode=args.mode,
         probes=tuple(getattr(args, "probe", None) or ()),
         invert=bool(getattr(args, "invert", False)),
+        carrier=getattr(args, "carrier", None),
+        port=getattr(args, "port", None),
     )
+    port = options.port
+    if port is not None and not 0 < port < 65536:
+        raise UsageError(f"--port must be a TCP or UDP port, 1 to 65535, not {port}")
     line_of(options)
     timeout = getattr(args, "timeout", None)
     if timeout is not None and not timeout > 0:

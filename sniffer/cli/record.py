@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from sniffer.capture import LiveCapture
 from sniffer.cli.lines import (
@@ -25,6 +25,10 @@ from sniffer.cli.lines import (
 )
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
+from sniffer.session import Session
+
+if TYPE_CHECKING:
+    from sniffer.mqtt.publish import BusPublisher
 
 
 def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -39,7 +43,34 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         reader.stop()
         raise
     assert recorder is not None
-    capture = LiveCapture(reader, None, recorder=recorder, queue_size=queue, notify=notifier(err))
+    notify = notifier(err)
+    session: Session | None = None
+    publisher: BusPublisher | None = None
+    if args.mqtt:
+        # publishing needs the frames: the session frames what is recorded, as live does
+        from sniffer.cli.options import bindings_for
+        from sniffer.mqtt.command import live_publisher
+        from sniffer.pipeline import LIVE_MERGE_SLACK
+
+        try:
+            bindings = bindings_for(args)
+            session = Session(
+                specs[0].line,
+                bindings=bindings,
+                timeout=args.timeout,
+                source=", ".join(s.name for s in specs),
+                merge_slack=LIVE_MERGE_SLACK,
+            )
+            publisher = live_publisher(
+                args, session, bindings, specs, reader.clock.now, notify, err
+            )
+        except BaseException:
+            reader.stop()
+            recorder.close(reader.clock.now())
+            raise
+    capture = LiveCapture(
+        reader, session, recorder=recorder, queue_size=queue, notify=notify, publisher=publisher
+    )
     announce(err, "recording", specs, recorder)
     end = None if deadline is None else time.monotonic() + deadline
     show = err.isatty()
@@ -50,19 +81,35 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 wait = 0.2 if end is None else min(0.2, end - time.monotonic())
                 if wait <= 0:
                     break
-                stop.wait(wait)
+                if session is not None:
+                    capture.pump(wait)  # frames for the publisher; the recording has its own
+                else:
+                    stop.wait(wait)
                 if show:
-                    err.write("\r" + status(capture) + "\x1b[K")
+                    err.write("\r" + status(capture) + _published(publisher) + "\x1b[K")
                     err.flush()
     finally:
         capture.stop()
     if show:
         err.write("\r\x1b[K")
-    err.write(f"modscope: {status(capture)}\n")
+    err.write(f"modscope: {status(capture)}{_published(publisher)}\n")
     check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0
+
+
+def _published(publisher: BusPublisher | None) -> str:
+    """`; 1,234 messages to the broker, 12 dropped` for the status line."""
+    if publisher is None:
+        return ""
+    c = publisher.link.counts
+    text = f"; {c.delivered:,} messages to the broker"
+    if c.dropped:
+        text += f", {c.dropped:,} dropped"
+    if not publisher.link.connected.is_set():
+        text += " (broker away, buffering)"
+    return text
 
 
 def register(sub: SubParsers) -> None:
@@ -72,9 +119,15 @@ def register(sub: SubParsers) -> None:
         description=(
             "Record every read of one or two ports, as the ports gave it, to pcapng (link "
             "type 250, line settings in the interface description) for `modscope replay`, "
-            "with an optional ring buffer. Nothing is ever transmitted."
+            "with an optional ring buffer. Nothing is ever transmitted. --mqtt URL also "
+            "publishes the bus to a broker (docs/mqtt.md); the recording never waits for it."
         ),
     )
     add_port_options(p)
     add_recording_options(p, required=True)
+    from sniffer.cli.options import add_device_options
+    from sniffer.mqtt.command import add_mqtt_options
+
+    add_device_options(p)
+    add_mqtt_options(p)
     p.set_defaults(func=cmd_record)

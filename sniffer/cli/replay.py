@@ -18,6 +18,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_network_options,
     add_output_options,
     bindings_for,
     line_warnings,
@@ -32,10 +33,18 @@ from sniffer.text import plain
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    files: list[str] = list(args.file or [])
     if args.read is not None:
-        if args.file is not None:
+        if files:
             raise UsageError("give the capture once: as FILE or as -r FILE")
-        args.file = args.read
+        files = [args.read]
+    if len(files) > 1:
+        from sniffer.cli.together import replay_together
+
+        return replay_together(args, files, out, err)
+    if args.offset:
+        raise UsageError("--offset is for several files replayed together; give two files")
+    args.file = files[0] if files else None
     if args.file == "-":
         with stdin_copy() as path:
             args.file = str(path)
@@ -100,7 +109,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     if show_progress:
         err.write("\r\x1b[K")
     session.warnings.extend(capture.warnings)
-    slow = wrong_speed(session.store)
+    slow = None if capture.info.network else wrong_speed(session.store)
     if slow is not None:
         session.warnings.append(f"{shown or path}: {slow}")
     for note in [*capture.info.notes, *session.notes]:
@@ -112,6 +121,10 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         labels = {u: plain(b.label) for u, b in bindings.items()}
         out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n\n")
+        if session.store.servers:
+            from sniffer.gateway_report import server_table
+
+            out.write(server_table(session.store) + "\n\n")
         out.write(cycle_table(poll_cycles(session.store), labels) + "\n")
         return status
     lister = Lister(
@@ -128,6 +141,18 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     return status
 
 
+REPLAY_EXAMPLES = """\
+examples:
+  modscope replay site.pcapng --format jsonl      one JSON object per frame
+  modscope replay eth.pcap --port 502 --stats      Modbus TCP, statistics per server
+  modscope replay nport.pcap --carrier rtu-over-tcp --port 4001
+  tcpdump -i eth0 -U -w - -c 5000 'tcp port 502' | modscope replay - --format text
+  modscope replay tcp.pcap serial.pcapng --stats   both sides of a gateway, linked
+  modscope replay tcp.pcap serial.pcapng --offset serial.pcapng=-3.25
+
+"""
+
+
 def register(sub: SubParsers) -> None:
     p = sub.add_parser(
         "replay",
@@ -139,14 +164,18 @@ def register(sub: SubParsers) -> None:
             "the capture recorded, else 19200 8E1 (a flag that contradicts the file is "
             "used, with a warning)."
         ),
-        epilog=READ_EPILOG,
+        epilog=REPLAY_EXAMPLES + READ_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
-        "file", nargs="?", help="capture file, - for standard input (default: the bundled demo)"
+        "file",
+        nargs="*",
+        help="capture file, - for standard input (default: the bundled demo); several files "
+        "replay together, merged by time (e.g. both sides of a gateway: TCP.pcap SERIAL.pcapng)",
     )
     p.add_argument("-r", "--read", metavar="FILE", help="the capture file (as tcpdump -r)")
     add_line_options(p)
+    add_network_options(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument(
         "--probe",
@@ -161,6 +190,22 @@ def register(sub: SubParsers) -> None:
     add_filter_options(p)
     p.add_argument(
         "--stats", action="store_true", help="print the per-unit statistics and poll cycle"
+    )
+    g = p.add_argument_group("several files (both sides of a gateway)")
+    g.add_argument(
+        "--offset",
+        action="append",
+        default=[],
+        metavar="FILE=SECONDS",
+        help="add SECONDS to FILE's times to put its clock on the others' (repeatable; "
+        "default: estimated from transactions seen on both sides, and shown)",
+    )
+    g.add_argument(
+        "--gateway-timeout",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="longest a gateway takes to put a TCP request on the serial line (default 1 s)",
     )
     from sniffer.mqtt.command import add_mqtt_options
 

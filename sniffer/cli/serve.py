@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import argparse
 import shlex
+import socket
 import sys
 from pathlib import Path
 from typing import TextIO
+from urllib.parse import urlsplit
 
 from sniffer.cli.options import SubParsers, add_device_options, add_line_options
 from sniffer.cli.tui import capture_path
+from sniffer.errors import UsageError
 
 SERVE_MISSING = (
     "modscope: error: `modscope serve` needs the optional textual-serve package; "
@@ -36,15 +39,50 @@ def forwarded(args: argparse.Namespace) -> list[str]:
     return argv
 
 
+WILDCARDS = ("0.0.0.0", "::", "[::]", "")
+
+
+def public_url(host: str, port: int, given: str | None) -> str:
+    """The address a browser loads the page and its scripts from: `given` (checked), or
+    http://HOST:PORT; for a wildcard host (0.0.0.0, ::), this machine's name, since a
+    page pointing at 0.0.0.0 works on no other machine."""
+    if given:
+        parts = urlsplit(given)
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise UsageError(
+                f"--public-url {given}: write the address browsers use to reach this "
+                "machine, e.g. --public-url http://10.0.0.5:8000"
+            )
+        if parts.path not in ("", "/") or parts.query or parts.fragment:
+            raise UsageError(
+                f"--public-url {given}: give only scheme, host and port "
+                "(e.g. http://10.0.0.5:8000); modscope serves from the root"
+            )
+        return f"{parts.scheme}://{parts.netloc}"
+    name = socket.gethostname() if host in WILDCARDS else host
+    if ":" in name and not name.startswith("["):
+        name = f"[{name}]"  # an IPv6 address in a URL
+    return f"http://{name}" + ("" if port == 80 else f":{port}")
+
+
 def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     capture_path(args)  # fail here, not in the browser, when there is nothing to show
+    url = public_url(args.host, args.port, args.public_url)
     try:
         from textual_serve.server import Server
     except ImportError:
         err.write(SERVE_MISSING)
         return 2
     command = shlex.join([sys.executable, "-m", "sniffer.cli", *forwarded(args)])
-    server = Server(command, host=args.host, port=args.port, title="modscope")
+    where = "every address" if args.host in WILDCARDS else args.host
+    out.write(f"modscope: listening on {where}, port {args.port}; browsers open {url}\n")
+    if args.host in WILDCARDS and not args.public_url:
+        out.write(
+            f"modscope: if other machines cannot resolve {urlsplit(url).hostname}, "
+            "pass --public-url http://THIS-ADDRESS:PORT\n"
+        )
+    out.flush()
+    server = Server(command, host=args.host, port=args.port, title="modscope", public_url=url)
     server.serve()
     return 0
 
@@ -54,10 +92,29 @@ def register(sub: SubParsers) -> None:
         "serve",
         help="serve the TUI in a web browser (needs modscope[serve])",
         description="Serve the TUI on a capture in a web browser, one app per visitor.",
+        epilog=(
+            "examples:\n"
+            "  modscope serve                          the demo, on this machine only\n"
+            "  modscope serve bus.pcapng --host 0.0.0.0 --port 8000 \\\n"
+            "      --public-url http://10.0.0.5:8000   from other machines, at 10.0.0.5\n"
+            "The page's scripts connect back to --public-url, so give the address other\n"
+            "machines reach this one at (behind a proxy: the proxy's address)."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", nargs="?", help="capture file (default: the bundled demo)")
-    p.add_argument("--host", default="localhost", help="address to listen on (default localhost)")
+    p.add_argument(
+        "--host",
+        default="localhost",
+        help="address to listen on (default localhost; 0.0.0.0 for every address)",
+    )
     p.add_argument("--port", type=int, default=8000, help="port to listen on (default 8000)")
+    p.add_argument(
+        "--public-url",
+        metavar="URL",
+        help="the address browsers use to reach this machine, e.g. http://10.0.0.5:8000 "
+        "(default http://HOST:PORT; this machine's name when HOST is 0.0.0.0)",
+    )
     add_line_options(p)
     add_device_options(p)
     p.set_defaults(func=cmd_serve)

@@ -11,6 +11,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_line_options,
+    add_network_options,
     bindings_for,
     read_options,
 )
@@ -34,6 +35,8 @@ def capture_path(args: argparse.Namespace) -> Path:
 def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from sniffer.session import DEMO_BUS, open_session
 
+    if args.file and args.file.lower().startswith(("mqtt://", "mqtts://")):
+        return _watch(args)
     path = capture_path(args)
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
     options = read_options(args)
@@ -43,14 +46,47 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)
 
 
+def _watch(args: argparse.Namespace) -> int:
+    """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
+    from sniffer.capture import LiveCapture
+    from sniffer.mqtt.command import (
+        MQTT_QUIET,
+        mqtt_session,
+        open_mqtt_source,
+        published_bindings,
+    )
+
+    messages: list[str] = []
+    reader = open_mqtt_source(args.file, args, messages.append)
+    bindings = published_bindings(bindings_for(args), reader, messages.append)
+    session = mqtt_session(reader, bindings, args.timeout)
+    capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
+    capture.messages.extend(messages)
+    reader.notify = capture.messages.append
+    from sniffer.tui.app import run_tui
+
+    capture.start()
+    try:
+        return run_tui(session, None, live=capture)
+    finally:
+        capture.stop()
+
+
 def register(sub: SubParsers) -> None:
     p = sub.add_parser(
         "tui",
         help="open the TUI on a capture (the bundled demo without FILE)",
         description="Open the TUI on a capture, even when stdout is not a terminal.",
     )
-    p.add_argument("file", nargs="?", help="capture file (default: the bundled demo)")
+    p.add_argument(
+        "file",
+        nargs="?",
+        help="capture file (default: the bundled demo), or mqtt://host/base to watch a bus "
+        "another modscope publishes",
+    )
+    p.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate for mqtts://")
     add_line_options(p)
+    add_network_options(p)
     add_device_options(p)
     p.add_argument(
         "--speed",

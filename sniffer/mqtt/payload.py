@@ -11,7 +11,9 @@ nanoseconds) of link type 250 (RTAC serial), so any pcapng tool can take it apar
 - `epb_flags` bits 0-1: 2 (outbound) sent by the master, 1 (inbound) sent by a slave,
   0 direction unknown (what a passive tap on one port sees);
 - `opt_comment`: the event and its note (`port lost: /dev/ttyUSB0 vanished`), or a
-  data chunk's note.
+  data chunk's note;
+- `epb_packetid` (option 5, 8 bytes): the publisher's count of reads, 1 for its first, so
+  that a watcher sees a message the broker (or the publisher's full buffer) dropped.
 
 `chunk_from_raw(raw_payload(c)) == c` for every chunk whose `t_start` is a whole number
 of microseconds (all pcapng and live sources), so a subscriber frames what the publisher
@@ -73,7 +75,18 @@ def _option(code: int, value: bytes) -> bytes:
     return struct.pack("<HH", code, len(value)) + value + b"\0" * (-len(value) % 4)
 
 
-def raw_payload(chunk: Chunk) -> bytes:
+EPB_PACKETID = 5
+
+
+@dataclass(frozen=True, slots=True)
+class RawMessage:
+    """What a `raw` message carries: the chunk and the publisher's count (None if absent)."""
+
+    chunk: Chunk
+    sequence: int | None
+
+
+def raw_payload(chunk: Chunk, sequence: int | None = None) -> bytes:
     """One chunk as a pcapng enhanced packet block (module doc)."""
     t_end = max(chunk.t_end, 0.0)
     whole = math.floor(t_end)
@@ -88,6 +101,8 @@ def raw_payload(chunk: Chunk) -> bytes:
     options = _option(EPB_FLAGS, struct.pack("<I", _FLAGS[chunk.direction]))
     if comment:
         options += _option(OPT_COMMENT, comment.encode("utf-8"))
+    if sequence is not None:
+        options += _option(EPB_PACKETID, struct.pack("<Q", sequence))
     options += struct.pack("<HH", OPT_ENDOFOPT, 0)
     body = (
         struct.pack(
@@ -103,6 +118,11 @@ def raw_payload(chunk: Chunk) -> bytes:
 
 def chunk_from_raw(payload: bytes) -> Chunk:
     """The chunk a `raw` message carries. PayloadError names what is wrong."""
+    return read_raw(payload).chunk
+
+
+def read_raw(payload: bytes) -> RawMessage:
+    """The chunk and sequence a `raw` message carries. PayloadError names what is wrong."""
     if len(payload) < _EPB_HEAD.size + 4:
         raise PayloadError(f"{len(payload)} bytes, shorter than an enhanced packet block")
     kind, total, channel, high, low, caplen, _orig = _EPB_HEAD.unpack_from(payload)
@@ -118,6 +138,7 @@ def chunk_from_raw(payload: bytes) -> Chunk:
         raise PayloadError(f"packet of {caplen} bytes is shorter than the 12-byte RTAC header")
     flags = 0
     comment = ""
+    sequence: int | None = None
     pos = start + caplen + (-caplen % 4)
     while pos + 4 <= total - 4:
         code, length = struct.unpack_from("<HH", payload, pos)
@@ -129,18 +150,22 @@ def chunk_from_raw(payload: bytes) -> Chunk:
             (flags,) = struct.unpack_from("<I", value)
         elif code == OPT_COMMENT:
             comment = value.decode("utf-8", errors="replace")
+        elif code == EPB_PACKETID and length == 8:
+            (sequence,) = struct.unpack("<Q", value)
         pos += length + (-length % 4)
     ticks = (high << 32) | low
     t_end = ticks / NS  # int / int: correctly rounded, so whole-ns times come back equal
     t_start = record.seconds if record.seconds > 0 else None
     direction = _DIRECTIONS.get(flags & EPB_DIRECTION_MASK, Direction.UNKNOWN)
     if record.event == RTAC_DATA_RX_START:
-        return Chunk(record.data, t_end, t_start, channel, direction, note=comment)
+        chunk = Chunk(record.data, t_end, t_start, channel, direction, note=comment)
+        return RawMessage(chunk, sequence)
     event, note = RTAC_EVENTS.get(record.event, ("data lost", ""))
     if comment:
         said, sep, rest = comment.partition(": ")
         event, note = (said, rest) if sep else (comment, "")
-    return Chunk(record.data, t_end, t_start, channel, direction, event=event, note=note)
+    chunk = Chunk(record.data, t_end, t_start, channel, direction, event=event, note=note)
+    return RawMessage(chunk, sequence)
 
 
 # -- names and times ---------------------------------------------------------------------------

@@ -23,7 +23,8 @@ from __future__ import annotations
 import json
 import threading
 import time
-from collections.abc import Iterable, Mapping
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +47,44 @@ DEFAULT_EVERY = 60.0  # seconds between two publications of an unchanged value
 STATUS_EVERY = 5.0  # seconds between two unit status messages
 SILENT_AFTER = 3.0  # polling periods without an answer after which a unit is silent
 SILENT_MIN = 2.0  # ... but never fewer seconds than this
+WINDOW = 1024  # answers (and requests) a unit's latency quantiles and poll period are over
+
+
+class UnitWindow:
+    """A unit's latest latencies and request times, bounded: a status message costs
+    the same on the millionth answer as on the tenth (the session's statistics keep
+    everything; reading their new entries is all this does)."""
+
+    def __init__(self, size: int = WINDOW) -> None:
+        self.latencies: deque[float] = deque(maxlen=size)
+        self.requests: deque[float] = deque(maxlen=size)
+        self._seen_latencies = 0
+        self._seen_requests = 0
+
+    def update(self, latencies: Sequence[float], request_times: Sequence[float]) -> None:
+        size = self.latencies.maxlen or WINDOW
+        start = max(self._seen_latencies, len(latencies) - size)
+        self.latencies.extend(latencies[start:])
+        self._seen_latencies = len(latencies)
+        start = max(self._seen_requests, len(request_times) - size)
+        self.requests.extend(request_times[start:])
+        self._seen_requests = len(request_times)
+
+    def latency_ms(self, q: float) -> float | None:
+        """The q-quantile (nearest rank) of the window's latencies, in ms."""
+        if not self.latencies:
+            return None
+        ordered = sorted(self.latencies)
+        k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
+        return ordered[k] * 1000
+
+    def polling_period(self) -> float | None:
+        """The median gap between the window's requests, in seconds."""
+        times = self.requests
+        if len(times) < 2:
+            return None
+        gaps = sorted(times[k + 1] - times[k] for k in range(len(times) - 1))
+        return gaps[len(gaps) // 2]
 
 
 @dataclass
@@ -78,8 +117,10 @@ class BusPublisher:
         options: PublisherOptions,
         *,
         info: SourceInfo | None = None,
+        clock: Callable[[], float] | None = None,
     ) -> None:
         self.link = link
+        self.clock = clock  # a live capture's clock: units fall silent while the bus is
         self.target: MqttTarget = link.target
         self.session = session
         self.bindings = dict(bindings)
@@ -107,6 +148,7 @@ class BusPublisher:
         self._open: set[int] = set()
         self._answered: dict[int, float] = {}
         self._status_t: float | None = None
+        self._windows: dict[int, UnitWindow] = {}
         self._last_t = 0.0
         self._resend = threading.Event()
         link._on_connect_hook = self._on_connect
@@ -174,7 +216,7 @@ class BusPublisher:
         self._resend_retained()
         self.raw += 1
         if not self.link.publish(
-            self.target.topic("raw"), raw_payload(chunk), block=self.options.block
+            self.target.topic("raw"), raw_payload(chunk, self.raw), block=self.options.block
         ):
             self.raw_dropped += 1
 
@@ -196,6 +238,8 @@ class BusPublisher:
         self.next = end
         if end:
             self._last_t = max(self._last_t, store.t_end[end - 1])
+        if self.clock is not None:
+            self._last_t = max(self._last_t, self.clock())
         if (
             final
             or self._status_t is None
@@ -358,11 +402,13 @@ class BusPublisher:
         """A retained status message for every unit seen so far."""
         now = self._last_t
         for u, st in sorted(self.session.stats.units.items()):
-            period = st.polling_period()
+            window = self._windows.setdefault(u, UnitWindow())
+            window.update(st.latencies, st.request_times)
+            period = window.polling_period()
             answered = self._answered.get(u)
             limit = max(SILENT_MIN, SILENT_AFTER * (period or 0.0))
             online = answered is not None and now - answered <= limit
-            median, p95 = st.latency_ms(0.5), st.latency_ms(0.95)
+            median, p95 = window.latency_ms(0.5), window.latency_ms(0.95)
             binding = self.bindings.get(u)
             message = {
                 "unit": u,
@@ -401,11 +447,12 @@ def open_publisher(
     notify: Notify | None = None,
     limit: int | None = None,
     wait: float = 5.0,
+    clock: Callable[[], float] | None = None,
 ) -> BusPublisher:
     """A connected (or connecting) publisher with its `interface` message sent."""
     kwargs: dict[str, Any] = {} if limit is None else {"limit": limit}
     link = MqttLink(target, will=(target.topic("status"), "offline"), notify=notify, **kwargs)
-    publisher = BusPublisher(link, session, bindings, options, info=info)
+    publisher = BusPublisher(link, session, bindings, options, info=info, clock=clock)
     if not link.start(wait) and notify is not None:
         notify(
             f"mqtt: {target.describe()} does not answer yet; buffering and retrying "

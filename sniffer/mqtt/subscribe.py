@@ -23,12 +23,20 @@ from typing import Any
 
 from sniffer.model import Chunk, LineSettings
 from sniffer.mqtt import MqttError, require_paho
-from sniffer.mqtt.payload import PayloadError, chunk_from_raw
+from sniffer.mqtt.payload import PayloadError, RawMessage, read_raw
 from sniffer.mqtt.target import MqttTarget
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 
 Notify = Callable[[str], None]
+RETAINED_GRACE = 1.0  # seconds for retained messages to follow the subscription's ack
 DUPLICATES = 4096  # recent raw messages remembered to drop QoS 1 re-deliveries
+
+
+def lost_text(count: int) -> str:
+    return (
+        f"{count:,} published reads never reached this watcher: the broker dropped them "
+        "(raise its max_queued_messages) or the publisher's buffer was full"
+    )
 
 
 class StreamClock:
@@ -78,6 +86,8 @@ class MqttReader:
         self.notify = notify
         self.clock = StreamClock()
         self.warnings: list[str] = []
+        self.failure: str | None = None  # as LiveReader: a reading thread ended by a bug
+        self.error: Exception | None = None
         self.stats = [PortStats(target.describe())]
         self.feeds: list[ChunkFeed] = []
         self.specs: list[PortSpec] = []
@@ -85,8 +95,11 @@ class MqttReader:
         self.publisher_state = ""
         self.bad_messages = 0
         self.duplicates = 0
+        self.lost_messages = 0  # reads the publisher counted that never came
+        self.last_sequence: int | None = None
         self._got_interface = threading.Event()
         self._connected = threading.Event()
+        self._subscribed = threading.Event()  # the broker acknowledged the subscriptions
         self._recent: deque[int] = deque(maxlen=DUPLICATES)
         self._recent_set: set[int] = set()
         self._held: list[Chunk] = []  # chunks that came before start()
@@ -107,6 +120,7 @@ class MqttReader:
             client.tls_set_context(ssl.create_default_context(cafile=target.ca))
         client.on_connect = self._on_connect
         client.on_message = self._on_message
+        client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         self.client = client
 
@@ -119,7 +133,7 @@ class MqttReader:
         except (OSError, ValueError) as exc:
             raise MqttError(f"{self.target.describe()}: cannot connect ({exc})") from None
         self.client.loop_start()
-        if not self._got_interface.wait(wait):
+        if not self._wait_interface(wait):
             self.client.loop_stop()
             where = self.target.describe()
             if not self._connected.is_set():
@@ -133,6 +147,14 @@ class MqttReader:
             )
         line = line_from_interface(self.interface)
         self.specs = [PortSpec(self.target.describe(), line)]
+
+    def _wait_interface(self, wait: float) -> bool:
+        """The retained interface message comes right after the broker acknowledged the
+        subscription: give it `RETAINED_GRACE` seconds from then, `wait` in all."""
+        end = time.monotonic() + wait
+        if self._subscribed.wait(wait):
+            end = min(end, time.monotonic() + RETAINED_GRACE)
+        return self._got_interface.wait(max(0.0, end - time.monotonic()))
 
     def subscribe(self, maxsize: int = DEFAULT_QUEUE) -> ChunkFeed:
         feed = ChunkFeed(maxsize)
@@ -199,6 +221,9 @@ class MqttReader:
         if again:
             self._tell(f"mqtt: connected again to {self.target.describe()}")
 
+    def _on_subscribe(self, client: Any, userdata: Any, mid: int, *args: Any) -> None:
+        self._subscribed.set()
+
     def _on_disconnect(
         self, client: Any, userdata: Any, flags: Any, reason: Any, props: Any
     ) -> None:
@@ -238,21 +263,38 @@ class MqttReader:
         self._recent.append(key)
         self._recent_set.add(key)
         try:
-            chunk = chunk_from_raw(payload)
+            message = read_raw(payload)
         except PayloadError as exc:
             self.bad_messages += 1
-            chunk = Chunk(
-                b"", self.clock.now(), event="data lost", note=f"unreadable raw message: {exc}"
+            message = RawMessage(
+                Chunk(
+                    b"", self.clock.now(), event="data lost", note=f"unreadable raw message: {exc}"
+                ),
+                None,
             )
+        chunk = message.chunk
+        chunks = [chunk]
+        lost = self._missed(message.sequence)
+        if lost:
+            self.lost_messages += lost
+            chunks.insert(0, Chunk(b"", chunk.t_end, event="data lost", note=lost_text(lost)))
         self.clock.seen(chunk.t_end)
         stats = self.stats[0]
         stats.reads += 1
         stats.bytes += len(chunk.data)
         with self._lock:
             if not self._started:
-                self._held.append(chunk)
+                self._held.extend(chunks)
                 return
-        self._emit(chunk)
+        for c in chunks:
+            self._emit(c)
+
+    def _missed(self, sequence: int | None) -> int:
+        """Reads the publisher counted between the last message and this one."""
+        last, self.last_sequence = self.last_sequence, sequence
+        if sequence is None or last is None or sequence <= last:
+            return 0  # the first message, an old publisher, or a publisher started again
+        return sequence - last - 1
 
     def _emit(self, chunk: Chunk) -> None:
         for feed in self.feeds:

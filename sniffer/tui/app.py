@@ -13,6 +13,7 @@ import time
 from array import array
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import replace
 from pathlib import Path
 
 from rich.text import Text
@@ -21,7 +22,7 @@ from textual.app import App
 from textual.message import Message
 from textual.notifications import SeverityLevel
 from textual.widget import Widget
-from textual.widgets import Input
+from textual.widgets import DataTable, Input
 from textual.worker import get_current_worker
 
 from sniffer.describe import Describer
@@ -30,6 +31,7 @@ from sniffer.model import Chunk
 from sniffer.recorder import RecordError
 from sniffer.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
+from sniffer.store import FrameStore
 from sniffer.tui.feed import (
     FeedProgress,
     LiveSource,
@@ -44,10 +46,13 @@ from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
 from sniffer.tui.navigate import find_row
 from sniffer.tui.query import Query, QueryError, parse_query, parse_time_point
+from sniffer.tui.regtable import RegisterTable
 from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
 from sniffer.tui.screens.dialogs import HelpScreen
+from sniffer.tui.screens.ladder import LadderScreen
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.screens.register import RegisterScreen
+from sniffer.tui.screens.regtable import TableScreen
 from sniffer.tui.theme import themes
 from sniffer.tui.watch import Watch
 from sniffer.tui.widgets.frame_list import FrameList
@@ -135,6 +140,8 @@ class ModscopeApp(App[int]):
         self._rate: float | None = None
         self.indexed = _Flag()  # set when the feed has ended (tests and benchmarks wait on it)
         self.applied_filter = ""  # the filter text that the rows show
+        self.filter_error = ""  # why the query on the bar was refused ('' if it was not)
+        self.filter_refused = ""  # the text that was refused
         self.search: Query | None = None  # what n/N look for
         self.search_text = ""
         self.search_from: tuple[int, int] | None = None  # (step, row) a cut-short scan reached
@@ -225,7 +232,16 @@ class ModscopeApp(App[int]):
                 self.say(w, title="capture", severity="warning")
         if not self.paused:
             self._show_new_rows()
+            self._refresh_ladder()
+        # the header follows the columns here, not only through ColumnsChanged: that is
+        # posted while the list draws, and it was seen not to arrive (row numbers grew
+        # a digit and the header stayed as it was)
+        self.main.header.show(self.frames.columns())
         self._status()
+
+    def _refresh_ladder(self) -> None:
+        if isinstance(self.screen, LadderScreen):
+            self.screen.refresh_rows()
 
     def on_port_notice(self, message: PortNotice) -> None:
         self.say(message.text, title="port", severity="warning")
@@ -291,11 +307,15 @@ class ModscopeApp(App[int]):
         self.model.update_view()
         self.frames.rows_changed()
         self._filter_info()
+        self._refresh_ladder()
 
     def _filter_info(self) -> None:
         model = self.model
         info = self.main.filter_info
         bar = self.main.filter_bar
+        if self.filter_error:  # a refused query stays said while it is on the bar
+            info.update(Text(self.filter_error))
+            return
         bar.set_class(model.problems_only, "-problems")
         bar.set_class(model.transactions, "-transactions")
         parts = []
@@ -325,7 +345,13 @@ class ModscopeApp(App[int]):
 
     def on_input_changed(self, event: Input.Changed) -> None:
         if event.input is self.main.filter_input:
+            if self.filter_error and event.value != self.filter_refused:
+                self._clear_filter_error()
             self._filter_info()
+
+    def _clear_filter_error(self) -> None:
+        self.filter_error = ""
+        self.main.filter_bar.remove_class("-error")
 
     def _apply_filter(self, text: str) -> None:
         bar = self.main.filter_bar
@@ -333,9 +359,13 @@ class ModscopeApp(App[int]):
             query = parse_query(text)
         except QueryError as exc:
             bar.add_class("-error")
-            self.main.filter_info.update(Text(str(exc)))
+            self.filter_error = str(exc)  # shown until the text is edited or Esc
+            self.filter_refused = text
+            self._filter_info()
+            self.say(self.filter_error, title="filter", severity="error")  # all of it
             self._focus(self.main.filter_input)  # to correct it
             return
+        self.filter_error = ""
         bar.remove_class("-error")
         self.model.query = query
         self.applied_filter = text
@@ -355,6 +385,8 @@ class ModscopeApp(App[int]):
             return Context.INPUT
         if focused is main.units:
             return Context.UNITS
+        if focused is main.watch_panel:
+            return Context.WATCH
         return Context.ANY
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
@@ -368,6 +400,8 @@ class ModscopeApp(App[int]):
         here = self.focus_context()
         if context is Context.ANY:
             return here is not Context.INPUT
+        if action == "list":  # the moving keys move the units and watch tables too
+            return here in (Context.LIST, Context.UNITS, Context.WATCH)
         return here is context
 
     def _focus_changed(self) -> None:
@@ -375,6 +409,17 @@ class ModscopeApp(App[int]):
             self.main.keybar.show(self.focus_context())
 
     def action_list(self, name: str, step: int) -> None:
+        table = self.main.focused
+        if isinstance(table, DataTable):  # units or watch: moved here, in key order
+            if name == "cursor":
+                (table.action_cursor_up if step < 0 else table.action_cursor_down)()
+            elif name == "page":
+                (table.action_page_up if step < 0 else table.action_page_down)()
+            elif name == "first":
+                table.action_scroll_top()
+            else:
+                table.action_scroll_bottom()
+            return
         frames = self.frames
         if name == "cursor":
             frames.action_cursor(step)
@@ -387,9 +432,30 @@ class ModscopeApp(App[int]):
 
     async def on_event(self, event: events.Event) -> None:
         """Keys for the filter or the prompt are typed into it here, as they arrive, so
-        they keep their order with the keys before and after them (see LineInput)."""
+        they keep their order with the keys before and after them (see LineInput).
+
+        A terminal sends Esc and a key typed right after it as one sequence, which reads
+        as alt+key: no key of modscope uses alt, so it is taken as the two keys typed."""
+        if (
+            isinstance(event, events.Key)
+            and event.key.startswith("alt+")
+            and "+" not in event.key[4:]
+            and not event.is_forwarded
+        ):
+            event.stop()
+            for key, char in (("escape", "\x1b"), (event.key[4:], event.character)):
+                typed = events.Key(key, char)
+                typed.set_sender(self)
+                await self.on_event(typed)
+            return
         if isinstance(event, events.Key) and not event.is_forwarded and self.screen is self.main:
             field = self.main.focused
+            if isinstance(field, LineInput) and event.key == "ctrl+j":
+                # a newline: Enter typed before the terminal was switched to raw mode
+                # (type-ahead while modscope starts) arrives as LF, not CR
+                event.stop()
+                self.action_submit()
+                return
             if isinstance(field, LineInput) and await field.type_key(event):
                 event.stop()
                 return
@@ -414,6 +480,7 @@ class ModscopeApp(App[int]):
             main.prompt.close(False)
 
     def _revert_filter(self) -> None:
+        self._clear_filter_error()
         self.main.filter_input.value = self.applied_filter  # the bar shows what is applied
         self._filter_info()
 
@@ -450,6 +517,7 @@ class ModscopeApp(App[int]):
         j = model.partner(row)
         d = model.detail(row)
         other = model.detail(j) if j is not None else None
+        pane.where = where_text(model.describer.store, row)
         if partner_first and other is not None:
             pane.show(other, d)
         else:
@@ -504,7 +572,10 @@ class ModscopeApp(App[int]):
         if row is None:
             return
         j = self.model.partner(row)
-        if j is None:
+        across = link_peer(self.model.describer.store, row)
+        if across is not None and self.model.view.contains(across):
+            self.frames.go_to_row(across)  # both sides of a gateway: the other side
+        elif j is None:
             self.say("this frame has no paired request or answer")
         elif self.model.view.contains(j):
             self.frames.go_to_row(j)
@@ -527,6 +598,17 @@ class ModscopeApp(App[int]):
             self._start_watch()
             self._watch()
 
+    def action_ladder(self) -> None:
+        frames = self.frames
+        k = frames.cursor or 0
+        screen = LadderScreen(self.model, k, following=frames.following)
+        self.push_screen(screen, self._from_ladder)
+        self.call_after_refresh(self._status)
+
+    def _from_ladder(self, row: int | None) -> None:
+        if row is not None:
+            self.frames.go_to_row(row)
+
     def action_zoom(self) -> None:
         self.main.toggle_class("-zoom")
 
@@ -543,6 +625,9 @@ class ModscopeApp(App[int]):
             except ValueError:
                 self.say(f"{answer!r} is not a row number", severity="error")
                 return
+            if row >= model.published:
+                more = "" if model.done else " yet"
+                self.say(f"there is no #{row}{more} ({model.published:,} rows): the last is shown")
             frames.go_to_row(row)
             return
         try:
@@ -608,17 +693,22 @@ class ModscopeApp(App[int]):
         rows: Iterable[int] = (
             range(view.count) if view.rows is None else array("Q", view.rows[: view.count])
         )
-        self._write_export(Path(answer).expanduser(), rows)
+        # the rows, store and options of now: `s` may start the capture again (a new
+        # store) while the file is being written
+        model = self.model
+        describer = Describer(model.reader, self.session.annotator, size=256)
+        self._write_export(Path(answer).expanduser(), rows, describer, model.absolute)
 
     @work(thread=True, group="export")
-    def _write_export(self, path: Path, rows: Iterable[int]) -> None:
+    def _write_export(
+        self, path: Path, rows: Iterable[int], describer: Describer, absolute: bool
+    ) -> None:
         suffix = path.suffix.lower().lstrip(".")
         fmt = EXPORT_FORMATS.get(suffix, "text")
         assert fmt in FORMATS
-        describer = Describer(self.model.reader, self.session.annotator, size=256)
         try:
             with path.open("w", encoding="utf-8", newline="" if fmt == "csv" else None) as out:
-                lister = Lister(out, fmt, describer, absolute=self.model.absolute)
+                lister = Lister(out, fmt, describer, absolute=absolute)
                 n = lister.write(rows, flush=False)
         except OSError as exc:
             reason = f"cannot write {path}: {exc.strerror or exc}"
@@ -816,6 +906,8 @@ class ModscopeApp(App[int]):
             progress=self._index_progress(),
         )
         self.main.status.show(info)
+        if isinstance(self.screen, LadderScreen | TableScreen):
+            self.screen.status.show(info)
 
     def _index_progress(self) -> float | None:
         """How far indexing got, estimated from the file's size (pcap formats, raw)."""
@@ -831,6 +923,9 @@ class ModscopeApp(App[int]):
         labels = {u: b.label for u, b in self.session.annotator.bindings.items()}
         units = list(self.session.stats.units.values())
         rows = unit_rows(units, labels, dict(model.last_answer), model.latest, self.units_cache)
+        # `seen` is when the unit was last heard (its last answer), in every pane: a unit
+        # the master keeps asking but that never answers is SILENT and not `seen` lately
+        rows = [replace(r, last_seen=r.last_answer or 0.0) for r in rows]
         self.main.units.show(rows, model.latest)
 
     def _start_watch(self) -> None:
@@ -858,8 +953,8 @@ class ModscopeApp(App[int]):
         watch, model = self.watch_model, self.model
         if watch is None:
             return 0.0
-        if model.done and watch.next >= model.published:
-            return None
+        if watch.next >= model.published and (model.done or self.live is not None):
+            return None  # all of it (a live line is never done: caught up is complete)
         return watch.next / max(1, model.published)
 
     def _watch(self) -> None:
@@ -884,6 +979,63 @@ class ModscopeApp(App[int]):
         scanned = self._watch_progress()
         screen = RegisterScreen(series, self.model.origin, self.model.absolute, scanned)
         self.push_screen(screen, self._jump_to_row)
+
+    # -- the register table (x picks in the watch, R shows) -----------------------------------
+
+    def action_open_register(self) -> None:
+        panel = self.main.watch_panel
+        key = panel.cursor_key()
+        if key is not None:
+            panel.post_message(WatchPanel.Open(key))
+
+    def action_pick(self) -> None:
+        panel = self.main.watch_panel
+        key = panel.cursor_key()
+        if key is None:
+            return
+        picked = panel.toggle_pick(key)
+        if picked and len(panel.picked) == 1:  # the ✓ shows the others: say it once
+            self.say("picked (✓): x picks more, R shows them side by side")
+
+    def action_register_table(self) -> None:
+        watch, panel = self.watch_model, self.main.watch_panel
+        if watch is None:
+            return
+        keys = list(panel.picked) or [k for k in [panel.cursor_key()] if k is not None]
+        with watch.lock:
+            series = [watch.series[k] for k in keys if k in watch.series]
+        if not series:
+            self.say("no register to show: pick some with x in the register watch")
+            return
+        table = RegisterTable(self.model.reader, self.session.annotator, [s.key for s in series])
+        screen = TableScreen(table, series, self.model.origin, self.model.absolute)
+        self.push_screen(screen, self._jump_to_row)
+        self._run_table(table, screen, self.generation)
+        self.call_after_refresh(self._status)
+
+    @work(thread=True, group="table", exclusive=True)
+    def _run_table(self, table: RegisterTable, screen: TableScreen, generation: int) -> None:
+        worker = get_current_worker()
+        sent = (-1, False)
+        while not worker.is_cancelled and generation == self.generation:
+            more = table.advance(self.model.shown, should_stop=lambda: worker.is_cancelled)
+            caught_up = table.next >= self.model.shown
+            done = self.model.done and caught_up
+            if done:
+                table.finish()
+            complete = done or (caught_up and self.live is not None)
+            if (table.version, complete) != sent:
+                sent = (table.version, complete)
+                scanned = None if complete else table.next / max(1, self.model.published)
+                self.call_from_thread(self._table_progress, screen, scanned)
+            if done and not self.live:
+                break
+            if not more:
+                time.sleep(0.2)
+
+    def _table_progress(self, screen: TableScreen, scanned: float | None) -> None:
+        if screen.is_attached:
+            screen.progress(scanned)
 
     def _jump_to_row(self, row: int | None) -> None:
         if row is None:
@@ -940,6 +1092,31 @@ def reopen_file(session: Session) -> tuple[Session, Capture]:
         bindings=session.annotator.bindings,
         timeout=session.pipeline.pairer.timeout,
     )
+
+
+def where_text(store: FrameStore, row: int) -> str:
+    """A network row's sender (`ip:port`) and a gateway link's verdict, for the detail
+    title; `p` then jumps across the link."""
+    parts = []
+    peer = store.peers.get(store.channel[row])
+    if peer:
+        parts.append(f"from {peer}")
+    link = store.links.get(row)
+    if link is not None:
+        text = f"gateway: {link['verdict']}"
+        if link.get("delay_ms") is not None:
+            text += f", +{link['delay_ms']} ms"
+        if link.get("peer") is not None:
+            text += f" (p: other side #{link['peer']})"
+        parts.append(text)
+    return "  ".join(parts)
+
+
+def link_peer(store: FrameStore, row: int) -> int | None:
+    """The row on the other side of a gateway linked to `row`, if any."""
+    link = store.links.get(row)
+    peer = None if link is None else link.get("peer")
+    return peer if isinstance(peer, int) else None
 
 
 def run_tui(

@@ -22,6 +22,7 @@ class Context(Enum):
     LIST = "list"  # the frame list
     INPUT = "input"  # the filter or the prompt input
     UNITS = "units"  # the units pane
+    WATCH = "watch"  # the register watch
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,9 +55,10 @@ KEYS: tuple[Key, ...] = (
     Key("c", "copy('hex')", "c/C", "copy"),
     Key("C", "copy('json')", "C", "copy JSON", bar=False),
     Key("r", "record", "r", "rec"),
-    Key("d", "pane('detail')", "d/u/w", "pane"),
+    Key("d", "pane('detail')", "d/u/w/l", "pane"),
     Key("u", "pane('units')", "u", "units", bar=False),
     Key("w", "pane('watch')", "w", "watch", bar=False),
+    Key("l", "ladder", "l", "ladder", bar=False),
     Key("z", "zoom", "z", "zoom"),
     Key("space", "pause", "␣", "pause"),
     Key("s", "speed", "s", "speed"),
@@ -73,6 +75,9 @@ KEYS: tuple[Key, ...] = (
     Key("end", "list('follow', 0)", "End", "last", Context.LIST, bar=False),
     Key("enter", "fields", "⏎", "fields", Context.LIST, bar=False),
     Key("enter", "filter_unit", "⏎", "unit", Context.UNITS),
+    Key("enter", "open_register", "⏎", "plot", Context.WATCH),
+    Key("x", "pick", "x", "pick", Context.WATCH),
+    Key("R", "register_table", "R", "table", Context.WATCH),
     Key("escape", "to_list", "esc", "back", bar=False),
     # an input (the filter bar or a prompt)
     Key("enter", "submit", "⏎", "apply", Context.INPUT),

@@ -118,4 +118,5 @@ class ViewModel:
             delta=delta,
             cols=cols,
             styles=styles,
+            number=f"#{row}",
         )

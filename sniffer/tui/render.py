@@ -133,17 +133,27 @@ class Columns:
     label: int  # 0: hidden
     name: int
     latency: int
+    number: int = 0  # the row number (`#1234`, as `g` and the details say it); 0: hidden
 
 
-def columns_for(width: int, absolute: bool, span: float = 0.0) -> Columns:
+def number_width(rows: int) -> int:
+    """Cells for row numbers up to `rows` (`#` and the digits; grows in steps, so a live
+    list does not shift at every new digit)."""
+    digits = len(str(max(0, rows - 1)))
+    return 1 + max(4, digits + (digits % 2))
+
+
+def columns_for(width: int, absolute: bool, span: float = 0.0, rows: int = 0) -> Columns:
     """The columns for a width: narrower terminals drop the delta and the device label
-    first and shorten function names; the time column fits the capture's length."""
+    first and shorten function names; the time column fits the capture's length; the row
+    numbers fit the row count (`rows`; 0: no row numbers)."""
     time = time_width(span, absolute)
+    number = number_width(rows) if rows else 0
     if width >= 110:
-        return Columns(width, time, 9, 14, 24, 8)
+        return Columns(width, time, 9, 14, 24, 8, number)
     if width >= 90:
-        return Columns(width, time, 9, 10, 18, 8)
-    return Columns(width, time, 0, 0, 15, 7)
+        return Columns(width, time, 9, 10, 18, 8, number)
+    return Columns(width, time, 0, 0, 15, 7, number)
 
 
 def fit_columns(
@@ -195,7 +205,7 @@ def _fit(text: str, width: int) -> str:
 
 def header_text(cols: Columns) -> Text:
     """The column titles above the frame list."""
-    parts = ["time".rjust(cols.time)]
+    parts = (["#".rjust(cols.number)] if cols.number else []) + ["time".rjust(cols.time)]
     if cols.delta:
         parts.append("delta".rjust(cols.delta))
     unit = "unit" + (" " + "device".ljust(cols.label) if cols.label else "")
@@ -214,6 +224,7 @@ def row_text(
     delta: str,
     cols: Columns,
     styles: Styles,
+    number: str = "",
 ) -> Text:
     """One line of the frame list. `answer` is given for a transaction row (the request's
     paired answer): its values, status and latency stand for the transaction."""
@@ -221,6 +232,8 @@ def row_text(
     state = row_state(answer.view) if answer is not None else ""
     state = state or row_state(v)
     text = Text(no_wrap=True, overflow="ellipsis")
+    if cols.number:
+        text.append(number.rjust(cols.number) + " ", styles.get("dim"))
     text.append(when.rjust(cols.time), styles.get("time"))
     if cols.delta:
         text.append(" " + delta.rjust(cols.delta - 1), styles.get("dim"))

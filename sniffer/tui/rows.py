@@ -73,6 +73,9 @@ class StoreReader(FrameStore):
         self.partner = store.partner
         self.status = store.status
         self.notes = store.notes
+        self.peers = store.peers  # network captures and gateway links (filled as read)
+        self.servers = store.servers
+        self.links = store.links
         self._source = store
         self.stamps = store.stamps
         self.resolution = store.resolution

@@ -50,5 +50,6 @@ def for_capture(
         stamps=Stamp.FRAME_END,
         resolution=1e-9 if nanoseconds else 1e-6,
         labels=Labels.CERTAIN,
+        network=True,
     )
     return info, decoder

@@ -31,6 +31,8 @@ modscope: keys
   space                pause / resume (a live capture keeps recording)
   s                    replay as fast as possible / at the original speed
   d u w                lower pane: details / units / register watch
+  l                    ladder: master and slaves as columns, arrows with latencies
+  x  R                 register watch: pick registers / their table, a row a poll
   z                    hide the lower pane (more frames on screen)
   e                    export the rows shown (.jsonl, .csv, else text)
   r                    live: start recording the line to a file, or stop it

@@ -47,9 +47,12 @@ class HexView(Widget):
         self.raw = b""
         self.ascii = False
         self.highlight: Span | None = None  # body offsets
+        self.body_at = 0  # where the body starts in raw (6 after a Modbus TCP header)
 
-    def show(self, raw: bytes, ascii_mode: bool, highlight: Span | None = None) -> None:
-        self.raw, self.ascii, self.highlight = raw, ascii_mode, highlight
+    def show(
+        self, raw: bytes, ascii_mode: bool, highlight: Span | None = None, body_at: int = 0
+    ) -> None:
+        self.raw, self.ascii, self.highlight, self.body_at = raw, ascii_mode, highlight, body_at
         self.refresh(layout=True)
 
     def set_highlight(self, span: Span | None) -> None:
@@ -58,7 +61,10 @@ class HexView(Widget):
             self.refresh()
 
     def raw_highlight(self) -> Span | None:
-        return raw_span(self.highlight, self.ascii) if self.highlight is not None else None
+        if self.highlight is None:
+            return None
+        start, end = raw_span(self.highlight, self.ascii)
+        return start + self.body_at, end + self.body_at
 
     def render(self) -> Text:
         styles = {
@@ -84,6 +90,9 @@ class FieldTree(Tree[Span | None]):
         return self.get_component_rich_style(f"field-tree--{part}", partial=True)
 
 
+MBAP_BODY = 6  # a Modbus TCP frame's body (unit byte on) starts after 6 header bytes
+
+
 class DetailPane(Vertical):
     """Title, field tree and hex dump of the selected frame."""
 
@@ -91,6 +100,7 @@ class DetailPane(Vertical):
         super().__init__(id=id)
         self.detail: FrameDetail | None = None
         self.partner_detail: FrameDetail | None = None
+        self.where = ""  # a network row's connection, a gateway link (set by the app)
 
     def compose(self) -> ComposeResult:
         yield Static(Text("no frame selected"), id="detail-title")
@@ -115,7 +125,7 @@ class DetailPane(Vertical):
         title.update(self._title(d, partner))
         self._fill(tree, d, partner)
         first = d.fields[0].span if d.fields else None
-        hexview.show(d.view.raw, d.view.ascii, first)
+        hexview.show(d.view.raw, d.view.ascii, first, MBAP_BODY if d.view.mbap else 0)
         tree.cursor_line = 0 if d.fields else -1
 
     def _title(self, d: FrameDetail, partner: FrameDetail | None) -> Text:
@@ -130,15 +140,17 @@ class DetailPane(Vertical):
             text.append(plain(d.label, 60) + " ")
         text.append(f"fc {v.function}{' exception' if v.exception else ''} ")
         text.append(plain(d.name, 80))
-        mode = "ascii" if v.ascii else "rtu"
+        mode = "ascii" if v.ascii else "tcp" if v.mbap else "rtu"
         text.append(f"  {len(v.raw)} bytes {mode}, {KIND_NAMES[v.kind]}")
         if v.status:
             text.append(f", {STATUS_NAMES[v.status]}")
         if d.latency_ms is not None:
             text.append(f", {latency_text(d.latency_ms)}")
-        if partner is not None:
+        if partner is not None and "p:" not in self.where:
             role = "answer" if v.kind == Kind.REQUEST else "request"
             text.append(f"  (p: {role} #{partner.view.index})")
+        if self.where:
+            text.append("  " + plain(self.where, 120))
         return text
 
     def _fill(self, tree: FieldTree, d: FrameDetail, partner: FrameDetail | None) -> None:

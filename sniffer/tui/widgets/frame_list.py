@@ -23,7 +23,12 @@ from textual.strip import Strip
 from textual.widgets import Static
 
 from sniffer.tui.model import ViewModel
-from sniffer.tui.render import ROW_STATES, Columns, columns_for, header_text, time_width
+from sniffer.tui.render import (
+    ROW_STATES,
+    Columns,
+    columns_for,
+    header_text,
+)
 
 _PARTS = ("time", "dim", "unit", "label", "name", *ROW_STATES)
 
@@ -85,7 +90,7 @@ class FrameList(ScrollView, can_focus=True):
         self._cols: Columns | None = None
         self._last_row: int | None = None
         self.first_drawn: float | None = None  # perf_counter() when rows were first drawn
-        self.drawn_at = 0.0  # perf_counter() when the top line was last drawn
+        self.drawn_at = 0.0  # perf_counter() when a line was last drawn
 
     # -- state -----------------------------------------------------------------------------
 
@@ -108,9 +113,9 @@ class FrameList(ScrollView, can_focus=True):
         width = max(20, self.scrollable_content_region.width)
         model = self.model
         span = model.latest - model.origin
-        cols = self._cols
-        if cols is None or cols.width != width or cols.time != time_width(span, model.absolute):
-            self._cols = cols = columns_for(width, model.absolute, span)
+        cols = columns_for(width, model.absolute, span, model.published)
+        if cols != self._cols:
+            self._cols = cols
             self._strips.clear()
             self.post_message(self.ColumnsChanged(cols))
         return cols
@@ -250,10 +255,9 @@ class FrameList(ScrollView, can_focus=True):
         base = self.rich_style
         if k >= self.count:
             return Strip.blank(width, base)
-        if y == 0:
-            self.drawn_at = time.perf_counter()
-            if self.first_drawn is None:
-                self.first_drawn = self.drawn_at
+        self.drawn_at = time.perf_counter()  # any line: a cursor step redraws two
+        if y == 0 and self.first_drawn is None:
+            self.first_drawn = self.drawn_at
         row = self.model.view.row(k)
         key = (k, row, self.model.reader.status[row])
         strip = self._strips.get(key)

@@ -42,6 +42,21 @@ class WatchPanel(DataTable[Text]):
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)
         self.keys: list[SeriesKey] = []
         self.version = -1
+        self.picked: dict[SeriesKey, None] = {}  # picked with x, in the order picked
+
+    def cursor_key(self) -> SeriesKey | None:
+        k = self.cursor_row
+        return self.keys[k] if 0 <= k < len(self.keys) else None
+
+    def toggle_pick(self, key: SeriesKey) -> bool:
+        """Pick `key` for the register table, or unpick it; True if now picked."""
+        if key in self.picked:
+            del self.picked[key]
+        else:
+            self.picked[key] = None
+        self.version = -1
+        self.show(*self.last, version=0)
+        return key in self.picked
 
     def on_mount(self) -> None:
         self.shown: list[str] = []
@@ -101,7 +116,7 @@ class WatchPanel(DataTable[Text]):
         numbers = [v for _, v in s.numbers()]
         return [
             Text(f"{s.key[0]} " + plain(s.label, 9), no_wrap=True),
-            Text(plain(s.name, 30), no_wrap=True),
+            Text(("✓ " if s.key in self.picked else "") + plain(s.name, 30), no_wrap=True),
             Text(value_fit(value, 18), style=recent if fresh else "", no_wrap=True),
             Text(changed, justify="right"),
             Text(sparkline(numbers, SPARK_WIDTH), style=spark),

@@ -1,0 +1,143 @@
+"""Provides `modscope replay FILE FILE...`: several captures replayed together, merged by
+time, and both sides of a gateway linked (see `sniffer.multifile`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from contextlib import ExitStack
+from pathlib import Path
+from typing import TextIO
+
+from sniffer.errors import UsageError
+from sniffer.text import plain
+
+
+def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
+    """`--offset FILE=SECONDS` options keyed by the file as given; FILE may be the path
+    as given or its name alone."""
+    out: dict[str, float] = {}
+    for text in texts:
+        name, sep, value = text.rpartition("=")
+        if not sep or not name:
+            raise UsageError(f"--offset {text!r}: write FILE=SECONDS, e.g. serial.pcapng=-3.2")
+        try:
+            seconds = float(value)
+        except ValueError:
+            raise UsageError(f"--offset {text!r}: {value!r} is not a number of seconds") from None
+        match = [f for f in files if f == name] or [f for f in files if Path(f).name == name]
+        if len(match) != 1:
+            raise UsageError(
+                f"--offset {text!r}: {name!r} is not one of the files given ({', '.join(files)})"
+                if not match
+                else f"--offset {text!r}: {name!r} names several files; give its path"
+            )
+        out[match[0]] = seconds
+    return out
+
+
+def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
+    from sniffer.cli.filtering import Selection, query_of
+    from sniffer.cli.options import bindings_for, read_options, read_status
+    from sniffer.cli.replay import stdin_copy
+    from sniffer.gateway_report import gateway_table, server_table
+    from sniffer.listing import Lister
+    from sniffer.multifile import align, link_files, merge
+    from sniffer.session import open_session
+
+    if files.count("-") > 1:
+        raise UsageError("standard input (-) can be given once")
+    if args.timeout is not None and not args.timeout > 0:
+        raise UsageError(f"--timeout must be a positive number of seconds, not {args.timeout:g}")
+    if not args.gateway_timeout > 0:
+        raise UsageError(
+            f"--gateway-timeout must be a positive number of seconds, not {args.gateway_timeout:g}"
+        )
+    given = parse_offsets(args.offset, files)
+    query = query_of(args)
+    bindings = bindings_for(args)
+    options = read_options(args)
+    if getattr(args, "mqtt", None):
+        raise UsageError("--mqtt takes one capture; replay the files one at a time")
+    with ExitStack() as stack:
+        paths = []
+        for f in files:
+            if f == "-":
+                paths.append(stack.enter_context(stdin_copy()))
+            else:
+                paths.append(Path(f))
+        sessions = []
+        capture_warnings: list[str] = []
+        rows = 0
+        for f, path in zip(files, paths, strict=True):
+            if f != "-" and not path.exists():
+                raise UsageError(f"{f}: no such file")
+            session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+            session.ingest(capture.chunks())
+            session.warnings.extend(capture.warnings)
+            shown = "standard input" if f == "-" else f
+            for note in [*capture.info.notes, *session.notes]:
+                err.write(f"modscope: note: {plain(shown)}: {plain(note)}\n")
+            for w in session.warnings:
+                err.write(f"modscope: warning: {plain(w)}\n")
+            capture_warnings += capture.warnings
+            rows += len(session.store)
+            sessions.append(session)
+    alignments = align(files, sessions, given)
+    for a in alignments:
+        if a.estimated or a.name in given:
+            err.write(f"modscope: note: {plain(a.text())}\n")
+    merged, parts, warnings = merge(files, sessions, [a.offset for a in alignments])
+    for w in warnings:
+        err.write(f"modscope: warning: {plain(w)}\n")
+    links = link_files(merged, parts, timeout=args.gateway_timeout)
+    if any(p.network for p in parts) and any(not p.network for p in parts):
+        unaligned = [a.name for a in alignments if not a.estimated and a.name not in given]
+        serial_unaligned = [n for n, p in zip(files, parts, strict=True) if not p.network]
+        if set(serial_unaligned) & set(unaligned):
+            err.write(
+                "modscope: warning: no transaction matched on both sides to align the "
+                "clocks; the files are merged as their clocks say (give --offset "
+                "FILE=SECONDS)\n"
+            )
+    status = read_status(capture_warnings + warnings, rows)
+    use_tui = (
+        args.format is None
+        and not args.stats
+        and query is None
+        and args.count is None
+        and out.isatty()
+        and sys.stdin.isatty()
+        and "-" not in files
+    )
+    if use_tui:
+        from sniffer.tui.app import run_tui
+
+        return run_tui(merged)
+    if args.stats:
+        labels = {u: plain(b.label) for u, b in bindings.items()}
+        for part in parts:
+            what = "network" if part.network else part.session.line.describe()
+            out.write(
+                f"file {plain(part.name)}: {what}, {len(part.rows)} rows, channels from "
+                f"{part.channel_base}, clock {part.offset:+.6f} s\n"
+            )
+        out.write("\n" + merged.stats.table(labels) + "\n")
+        servers = server_table(merged.store)
+        if servers:
+            out.write("\n" + servers + "\n")
+        if links:
+            out.write("\n" + gateway_table(links) + "\n")
+        return status
+    lister = Lister(
+        out,
+        args.format or "text",
+        merged.describer,
+        absolute=args.time == "abs",
+        raw_csv=args.raw_csv,
+    )
+    selection = Selection(merged, query, args.count)
+    lister.origin = selection.origin()
+    lister.write(selection.take(len(merged.store), final=True), flush=False)
+    out.flush()
+    return status
