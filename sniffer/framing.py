@@ -34,6 +34,7 @@ from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
 
 if TYPE_CHECKING:
+    from sniffer.sources.reads import Reads
     from sniffer.store import FrameStore
 
 MAX_RTU = 256
@@ -106,31 +107,35 @@ class _Timeline:
         self.cur_rate = 0.0
 
     def add(self, chunk: Chunk) -> None:
-        n = len(chunk.data)
+        self.add_read(len(chunk.data), chunk.t_start, chunk.t_end)
+
+    def add_read(self, n: int, chunk_start: float | None, chunk_end: float) -> None:
+        """A read of `n` bytes that ended at `chunk_end` (first byte at `chunk_start`, if
+        the source knows it)."""
         start = self.offset
-        if chunk.t_start is not None:
-            t_start = chunk.t_start
+        if chunk_start is not None:
+            t_start = chunk_start
         else:
-            t_start = chunk.t_end - n * self.char
+            t_start = chunk_end - n * self.char
             if self.last_end is not None and t_start < self.last_end:
                 if t_start < self.last_end - self.slack:
                     # the bytes need longer on the wire than the stamps leave them
                     self.too_fast += 1
                     if self.first_too_fast is None:
-                        self.first_too_fast = chunk.t_end
+                        self.first_too_fast = chunk_end
                 t_start = self.last_end
         gap = float("inf") if self.last_end is None else t_start - self.last_end
-        if t_start > chunk.t_end:
-            t_start = chunk.t_end
-        self.spans.append(_Span(start, start + n, t_start, chunk.t_end, gap))
+        if t_start > chunk_end:
+            t_start = chunk_end
+        self.spans.append(_Span(start, start + n, t_start, chunk_end, gap))
         self.starts.append(start)
         self.cur_start = start
         self.cur_t0 = t_start
-        self.cur_rate = (chunk.t_end - t_start) / n if n else 0.0
+        self.cur_rate = (chunk_end - t_start) / n if n else 0.0
         if gap >= self.t35:
             self.boundaries.append(start)
         self.offset += n
-        self.last_end = chunk.t_end
+        self.last_end = chunk_end
 
     def mark_error(self) -> None:
         """The last byte read had a framing or parity error."""
@@ -240,6 +245,11 @@ class _Framer:
         self.stream += chunk.data
         self._scan(final=False)
 
+    def feed_reads(self, reads: Reads) -> None:
+        """A batch of reads: framed read by read, exactly as `feed` would frame each."""
+        for chunk in reads.split():
+            self.feed(chunk)
+
     def finish(self) -> None:
         self._scan(final=True)
 
@@ -303,6 +313,7 @@ class RtuFramer(_Framer):
         self.pairs: list[int] = []  # rows the fast path paired, flat: request, answer, ...
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
+        self.scan_end = 0  # the end of the bytes the scan in progress may see
 
     def idle(self) -> None:
         """The line has been silent for at least t3.5: decide everything buffered."""
@@ -310,14 +321,30 @@ class RtuFramer(_Framer):
 
     # -- the scanner ---------------------------------------------------------------------
 
+    def feed_reads(self, reads: Reads) -> None:
+        """A batch of reads: the bytes join the stream at once, then each read is scanned
+        as `feed` scans a chunk, seeing only the bytes read so far, so the rows are the
+        same as from the reads one by one."""
+        if not reads.data:
+            return
+        base = len(self.stream)
+        self.stream += reads.data
+        self._scan_bytes(self.stream, False, reads, base)
+
     def _scan(self, final: bool) -> None:
         self._scan_bytes(self.stream, final)
         if len(self.timeline.spans) > 64:
             self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
 
-    def _scan_bytes(self, buf: bytearray, final: bool) -> None:
-        end = len(buf)
-        pos = self.pos
+    def _scan_bytes(
+        self, buf: bytearray, final: bool, reads: Reads | None = None, base: int = 0
+    ) -> None:
+        """Frame from `self.pos` to the end of `buf`; or, given `reads` (a batch whose
+        bytes are in `buf` from offset `base`), read by read: each read joins the timeline
+        and the scan stops at its end, exactly as if each read had been fed alone. One
+        call for a batch rather than one a read: 1.9 -> 1.7 us a frame on a recording of
+        one frame per packet (in-process, 200k frames)."""
+        end = self.scan_end = len(buf)
         (
             request_base,
             request_count,
@@ -331,8 +358,6 @@ class RtuFramer(_Framer):
         tl = self.timeline
         out = self.out
         exact = tl.exact
-        # the newest chunk's timing, for the inline time estimate of frames inside it
-        cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
         # row columns, appended inline on the fast paths; whoever syncs the store next
         # (an event, a merge, a reader) completes them with this framer's channel
         out.fill_channel = self.channel
@@ -349,146 +374,165 @@ class RtuFramer(_Framer):
             )
         a_off, a_len, a_t, a_te, a_kind, a_unit, a_fc = self._appenders
         pairs_append = self.pairs.append
-        row = len(out.t)
-        pr = self.pending_row if self.pair_inline else -1
-        # rows go straight into the columns while no noise is pending and timing is
-        # estimated per read (exact timing needs the slow path's checks)
-        inline = self.noise_start < 0 and not exact
-        # the open request, as locals: written back before every slow-path call
-        pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
-        pfx = pf | 0x80
-        # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this time
-        # they are the master's retry, not the answer (inf for every other code)
-        pdl = self.pending_deadline
         timeout = self.timeout
-        while end - pos >= MIN_RTU:
-            unit = buf[pos]
-            fc = buf[pos + 1]
-            if unit == pu and fc == pf and pdl != INF:
-                t0 = (
-                    cur_t0 + (pos - cur_start) * cur_rate
-                    if pos >= cur_start
-                    else tl.start_time(pos)
-                )
-                if t0 > pdl:
-                    pu = -1  # the wait is over
-            # fast path 1: the answer the open request predicts, or its exception
-            # (two comparisons, not `in (pf, pfx)`: that builds a tuple, which the GC counts)
-            if unit == pu and (fc == pf or fc == pfx):  # noqa: SIM109
-                length = pl if fc == pf else EXCEPTION_LENGTH
-                stop = pos + length
-                if stop > end:
-                    if not final:
-                        break  # wait for the rest of it
-                elif (
-                    inline
-                    and pos >= cur_start
-                    # a counted answer whose byte count is not the one its request
-                    # asked for goes the slow way (see _candidates)
-                    and (fc != pf or answer_pos[pf] < 0 or buf[pos + 2] == pl - 5)
-                    and check(buf[pos:stop]) == 0
-                ):
-                    t0 = cur_t0 + (pos - cur_start) * cur_rate
-                    a_off(pos)
-                    a_len(length)
-                    a_t(t0)
-                    a_te(t0 + length * cur_rate)
-                    a_kind(2 if fc == pf else 3)  # Kind.RESPONSE, Kind.EXCEPTION
-                    a_unit(unit)
-                    a_fc(fc)
-                    if pr >= 0:
-                        pairs_append(pr)  # this row answers row pr
-                        pairs_append(row)
-                    pr = pu = -1
-                    row += 1
-                    pos = stop
-                    continue
-            # fast path 2: a request, when no answer is predicted for it
-            elif inline:
-                length = request_base[fc]
-                if length:
-                    cpos = request_count[fc]
-                    if cpos:
-                        if pos + cpos >= end and not final:
-                            break
-                        length += buf[pos + cpos] if pos + cpos < end else 0
+        add_read = tl.add_read
+        count = len(reads.ends) if reads is not None else 0
+        k = prev = 0
+        while True:  # once, or once a read of the batch
+            if reads is not None:
+                if k == count:
+                    break
+                read_end = reads.ends[k]
+                add_read(read_end - prev, reads.t_starts[k], reads.t_ends[k])
+                prev = read_end
+                end = self.scan_end = base + read_end
+                k += 1
+            pos = self.pos
+            # the newest chunk's timing, for the inline time estimate of frames inside it
+            cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
+            row = len(out.t)
+            pr = self.pending_row if self.pair_inline else -1
+            # rows go straight into the columns while no noise is pending and timing is
+            # estimated per read (exact timing needs the slow path's checks)
+            inline = self.noise_start < 0 and not exact
+            # the open request, as locals: written back before every slow-path call
+            pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+            pfx = pf | 0x80
+            # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this
+            # time they are the master's retry, not the answer (inf for every other code)
+            pdl = self.pending_deadline
+            while end - pos >= MIN_RTU:
+                unit = buf[pos]
+                fc = buf[pos + 1]
+                if unit == pu and fc == pf and pdl != INF:
+                    t0 = (
+                        cur_t0 + (pos - cur_start) * cur_rate
+                        if pos >= cur_start
+                        else tl.start_time(pos)
+                    )
+                    if t0 > pdl:
+                        pu = -1  # the wait is over
+                # fast path 1: the answer the open request predicts, or its exception
+                # (two comparisons, not `in (pf, pfx)`: that builds a tuple, which the GC counts)
+                if unit == pu and (fc == pf or fc == pfx):  # noqa: SIM109
+                    length = pl if fc == pf else EXCEPTION_LENGTH
                     stop = pos + length
                     if stop > end:
                         if not final:
-                            break
-                    elif pos >= cur_start and check(buf[pos:stop]) == 0:
+                            break  # wait for the rest of it
+                    elif (
+                        inline
+                        and pos >= cur_start
+                        # a counted answer whose byte count is not the one its request
+                        # asked for goes the slow way (see _candidates)
+                        and (fc != pf or answer_pos[pf] < 0 or buf[pos + 2] == pl - 5)
+                        and check(buf[pos:stop]) == 0
+                    ):
                         t0 = cur_t0 + (pos - cur_start) * cur_rate
                         a_off(pos)
                         a_len(length)
                         a_t(t0)
                         a_te(t0 + length * cur_rate)
-                        a_kind(1)  # Kind.REQUEST
+                        a_kind(2 if fc == pf else 3)  # Kind.RESPONSE, Kind.EXCEPTION
                         a_unit(unit)
                         a_fc(fc)
+                        if pr >= 0:
+                            pairs_append(pr)  # this row answers row pr
+                            pairs_append(row)
                         pr = pu = -1
-                        pdl = INF
-                        if unit:  # a broadcast gets no answer
-                            pr = row
-                            ap = answer_pos[fc]
-                            if ap >= 0:
-                                q = buf[pos + ap] << 8 | buf[pos + ap + 1]
-                                pl = (
-                                    answer_base[fc]
-                                    + (q * answer_item[fc] + answer_up[fc]) // answer_byte[fc]
-                                )
-                                pu, pf, pfx = unit, fc, fc | 0x80
-                            elif ap == FIXED:
-                                pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
-                            elif ap == ECHO:
-                                pu, pf, pfx, pl = unit, fc, fc | 0x80, length
-                                pdl = t0 + length * cur_rate + timeout
-                            elif ap == WALKED:
-                                walked = self._predict(buf, pos, length, fc)
-                                if walked is not None:
-                                    pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
-                            if pl > MAX_RTU:
-                                pu = -1
                         row += 1
                         pos = stop
                         continue
+                # fast path 2: a request, when no answer is predicted for it
+                elif inline:
+                    length = request_base[fc]
+                    if length:
+                        cpos = request_count[fc]
+                        if cpos:
+                            if pos + cpos >= end and not final:
+                                break
+                            length += buf[pos + cpos] if pos + cpos < end else 0
+                        stop = pos + length
+                        if stop > end:
+                            if not final:
+                                break
+                        elif pos >= cur_start and check(buf[pos:stop]) == 0:
+                            t0 = cur_t0 + (pos - cur_start) * cur_rate
+                            a_off(pos)
+                            a_len(length)
+                            a_t(t0)
+                            a_te(t0 + length * cur_rate)
+                            a_kind(1)  # Kind.REQUEST
+                            a_unit(unit)
+                            a_fc(fc)
+                            pr = pu = -1
+                            pdl = INF
+                            if unit:  # a broadcast gets no answer
+                                pr = row
+                                ap = answer_pos[fc]
+                                if ap >= 0:
+                                    q = buf[pos + ap] << 8 | buf[pos + ap + 1]
+                                    pl = (
+                                        answer_base[fc]
+                                        + (q * answer_item[fc] + answer_up[fc]) // answer_byte[fc]
+                                    )
+                                    pu, pf, pfx = unit, fc, fc | 0x80
+                                elif ap == FIXED:
+                                    pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
+                                elif ap == ECHO:
+                                    pu, pf, pfx, pl = unit, fc, fc | 0x80, length
+                                    pdl = t0 + length * cur_rate + timeout
+                                elif ap == WALKED:
+                                    walked = self._predict(buf, pos, length, fc)
+                                    if walked is not None:
+                                        pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
+                                if pl > MAX_RTU:
+                                    pu = -1
+                            row += 1
+                            pos = stop
+                            continue
+                self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
+                self.pending_row = pr
+                self.pending_deadline = pdl
+                found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
+                if not found and waiting:
+                    break
+                if not found:
+                    found, kind, waiting = self._silence_framed(buf, pos, end, fc, final)
+                    if waiting:
+                        break
+                if not found:
+                    if self.noise_start < 0:
+                        self.noise_start = pos
+                        inline = False
+                    pos += 1
+                    continue
+                if self.noise_start >= 0:
+                    self._emit_noise(self.noise_start, pos)
+                    self.noise_start = -1
+                self._emit_frame(buf, pos, found, kind)
+                pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
+                pfx = pf | 0x80
+                pdl = self.pending_deadline
+                pr = self.pending_row
+                row = len(out.t)
+                inline = not exact
+                pos += found
             self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
             self.pending_row = pr
             self.pending_deadline = pdl
-            found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
-            if not found and waiting:
-                break
-            if not found:
-                found, kind, waiting = self._silence_framed(buf, pos, end, fc, final)
-                if waiting:
-                    break
-            if not found:
-                if self.noise_start < 0:
+            if final:
+                if end > pos and self.noise_start < 0:
                     self.noise_start = pos
-                    inline = False
-                pos += 1
-                continue
-            if self.noise_start >= 0:
-                self._emit_noise(self.noise_start, pos)
-                self.noise_start = -1
-            self._emit_frame(buf, pos, found, kind)
-            pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
-            pfx = pf | 0x80
-            pdl = self.pending_deadline
-            pr = self.pending_row
-            row = len(out.t)
-            inline = not exact
-            pos += found
-        self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
-        self.pending_row = pr
-        self.pending_deadline = pdl
-        if final:
-            if end > pos and self.noise_start < 0:
-                self.noise_start = pos
-            if self.noise_start >= 0:
-                self._emit_noise(self.noise_start, end)
-                self.noise_start = -1
-            pos = end
-        self.pos = pos
+                if self.noise_start >= 0:
+                    self._emit_noise(self.noise_start, end)
+                    self.noise_start = -1
+                pos = end
+            self.pos = pos
+            if reads is None:
+                break
+            if len(tl.spans) > 64:
+                tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
 
     def _predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
         rule = self.answer[fc]
@@ -665,7 +709,8 @@ class RtuFramer(_Framer):
         predicted = EXCEPTION_LENGTH if fc & 0x80 else self.pending_len
         if unit == self.pending_unit and (fc & 0x7F) == self.pending_fc and length == predicted:
             return True
-        return any(rule.length(buf, start, len(buf)) == length for rule, _ in self.rules[fc])
+        # the bytes seen so far, as when each read came alone (see feed_reads)
+        return any(rule.length(buf, start, self.scan_end) == length for rule, _ in self.rules[fc])
 
     def _kind_of(self, start: int) -> int:
         fc = self.stream[start + 1]

@@ -16,6 +16,7 @@ from sniffer.describe import Describer
 from sniffer.model import Chunk, Labels, LineSettings, Stamp
 from sniffer.pipeline import MERGE_SLACK, Pipeline
 from sniffer.sources import Capture, ReadOptions, open_capture
+from sniffer.sources.reads import Reads, batching
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
 
@@ -80,6 +81,10 @@ class Session:
         self.warnings: list[str] = []
         self.notes: list[str] = []  # what the user should know, not faults
         self.chunks = 0
+        self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
+        # the sidecar index (sniffer.index): where it came from, or what to save it as
+        self.indexed_from: Path | None = None
+        self._sidecar: tuple[Path, Capture, str] | None = None
 
     @property
     def mode(self) -> str:
@@ -87,7 +92,7 @@ class Session:
 
     def feed(self, chunk: Chunk) -> None:
         self.pipeline.feed(chunk)
-        self.chunks += 1
+        self.chunks += len(chunk) if isinstance(chunk, Reads) else 1
 
     def refresh(self) -> None:
         """Bring pairing, annotation state and statistics up to date with the store."""
@@ -114,22 +119,46 @@ class Session:
         should_stop: Callable[[], bool] | None = None,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
+        if self._sidecar is not None and self.indexed_from is None and not len(self.store):
+            # read back from the sidecar index where one fits: every row is there already
+            # (here rather than in open_session: the TUI draws while this thread reads)
+            from sniffer import index
+
+            path, capture, key = self._sidecar
+            self.indexed_from = index.load(self, capture, path, key)
+        if self.indexed_from is not None:
+            if progress is not None:
+                progress(self._sidecar_bytes(), len(self.store))
+            return
         last = time.monotonic()
         done = 0
-        for chunk in chunks:
-            self.feed(chunk)
-            done += len(chunk.data)
-            now = time.monotonic()
-            if now - last >= every:
-                last = now
-                self.refresh()
-                if progress is not None:
-                    progress(done, len(self.store))
-                if should_stop is not None and should_stop():
-                    return
+        # readers may pass runs of reads as one batch (sniffer.sources.reads): the
+        # pipeline frames them read by read, so the rows are the same
+        with batching(self.batch_reads):
+            for chunk in chunks:
+                self.feed(chunk)
+                done += len(chunk.data)
+                now = time.monotonic()
+                if now - last >= every:
+                    last = now
+                    self.refresh()
+                    if progress is not None:
+                        progress(done, len(self.store))
+                    if should_stop is not None and should_stop():
+                        return
         self.finish()
+        if self._sidecar is not None:
+            from sniffer import index
+
+            path, capture, key = self._sidecar
+            if capture.finished:  # read to its end
+                index.save(self, capture, path, key)
+                self._sidecar = None
         if progress is not None:
             progress(done, len(self.store))
+
+    def _sidecar_bytes(self) -> int:
+        return sum(len(s) for s in self.store.streams.values())
 
 
 def open_session(
@@ -138,8 +167,15 @@ def open_session(
     *,
     bindings: Mapping[int, Binding] | None = None,
     timeout: float | None = None,
+    index: bool = True,
 ) -> tuple[Session, Capture]:
-    """A session for a capture file, not yet ingested: feed it `capture.chunks()`."""
+    """A session for a capture file, not yet ingested: feed it `capture.chunks()`.
+
+    With `index` (and MODSCOPE_NO_INDEX unset), a capture of at least
+    `sniffer.index.MIN_SIZE` bytes is read back by `Session.ingest` from its sidecar index
+    when one fits it (the capture itself is then not read), and gets one once it has been
+    read to its end.
+    """
     options = options or ReadOptions()
     capture = open_capture(path, options)
     line = options.line(capture.info.line)
@@ -154,7 +190,22 @@ def open_session(
         resolution=capture.info.resolution,
         network=capture.info.channels if capture.info.network else None,
     )
+    if index:
+        _sidecar(session, capture, Path(path), options, timeout)
     return session, capture
+
+
+def _sidecar(
+    session: Session, capture: Capture, path: Path, options: ReadOptions, timeout: float | None
+) -> None:
+    from sniffer import index
+
+    try:
+        if not index.enabled() or not path.is_file() or path.stat().st_size < index.MIN_SIZE:
+            return
+    except OSError:
+        return
+    session._sidecar = (path, capture, index.settings_key(session, options, timeout))
 
 
 def replay_file(

@@ -46,7 +46,7 @@ from __future__ import annotations
 import json
 import os
 import struct
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
@@ -54,7 +54,7 @@ from typing import BinaryIO
 import sniffer.sources.net as net
 from dissectors.envelope import open_ascii, rtu_frame
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.base import MAX_TIME, Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
 from sniffer.sources.linktypes import (
     BLOCK_EPB,
@@ -75,8 +75,11 @@ from sniffer.sources.linktypes import (
     LINKTYPE_WIRESHARK_UPPER_PDU,
     OPT_COMMENT,
     OPT_ENDOFOPT,
+    RTAC_DATA_RX_START,
     RTAC_DATA_TX_START,
     RTAC_EVENTS,
+    RTAC_HEADER,
+    RTAC_HEADER_LEN,
     RTAC_STATUS_CHANGE,
     InterfaceNote,
     UpperPdu,
@@ -86,6 +89,7 @@ from sniffer.sources.linktypes import (
     parse_rtac,
     parse_upper_pdu,
 )
+from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads, batching_enabled
 
 MAX_BLOCK = 1 << 26  # 64 MiB: anything larger is taken as damage, not data
 LINKTYPE_NAMES = {
@@ -438,12 +442,13 @@ class _Block:
     order: str
 
 
-def _blocks(handle: BinaryIO, warnings: list[str]) -> Iterator[_Block]:
-    """Every complete block of a pcapng file; a damaged one ends the walk with a warning."""
+def _blocks(
+    handle: BinaryIO, warnings: list[str], offset: int = 0, order: str = "<"
+) -> Iterator[_Block]:
+    """Every complete block of a pcapng file from `offset` (in a section of byte order
+    `order`); a damaged one ends the walk with a warning."""
     size = _file_size(handle)
-    order = "<"
-    offset = 0
-    handle.seek(0)
+    handle.seek(offset)
     while offset < size:
         header = handle.read(8)
         if len(header) < 8:
@@ -709,27 +714,205 @@ def _pcapng_blocks(
 ) -> Iterator[Chunk]:
     section = _Section(options, warnings)
     with path.open("rb") as handle:
-        for block in _blocks(handle, warnings):
-            if block.type == BLOCK_SHB:
-                major = (
-                    struct.unpack_from(block.order + "H", block.body, 4)[0]
-                    if len(block.body) >= 16
-                    else -1
+        offset, order = 0, "<"
+        if batching_enabled():
+            stopped = yield from _bulk_blocks(handle, section, decoder, info, warnings)
+            if stopped is None:
+                return
+            offset, order = stopped  # a block the bulk walk does not check: walk on slowly
+        for block in _blocks(handle, warnings, offset, order):
+            if not (yield from _one_block(block, section, decoder, info, warnings)):
+                return
+
+
+def _one_block(
+    block: _Block,
+    section: _Section,
+    decoder: _PacketDecoder,
+    info: SourceInfo,
+    warnings: list[str],
+) -> Generator[Chunk, None, bool]:
+    """Read one block; False when reading must stop there."""
+    if block.type == BLOCK_SHB:
+        major = (
+            struct.unpack_from(block.order + "H", block.body, 4)[0] if len(block.body) >= 16 else -1
+        )
+        if major != 1:
+            warnings.append(
+                f"pcapng section at byte offset {block.offset} has version {major}, "
+                "not 1; reading stopped there"
+            )
+            return False
+        section.new_section()
+        return True
+    if block.type == BLOCK_IDB:
+        iface = section.add(block)
+        if decoder.network is None or iface.linktype not in net.NET_LINKTYPES:
+            info.channels.setdefault(iface.channel, iface.label)
+        return True
+    yield from _packet_block(block, section, decoder, warnings)
+    return True
+
+
+BULK_READ = 1 << 22  # bytes read from the file at a time by the bulk walk
+
+
+def _bulk_blocks(
+    handle: BinaryIO,
+    section: _Section,
+    decoder: _PacketDecoder,
+    info: SourceInfo,
+    warnings: list[str],
+) -> Generator[Chunk, None, tuple[int, str] | None]:
+    """Walk the file in large reads and pass runs of link type 250 data records of one
+    interface as `Reads` batches, without a Python object per packet.
+
+    Only blocks whose lengths all agree, that lie wholly in the file, are taken here;
+    other blocks (section and interface headers, comments, events, other link types)
+    are read by the same code as in the block-by-block walk. At the first block this
+    walk cannot vouch for (damage, a truncated end) it stops and returns that block's
+    offset and byte order, and the block-by-block walk carries on from there with its
+    warnings. None: the whole file was read.
+
+    Measured (1M frames, 16 ms reads and one frame per packet): see benchmarks/README.
+    """
+    size = _file_size(handle)
+    handle.seek(0)
+    buf = b""
+    base = 0  # file offset of buf[0]
+    pos = 0  # position in buf of the next block
+    order = "<"
+    head = struct.Struct(order + "II")
+    epb = struct.Struct(order + "IIIII")  # type, length, interface, time high, low
+    flags_head = struct.pack(order + "HH", EPB_FLAGS, 4)
+    flags_value = struct.Struct(order + "I")
+    rtac_head = RTAC_HEADER
+    rx_start = RTAC_DATA_RX_START
+    # the batch being gathered
+    parts: list[bytes] = []
+    ends: list[int] = []
+    t_starts: list[float | None] = []
+    t_ends: list[float] = []
+    b_iface: _Interface | None = None
+    b_dir = Direction.UNKNOWN
+    b_bytes = 0
+    b_first = 0.0
+    directions: dict[tuple[int, int | None], Direction] = {}  # by channel and EPB flags
+
+    def batch() -> Reads:
+        assert b_iface is not None
+        data = b"".join(parts)
+        b_iface.last_end = t_ends[-1]
+        reads = Reads(
+            data,
+            t_ends[-1],
+            t_starts[0],
+            b_iface.channel,
+            b_dir,
+            ends=ends.copy(),
+            t_starts=t_starts.copy(),
+            t_ends=t_ends.copy(),
+        )
+        parts.clear()
+        ends.clear()
+        t_starts.clear()
+        t_ends.clear()
+        return reads
+
+    while True:
+        if pos + 12 > len(buf):
+            more = handle.read(BULK_READ)
+            if more:
+                buf, base, pos = buf[pos:] + more, base + pos, 0
+                continue
+            if parts:
+                yield batch()
+            return None if base + pos == size else (base + pos, order)
+        block_type, total = head.unpack_from(buf, pos)
+        offset = base + pos
+        if block_type == BLOCK_SHB:
+            magic = buf[pos + 8 : pos + 12]
+            if magic not in (b"\x4d\x3c\x2b\x1a", b"\x1a\x2b\x3c\x4d"):
+                if parts:
+                    yield batch()
+                return offset, order
+            order = "<" if magic == b"\x4d\x3c\x2b\x1a" else ">"
+            head = struct.Struct(order + "II")
+            epb = struct.Struct(order + "IIIII")
+            flags_head = struct.pack(order + "HH", EPB_FLAGS, 4)
+            flags_value = struct.Struct(order + "I")
+            block_type, total = head.unpack_from(buf, pos)
+        elif offset == 0:
+            return 0, order  # not a pcapng start: the slow walk says so
+        if total < 12 or total % 4 or total > MAX_BLOCK or offset + total > size:
+            if parts:
+                yield batch()
+            return offset, order
+        if pos + total > len(buf):
+            more = handle.read(max(BULK_READ, total))
+            buf, base, pos = buf[pos:] + more, base + pos, 0
+            continue
+        if flags_value.unpack_from(buf, pos + total - 4)[0] != total:
+            if parts:
+                yield batch()
+            return offset, order
+        if block_type == BLOCK_EPB and total >= 44:
+            _, _, index, high, low = epb.unpack_from(buf, pos)
+            caplen = flags_value.unpack_from(buf, pos + 20)[0]
+            iface = section.current[index] if index < len(section.current) else None
+            tail = pos + 28 + caplen + (-caplen % 4)
+            stop = pos + total - 4
+            flags: int | None = None
+            fast = (
+                iface is not None
+                and iface.linktype == LINKTYPE_RTAC_SERIAL
+                and caplen > RTAC_HEADER_LEN
+                and tail <= stop
+            )
+            if fast and tail != stop:
+                fast = (
+                    stop - tail == 12
+                    and buf[tail : tail + 4] == flags_head
+                    and buf[tail + 8 : stop] == b"\0\0\0\0"
                 )
-                if major != 1:
-                    warnings.append(
-                        f"pcapng section at byte offset {block.offset} has version {major}, "
-                        "not 1; reading stopped there"
-                    )
-                    return
-                section.new_section()
-                continue
-            if block.type == BLOCK_IDB:
-                iface = section.add(block)
-                if decoder.network is None or iface.linktype not in net.NET_LINKTYPES:
-                    info.channels.setdefault(iface.channel, iface.label)
-                continue
-            yield from _packet_block(block, section, decoder, warnings)
+                flags = flags_value.unpack_from(buf, tail + 4)[0]
+            if fast:
+                assert iface is not None
+                data_at = pos + 28
+                secs, usecs, event, _lines, _footer = rtac_head.unpack_from(buf, data_at)
+                t = ((high << 32) | low) / iface.ticks_per_second + iface.offset_seconds
+                if event == rx_start and 0.0 <= t < MAX_TIME:
+                    direction = directions.get((iface.channel, flags))
+                    if direction is None:
+                        direction = directions[iface.channel, flags] = packet_direction(
+                            iface.linktype, iface.note.role, flags
+                        )
+                    if parts and (
+                        iface is not b_iface
+                        or direction != b_dir
+                        or t - b_first > MAX_BATCH_SPAN
+                        or b_bytes > MAX_BATCH_BYTES
+                    ):
+                        yield batch()
+                    if not parts:
+                        b_iface, b_dir, b_bytes, b_first = iface, direction, 0, t
+                    seconds = secs + usecs / 1e6
+                    lead = t - seconds
+                    parts.append(buf[data_at + RTAC_HEADER_LEN : data_at + caplen])
+                    b_bytes += caplen - RTAC_HEADER_LEN
+                    ends.append(b_bytes)
+                    t_starts.append(seconds if 0.0 < lead < RTAC_MAX_LEAD else None)
+                    t_ends.append(t)
+                    pos += total
+                    continue
+        if parts:
+            yield batch()
+        block = _Block(offset, block_type, buf[pos + 8 : pos + total - 4], order)
+        if block_type in (BLOCK_SHB, BLOCK_IDB):
+            directions.clear()
+        pos += total
+        if not (yield from _one_block(block, section, decoder, info, warnings)):
+            return None
 
 
 def _packet_block(

@@ -1,0 +1,335 @@
+"""Provides the scale benchmark: whole-process times of modscope and tshark on one recording.
+
+Run: python benchmarks/bench_scale.py [--frames N] [--runs R] [--dir DIR]
+
+It writes (once; kept in DIR and reused while their frame count matches):
+- `reads-N.pcapng`: N frames of a polling bus at 115200 8N1 as `modscope record` writes
+  them (link type 250, one block per 16 ms read of a USB adapter), through the recorder;
+- `frames-N.pcapng`: the same frames one per packet (link type 250, header time at the
+  frame's first byte, packet time at its last), the shape tshark reads in linear time
+  (its RTU reassembly over multi-frame reads is super-linear, which would flatter us);
+- the same two shapes with 10 frames, to take start-up off both sides;
+- `reads-L.pcapng` and `frames-L.pcapng` with L = --listing-frames (default 100k) for
+  the full listings and the export, which run at thousands of rows a second.
+
+Then it times each command as a whole process (median of --runs; the machine is shared
+and noisy, so judge the ratios), with its peak resident memory, and prints per-frame
+rates with start-up taken off: (frames - 10) / (time on N - time on 10).
+tshark runs as `tshark -n -r F -d rtacser.data,mbrtu` (plain summary, `-T fields`,
+`-T ek`) on the one-frame-per-packet file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from benchmarks.common import LINE, usb_reads
+from sniffer.model import Chunk
+from sniffer.recorder import Recorder
+from sniffer.serial_source import PortSpec
+from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, RTAC_DATA_RX_START
+from sniffer.sources.pcapng_writer import (
+    EPB_FLAG_INBOUND,
+    PcapngWriter,
+    describe_interface,
+    rtac_record,
+)
+from sniffer.synth import SynthFrame, polling_frames
+
+START = 1768464000.0  # 2026-01-15 08:00:00 UTC, as the demo
+SMALL = 10
+TSHARK = ["tshark", "-n", "-d", "rtacser.data,mbrtu"]
+
+
+class _Unflushed:
+    """A file the pcapng writer may flush after every block without a system call each."""
+
+    def __init__(self, path: Path) -> None:
+        self.handle = path.open("wb", buffering=1 << 20)
+
+    def write(self, data: bytes) -> int:
+        return self.handle.write(data)
+
+    def flush(self) -> None:
+        pass
+
+    def tell(self) -> int:
+        return self.handle.tell()
+
+    def close(self) -> None:
+        self.handle.close()
+
+
+def _frames(n: int) -> list[SynthFrame]:
+    return polling_frames(n, line=LINE)
+
+
+def write_reads(path: Path, frames: list[SynthFrame]) -> int:
+    """The frames as `modscope record` writes a USB adapter's 16 ms reads; returns reads."""
+    stream = _Unflushed(path)
+    recorder = Recorder(path, [PortSpec("/dev/ttyUSB0", LINE)], stream=stream)  # type: ignore[arg-type]
+    reads = usb_reads(frames)
+    for chunk in reads:
+        recorder.write(Chunk(chunk.data, START + chunk.t_end))
+    recorder.close(START + (reads[-1].t_end if reads else 0.0) + 0.1)
+    stream.close()
+    return len(reads)
+
+
+def write_frames(path: Path, frames: list[SynthFrame]) -> None:
+    """The same frames one per packet: RTAC header at the first byte, packet at the last."""
+    stream = _Unflushed(path)
+    writer = PcapngWriter(stream)  # type: ignore[arg-type]
+    iface = writer.add_interface(
+        LINKTYPE_RTAC_SERIAL, name="/dev/ttyUSB0", description=describe_interface(LINE)
+    )
+    char = LINE.char_time
+    for f in frames:
+        t0 = START + f.t
+        packet = rtac_record(t0, f.raw, event=RTAC_DATA_RX_START)
+        writer.write_packet(iface, t0 + len(f.raw) * char, packet, flags=EPB_FLAG_INBOUND)
+    stream.close()
+
+
+def make_files(folder: Path, n: int) -> tuple[Path, Path]:
+    """`reads-n.pcapng` and `frames-n.pcapng` in `folder`, written unless already there."""
+    folder.mkdir(parents=True, exist_ok=True)
+    reads, one = folder / f"reads-{n}.pcapng", folder / f"frames-{n}.pcapng"
+    if not (reads.exists() and one.exists()):
+        t = time.perf_counter()
+        frames = _frames(n)
+        count = write_reads(reads, frames)
+        write_frames(one, frames)
+        size = sum(len(f.raw) for f in frames)
+        print(
+            f"wrote {n:,} frames ({size / 1e6:.1f} MB of bus bytes, {count:,} reads) to "
+            f"{reads.name} and {one.name} in {time.perf_counter() - t:.1f} s"
+        )
+    return reads, one
+
+
+@dataclass
+class Run:
+    seconds: float
+    rss_mb: float
+
+
+COLD = {**os.environ, "MODSCOPE_NO_INDEX": "1"}  # no sidecar index read or written
+WARM = {k: v for k, v in os.environ.items() if k != "MODSCOPE_NO_INDEX"}
+
+
+def run(argv: list[str], runs: int, env: dict[str, str] | None = None) -> Run:
+    """Median wall time and the largest peak RSS of `runs` runs of `argv`."""
+    times: list[float] = []
+    rss = 0.0
+    for _ in range(runs):
+        t = time.perf_counter()
+        with subprocess.Popen(
+            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env or COLD
+        ) as proc:
+            _, status, usage = os.wait4(proc.pid, 0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            assert proc.stderr is not None
+            err = proc.stderr.read()
+        times.append(time.perf_counter() - t)
+        rss = max(rss, usage.ru_maxrss / 1024)
+        if proc.returncode not in (0, 1):
+            raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {err[-2000:]!r}")
+    return Run(statistics.median(times), rss)
+
+
+def modscope(*args: str) -> list[str]:
+    return [sys.executable, "-m", "sniffer.cli", *args]
+
+
+def machine() -> str:
+    model = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return (
+        f"{os.cpu_count()} CPUs ({model}), Python {platform.python_version()}, "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"
+    )
+
+
+@dataclass
+class Figure:
+    label: str
+    n: int
+    big: Run
+    small: Run
+
+    @property
+    def whole(self) -> float:
+        return self.n / self.big.seconds
+
+    @property
+    def per_frame(self) -> float:
+        """Frames a second with start-up taken off (time on n minus time on 10)."""
+        return (self.n - SMALL) / max(self.big.seconds - self.small.seconds, 1e-6)
+
+
+def measure(
+    label: str,
+    n: int,
+    big: list[str],
+    small: list[str],
+    runs: int,
+    env: dict[str, str] | None = None,
+) -> Figure:
+    fig = Figure(label, n, run(big, runs, env), run(small, runs, env))
+    print(
+        f"  {label:<44} {fig.big.seconds:8.2f} s {fig.whole:>11,.0f}/s whole "
+        f"{fig.per_frame:>11,.0f}/s per frame  start {fig.small.seconds:.2f} s  "
+        f"peak {fig.big.rss_mb:6.0f} MB",
+        flush=True,
+    )
+    return fig
+
+
+def compare(ours: Figure, theirs: Figure) -> None:
+    print(
+        f"  => {ours.label} / {theirs.label}: {ours.per_frame / theirs.per_frame:.1f}x per frame, "
+        f"{ours.whole / theirs.whole:.1f}x whole process; memory {ours.big.rss_mb:.0f} MB vs "
+        f"{theirs.big.rss_mb:.0f} MB",
+        flush=True,
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0] if __doc__ else "")
+    parser.add_argument("--frames", type=int, default=1_000_000, help="frames for the index")
+    parser.add_argument(
+        "--listing-frames", type=int, default=100_000, help="frames for listings and export"
+    )
+    parser.add_argument("--runs", type=int, default=3, help="runs per figure (median)")
+    parser.add_argument("--dir", type=Path, default=Path("/tmp/modscope-bench"))
+    parser.add_argument("--no-tshark", action="store_true", help="time modscope only")
+    parser.add_argument("--only-index", action="store_true", help="skip listings and export")
+    args = parser.parse_args()
+    print(f"machine: {machine()}")
+    n, ln, runs = args.frames, args.listing_frames, args.runs
+    reads, one = make_files(args.dir, n)
+    reads10, one10 = make_files(args.dir, SMALL)
+    tshark = not args.no_tshark
+    out = args.dir / "out.pcapng"
+
+    print(f"index: {n:,} frames, median of {runs}")
+    ix = measure(
+        "modscope replay --stats (16 ms reads)",
+        n,
+        modscope("replay", str(reads), "--stats"),
+        modscope("replay", str(reads10), "--stats"),
+        runs,
+    )
+    ix1 = measure(
+        "modscope replay --stats (frame per packet)",
+        n,
+        modscope("replay", str(one), "--stats"),
+        modscope("replay", str(one10), "--stats"),
+        runs,
+    )
+    index_only = "import sys; from sniffer.session import replay_file; replay_file(sys.argv[1])"
+    only = measure(
+        "modscope index only (16 ms reads)",
+        n,
+        [sys.executable, "-c", index_only, str(reads)],
+        [sys.executable, "-c", index_only, str(reads10)],
+        runs,
+    )
+    # reopening: the first run writes the sidecar index, the others read it
+    for path in (reads, reads10):
+        run(modscope("replay", str(path), "-c", "1"), 1, WARM)
+    measure(
+        "modscope replay --stats, sidecar index",
+        n,
+        modscope("replay", str(reads), "--stats"),
+        modscope("replay", str(reads10), "--stats"),
+        runs,
+        WARM,
+    )
+    first = run(modscope("replay", str(reads), "-c", "40", "--format", "text"), runs, WARM)
+    print(f"  {'first 40 rows, sidecar index (whole process)':<44} {first.seconds:8.2f} s")
+    if tshark:
+        ts = measure(
+            "tshark plain summary (frame per packet)",
+            n,
+            [*TSHARK, "-r", str(one)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+        compare(ix, ts)
+        compare(ix1, ts)
+        compare(only, ts)
+    if args.only_index:
+        return
+
+    lreads, lone = make_files(args.dir, ln)
+    print(f"listings and export: {ln:,} frames, median of {runs}")
+    jsonl = measure(
+        "modscope replay --format jsonl",
+        ln,
+        modscope("replay", str(lreads), "--format", "jsonl"),
+        modscope("replay", str(reads10), "--format", "jsonl"),
+        runs,
+    )
+    text = measure(
+        "modscope replay --format text",
+        ln,
+        modscope("replay", str(lreads), "--format", "text"),
+        modscope("replay", str(reads10), "--format", "text"),
+        runs,
+    )
+    export = measure(
+        "modscope export -o x.pcapng",
+        ln,
+        modscope("export", str(lreads), "-o", str(out)),
+        modscope("export", str(reads10), "-o", str(out)),
+        runs,
+    )
+    if tshark:
+        plain = measure(
+            "tshark plain summary (frame per packet)",
+            ln,
+            [*TSHARK, "-r", str(lone)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+        fields = [*TSHARK, "-T", "fields", "-e", "frame.number", "-e", "modbus.func_code"]
+        measure(
+            "tshark -T fields (frame per packet)",
+            ln,
+            [*fields, "-r", str(lone)],
+            [*fields, "-r", str(one10)],
+            runs,
+        )
+        ek = measure(
+            "tshark -T ek (frame per packet)",
+            ln,
+            [*TSHARK, "-T", "ek", "-r", str(lone)],
+            [*TSHARK, "-T", "ek", "-r", str(one10)],
+            runs,
+        )
+        compare(jsonl, ek)
+        compare(text, plain)
+        compare(export, plain)
+    out.unlink(missing_ok=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,230 @@
+"""The bulk pcapng walk and batches of reads give what the block-by-block walk gives.
+
+`Session.ingest` lets the pcapng reader pass runs of link type 250 reads as one
+`sniffer.sources.reads.Reads`; everything else reads a capture one chunk per read. Both
+must agree on every chunk, warning and row, for clean, odd and damaged files alike.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sniffer.model import Chunk, LineSettings
+from sniffer.session import Session, open_session
+from sniffer.sources import open_capture
+from sniffer.sources.linktypes import (
+    LINKTYPE_RTAC_SERIAL,
+    LINKTYPE_USER0,
+    RTAC_CAPTURE_DATA_LOST,
+    RTAC_DATA_RX_START,
+    RTAC_DATA_TX_START,
+    RTAC_FRAMING_ERROR,
+)
+from sniffer.sources.pcapng_writer import describe_interface, rtac_record
+from sniffer.sources.reads import Reads, batching
+from sniffer.synth import polling_frames
+
+T0 = 1_714_564_800.0
+LINE = LineSettings(baud=19200, bytesize=8, parity="E", stopbits=1, mode="rtu")
+FRAMES = [f.raw for f in polling_frames(400, line=LINE, seed=7)]
+
+
+def _opt(order: str, code: int, value: bytes) -> bytes:
+    return struct.pack(order + "HH", code, len(value)) + value + b"\0" * (-len(value) % 4)
+
+
+def _opts(order: str, items: list[bytes]) -> bytes:
+    return b"".join(items) + struct.pack(order + "HH", 0, 0) if items else b""
+
+
+def _block(order: str, block_type: int, body: bytes) -> bytes:
+    total = 12 + len(body)
+    return struct.pack(order + "II", block_type, total) + body + struct.pack(order + "I", total)
+
+
+def _shb(order: str) -> bytes:
+    return _block(order, 0x0A0D0D0A, struct.pack(order + "IHHq", 0x1A2B3C4D, 1, 0, -1))
+
+
+def _idb(order: str, linktype: int, described: bool) -> bytes:
+    options = [_opt(order, 9, bytes([9]))]  # nanosecond stamps, as the recorder writes
+    if described:
+        options.append(_opt(order, 3, describe_interface(LINE).encode()))
+    return _block(order, 1, struct.pack(order + "HHI", linktype, 0, 0) + _opts(order, options))
+
+
+def _epb(order: str, iface: int, t: float, data: bytes, options: list[bytes]) -> bytes:
+    ticks = round(t * 1e9)
+    body = struct.pack(
+        order + "IIIII", iface, ticks >> 32, ticks & 0xFFFFFFFF, len(data), len(data)
+    )
+    return _block(order, 6, body + data + b"\0" * (-len(data) % 4) + _opts(order, options))
+
+
+# one packet: interface, what (data, event, sent data), EPB flags, comment, bytes, the
+# header's lead over the packet time (negative: a header after the packet), time step
+packet = st.tuples(
+    st.integers(0, 2),
+    st.sampled_from(["data", "data", "data", "event", "sent", "lost"]),
+    st.sampled_from([None, None, 1, 2, 3]),
+    st.sampled_from(["", "", "", "a note"]),
+    st.integers(0, len(FRAMES) - 1),
+    st.integers(1, 3),
+    st.sampled_from([0.004, 0.004, 0.0, -0.5, 90.0]),
+    st.floats(0.0, 0.3),
+)
+
+
+def _capture(
+    order: str,
+    linktypes: list[int],
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    second_section: int,
+) -> bytes:
+    out = bytearray(_shb(order))
+    for k, lt in enumerate(linktypes):
+        out += _idb(order, lt, k == 0)
+    t = T0
+    for n, (iface, what, flags, comment, start, count, lead, step) in enumerate(packets):
+        if n == second_section:
+            out += _shb(order)
+            for k, lt in enumerate(linktypes):
+                out += _idb(order, lt, k == 0)
+        t += step
+        data = b"".join(FRAMES[start : start + count])
+        event = {"data": RTAC_DATA_RX_START, "sent": RTAC_DATA_TX_START}.get(what)
+        if event is None:
+            event = RTAC_FRAMING_ERROR if what == "event" else RTAC_CAPTURE_DATA_LOST
+            data = b""
+        options = []
+        if comment:
+            options.append(_opt(order, 1, comment.encode()))
+        if flags is not None:
+            options.append(_opt(order, 2, struct.pack(order + "I", flags)))
+        body = rtac_record(max(t - lead, 0.0), data, event=event)
+        if linktypes[iface % len(linktypes)] != LINKTYPE_RTAC_SERIAL:
+            body = data
+        out += _epb(order, iface % (len(linktypes) + 1), t, body, options)
+    return bytes(out)
+
+
+def _chunks(path: Path, batched: bool) -> tuple[list[Chunk], list[str], int]:
+    capture = open_capture(path)
+    with batching(batched):
+        got: list[Chunk] = []
+        for chunk in capture.chunks():
+            got.extend(chunk.split() if isinstance(chunk, Reads) else [chunk])
+    return got, capture.warnings, capture.data_bytes
+
+
+damage = st.one_of(
+    st.none(),
+    st.tuples(st.just("cut"), st.integers(0, 10**6)),
+    st.tuples(st.just("poke"), st.integers(0, 10**6), st.binary(min_size=1, max_size=4)),
+)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    order=st.sampled_from(["<", ">"]),
+    linktypes=st.sampled_from(
+        [[LINKTYPE_RTAC_SERIAL], [LINKTYPE_RTAC_SERIAL] * 2, [LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]]
+    ),
+    packets=st.lists(packet, max_size=40),
+    second_section=st.integers(-1, 40),
+    hurt=damage,
+)
+def test_bulk_walk_gives_the_chunks_and_warnings_of_the_block_walk(
+    tmp_path_factory: pytest.TempPathFactory,
+    order: str,
+    linktypes: list[int],
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    second_section: int,
+    hurt: tuple[object, ...] | None,
+) -> None:
+    data = bytearray(_capture(order, linktypes, packets, second_section))
+    if hurt is not None and hurt[0] == "cut":
+        del data[max(1, int(str(hurt[1])) % (len(data) + 1)) :]  # an empty file is refused
+    elif hurt is not None:
+        at = int(str(hurt[1])) % len(data)
+        poke = hurt[2]
+        assert isinstance(poke, bytes)
+        data[at : at + len(poke)] = poke
+    path = tmp_path_factory.mktemp("bulk") / "c.pcapng"
+    path.write_bytes(bytes(data))
+    plain = _chunks(path, False)
+    batched = _chunks(path, True)
+    assert batched == plain
+
+
+def _recording(path: Path, reads: list[tuple[bytes, float]]) -> None:
+    order = "<"
+    out = bytearray(_shb(order) + _idb(order, LINKTYPE_RTAC_SERIAL, True))
+    for data, t in reads:
+        start = t - len(data) * LINE.char_time
+        out += _epb(order, 0, t, rtac_record(start, data), [_opt(order, 2, b"\1\0\0\0")])
+    path.write_bytes(bytes(out))
+
+
+def _store_of(path: Path, batched: bool) -> Session:
+    session, capture = open_session(path)
+    session.batch_reads = batched
+    session.ingest(capture.chunks())
+    return session
+
+
+COLUMNS = [
+    "offset",
+    "length",
+    "t",
+    "t_end",
+    "kind",
+    "unit",
+    "fc",
+    "flags",
+    "channel",
+    "partner",
+    "status",
+]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    cuts=st.lists(st.integers(1, 90), min_size=1, max_size=400),
+    noise=st.lists(st.tuples(st.integers(0, 5000), st.binary(max_size=3)), max_size=8),
+    lag=st.floats(0.0, 0.02),
+)
+def test_batches_frame_pair_and_count_as_the_reads_one_by_one(
+    tmp_path_factory: pytest.TempPathFactory,
+    cuts: list[int],
+    noise: list[tuple[int, bytes]],
+    lag: float,
+) -> None:
+    stream = bytearray(b"".join(FRAMES))
+    for at, junk in sorted(noise, reverse=True):
+        stream[at:at] = junk
+    reads: list[tuple[bytes, float]] = []
+    pos, t, k = 0, T0, 0
+    while pos < len(stream):
+        n = cuts[k % len(cuts)]
+        k += 1
+        t += n * LINE.char_time + (lag if k % 3 == 0 else 0.0)
+        reads.append((bytes(stream[pos : pos + n]), t))
+        pos += n
+    path = tmp_path_factory.mktemp("rec") / "r.pcapng"
+    _recording(path, reads)
+    one, many = _store_of(path, False), _store_of(path, True)
+    for name in COLUMNS:
+        assert getattr(many.store, name) == getattr(one.store, name), name
+    assert many.store.streams == one.store.streams
+    assert many.store.resolution == one.store.resolution
+    assert many.stats.table() == one.stats.table()
+    assert (many.warnings, many.notes) == (one.warnings, one.notes)
+    # every byte is in the store, and the framer found the frames the stream holds
+    assert bytes(one.store.streams[0]) == bytes(stream)
+    assert len(one.store) > 0
