@@ -22,7 +22,7 @@ from sniffer.scan import Sample, format_of, parse_format, score
 from sniffer.sources.base import ReadOptions
 from sniffer.sources.sigrok import UartDecoder, bit_levels
 from sniffer.store import FrameStore
-from sniffer.vocab import Flag, Kind
+from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 COMMON_BAUDS = (
     300, 600, 1200, 2400, 4800, 9600, 14400, 19200, 28800, 38400, 56000, 57600,
@@ -127,19 +127,21 @@ def choose_format(
 def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
     """A warning when a capture's bytes look read at the wrong speed: many bytes, no
     check-valid frame (and line errors, where the source reported them)."""
-    total = frames = noise = errors = 0
+    total = noise = errors = 0
+    kinds, flags, lengths = store.kind, store.flags, store.length
+    event, noise_kind, line_error = int(Kind.EVENT), int(Kind.NOISE), int(Flag.LINE_ERROR)
     for i in range(len(store)):
-        kind = store.kind[i]
-        if kind == Kind.EVENT:
+        kind = kinds[i]
+        if kind == event:
             continue
-        total += store.length[i]
-        if kind == Kind.NOISE:
-            noise += store.length[i]
-        elif not store.flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
-            frames += 1
-        if store.flags[i] & Flag.LINE_ERROR:
+        total += lengths[i]
+        if kind == noise_kind:
+            noise += lengths[i]
+        elif not flags[i] & BAD_CHECK:
+            return None  # one valid frame is enough: the speed is right
+        if flags[i] & line_error:
             errors += 1
-    if frames or total < min_bytes or noise < total // 2:
+    if total < min_bytes or noise < total // 2:
         return None
     lead = f"{total} bytes and no valid Modbus frame"
     if errors:

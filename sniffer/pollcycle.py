@@ -15,8 +15,9 @@ from itertools import pairwise
 
 from dissectors.dissect import dissect
 from dissectors.values import Role
+from sniffer.stats import nearest_rank
 from sniffer.store import FrameStore
-from sniffer.vocab import Flag, Kind
+from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 GAP_FACTOR = 2.0  # a wait longer than this many periods is a gap
 MIN_REPEATS = 3  # sendings before a request counts as part of the cycle
@@ -92,20 +93,30 @@ def _what(body: bytes) -> tuple[tuple[object, ...], str]:
 
 
 def _quantile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
-    return ordered[k]
+    found = nearest_rank(values, q)
+    assert found is not None  # called with the waits of a request seen at least twice
+    return found
 
 
 def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
     """Every unit's poll cycle, from the requests in `store`."""
     store.sync()
     sendings: dict[int, dict[tuple[object, ...], tuple[str, int, list[float], list[float]]]] = {}
+    # a polling master sends the same requests all day: each is taken apart once
+    # (1M frames: about 6 us a request dissected, well under 1 us looked up)
+    known: dict[bytes, tuple[tuple[object, ...], str]] = {}
+    request = int(Kind.REQUEST)
     for i in range(len(store)):
-        if store.kind[i] != Kind.REQUEST or store.flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
+        if store.kind[i] != request or store.flags[i] & BAD_CHECK:
             continue
         unit = store.unit[i]
-        key, what = _what(store.view(i).body())
+        raw = store.raw(i)
+        found_what = known.get(raw)
+        if found_what is None:
+            found_what = known[raw] = _what(store.view(i).body())
+            if len(known) > 65536:  # writes with changing values: keep the memory bounded
+                known.clear()
+        key, what = found_what
         found = sendings.setdefault(unit, {}).setdefault(key, (what, store.fc[i], [], []))
         found[2].append(store.t[i])
         if store.flags[i] & Flag.RETRY:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from array import array
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
 
@@ -33,19 +34,29 @@ class UnitStats:
 
     def latency_ms(self, q: float) -> float | None:
         """The q-quantile (0..1) of answer latency in ms, nearest rank."""
-        if not self.latencies:
-            return None
-        ordered = sorted(self.latencies)
-        k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
-        return ordered[k] * 1000
+        found = nearest_rank(self.latencies, q)
+        return None if found is None else found * 1000
 
     def polling_period(self) -> float | None:
         """Median seconds between two requests to this unit."""
-        times = self.request_times
-        if len(times) < 2:
-            return None
-        gaps = sorted(b - a for a, b in pairwise(times))
-        return gaps[len(gaps) // 2]
+        return median_gap(self.request_times)
+
+
+def nearest_rank(values: Sequence[float], q: float) -> float | None:
+    """The q-quantile (0..1) of `values`, nearest rank (what --stats, the poll cycle and
+    the MQTT unit status all report); None for no values."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
+
+
+def median_gap(times: Sequence[float]) -> float | None:
+    """The median gap between consecutive `times` (a polling period); None for fewer
+    than two."""
+    if len(times) < 2:
+        return None
+    return nearest_rank([b - a for a, b in pairwise(times)], 0.5)
 
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)

@@ -40,6 +40,7 @@ from sniffer.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_p
 from sniffer.mqtt.target import MqttTarget
 from sniffer.session import Session
 from sniffer.sources.linktypes import describe_interface
+from sniffer.stats import median_gap, nearest_rank
 from sniffer.store import NO_PARTNER
 from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 
@@ -72,19 +73,12 @@ class UnitWindow:
 
     def latency_ms(self, q: float) -> float | None:
         """The q-quantile (nearest rank) of the window's latencies, in ms."""
-        if not self.latencies:
-            return None
-        ordered = sorted(self.latencies)
-        k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
-        return ordered[k] * 1000
+        found = nearest_rank(self.latencies, q)
+        return None if found is None else found * 1000
 
     def polling_period(self) -> float | None:
         """The median gap between the window's requests, in seconds."""
-        times = self.requests
-        if len(times) < 2:
-            return None
-        gaps = sorted(times[k + 1] - times[k] for k in range(len(times) - 1))
-        return gaps[len(gaps) // 2]
+        return median_gap(self.requests)
 
 
 @dataclass
