@@ -13,6 +13,7 @@ from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
     add_device_options,
+    add_index_option,
     add_line_options,
     add_network_options,
     add_raw_csv_option,
@@ -20,6 +21,7 @@ from sniffer.cli.options import (
     line_warnings,
     read_options,
 )
+from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.export import (
@@ -80,16 +82,21 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     query = query_of(args)
     bindings = bindings_for(args)
     options = read_options(args)
-    session, capture = open_session(source, options, bindings=bindings, timeout=args.timeout)
+    session, capture = open_session(
+        source, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
+    )
     told = line_warnings(options, capture.info.recorded_line, str(source))
-    session.ingest(capture.chunks())
+    progress = Progress(err, source.name, source)
+    session.ingest(capture.chunks(), progress.reading)
+    progress.done()
     session.warnings.extend(capture.warnings)
     for note in [*capture.info.notes, *session.notes]:
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    rows = Selection(session, query, args.count).take(len(session.store), final=True)
+    chosen = Selection(session, query, args.count).take(len(session.store), final=True)
     status = finish_read(capture, session, err)
+    rows = progress.rows(chosen, len(chosen))
     describer = session.describer
     if fmt == "parquet":
         from sniffer.parquet import ParquetError, write_parquet
@@ -198,6 +205,7 @@ def register(sub: SubParsers) -> None:
     add_raw_csv_option(p)
     add_line_options(p)
     add_network_options(p)
+    add_index_option(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument("--probe", action="append", metavar="NAME|N", help="as for replay")
     g.add_argument("--invert", action="store_true", help="idle-low levels")

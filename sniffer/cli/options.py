@@ -63,6 +63,16 @@ def add_network_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_index_option(p: argparse.ArgumentParser) -> None:
+    """`--no-index`: read the capture itself, not its sidecar index (see docs/performance.md)."""
+    p.add_argument(
+        "--no-index",
+        action="store_true",
+        help="read the capture itself even where a sidecar index of it (FILE.modscope-index) "
+        "fits; a capture of 4 MB or more gets one once read (MODSCOPE_NO_INDEX=1 does the same)",
+    )
+
+
 def add_device_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("device dictionaries")
     g.add_argument("--bus", metavar="FILE", help="bus file binding slave addresses to models")

@@ -17,6 +17,7 @@ from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
     add_device_options,
+    add_index_option,
     add_line_options,
     add_network_options,
     add_output_options,
@@ -24,6 +25,7 @@ from sniffer.cli.options import (
     line_warnings,
     read_options,
 )
+from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.listing import Lister
@@ -83,7 +85,9 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         and out.isatty()
         and sys.stdin.isatty()
     )
-    session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+    session, capture = open_session(
+        path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
+    )
     told = line_warnings(options, capture.info.recorded_line, str(path))
     if getattr(args, "mqtt", None):
         from sniffer.mqtt.command import cmd_replay_mqtt
@@ -96,18 +100,9 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
             return open_session(path, options, bindings=bindings, timeout=args.timeout)
 
         return run_tui(session, capture, reopen=reopen)
-    show_progress = err.isatty()
-
-    def progress(done: int, frames: int) -> None:
-        if show_progress:
-            err.write(
-                f"\rindexing {plain(shown or path.name)}: {done / 1e6:.1f} MB, {frames:,} rows"
-            )
-            err.flush()
-
-    session.ingest(capture.chunks(), progress)
-    if show_progress:
-        err.write("\r\x1b[K")
+    progress = Progress(err, shown or path.name, None if shown else path)
+    session.ingest(capture.chunks(), progress.reading)
+    progress.done()
     session.warnings.extend(capture.warnings)
     slow = None if capture.info.network else wrong_speed(session.store)
     if slow is not None:
@@ -176,6 +171,7 @@ def register(sub: SubParsers) -> None:
     p.add_argument("-r", "--read", metavar="FILE", help="the capture file (as tcpdump -r)")
     add_line_options(p)
     add_network_options(p)
+    add_index_option(p)
     g = p.add_argument_group("logic analyser captures (.sr)")
     g.add_argument(
         "--probe",
