@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
-from sniffer.cli.filtering import add_filter_options
+from sniffer.cli.filtering import Selection, add_filter_options
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -29,6 +29,7 @@ from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.listing import Lister
+from sniffer.query import Query
 from sniffer.session import Session
 from sniffer.sources import Capture
 from sniffer.text import plain
@@ -66,7 +67,7 @@ def stdin_copy() -> Iterator[Path]:
 
 def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | None) -> int:
     from sniffer.baud import wrong_speed
-    from sniffer.cli.filtering import Selection, query_of
+    from sniffer.cli.filtering import query_of
     from sniffer.pollcycle import cycle_table, poll_cycles
     from sniffer.session import DEMO_BUS, DEMO_CAPTURE, open_session
 
@@ -122,6 +123,14 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
             out.write(server_table(session.store) + "\n\n")
         out.write(cycle_table(poll_cycles(session.store), labels) + "\n")
         return status
+    write_listing(out, args, session, query)
+    return status
+
+
+def write_listing(
+    out: TextIO, args: argparse.Namespace, session: Session, query: Query | None
+) -> None:
+    """The rows a filter and -c let through, in the format asked for (text by default)."""
     lister = Lister(
         out,
         args.format or "text",
@@ -133,7 +142,6 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     lister.origin = selection.origin()
     lister.write(selection.take(len(session.store), final=True), flush=False)
     out.flush()
-    return status
 
 
 REPLAY_EXAMPLES = """\

@@ -37,11 +37,10 @@ def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
 
 
 def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
-    from sniffer.cli.filtering import Selection, query_of
+    from sniffer.cli.filtering import query_of
     from sniffer.cli.options import bindings_for, read_options, read_status
-    from sniffer.cli.replay import stdin_copy
+    from sniffer.cli.replay import stdin_copy, write_listing
     from sniffer.gateway_report import gateway_table, server_table
-    from sniffer.listing import Lister
     from sniffer.multifile import align, link_files, merge
     from sniffer.session import open_session
 
@@ -129,15 +128,5 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
         if links:
             out.write("\n" + gateway_table(links) + "\n")
         return status
-    lister = Lister(
-        out,
-        args.format or "text",
-        merged.describer,
-        absolute=args.time == "abs",
-        raw_csv=args.raw_csv,
-    )
-    selection = Selection(merged, query, args.count)
-    lister.origin = selection.origin()
-    lister.write(selection.take(len(merged.store), final=True), flush=False)
-    out.flush()
+    write_listing(out, args, merged, query)
     return status

@@ -27,6 +27,7 @@ from sniffer.tui.ladder import (
     scale_text,
 )
 from sniffer.tui.render import Styles, time_width
+from sniffer.tui.widgets.keybar import key_hints
 from sniffer.tui.widgets.status import StatusBar
 
 if TYPE_CHECKING:
@@ -200,17 +201,17 @@ class LadderScreen(Screen[int | None]):
     def on_mount(self) -> None:
         self.view.focus()
         self.update_title()
-        keys = Text()
-        for key, what in (
-            ("↑↓ PgUp PgDn", "move"),
-            ("End/f", "follow"),
-            ("+/-", "scale"),
-            ("⏎", "to list"),
-            ("esc/l", "back"),
-        ):
-            keys.append(key, "bold")
-            keys.append(f" {what}  ")
-        self.keys.update(keys)
+        self.keys.update(
+            key_hints(
+                (
+                    ("↑↓ PgUp PgDn", "move"),
+                    ("End/f", "follow"),
+                    ("+/-", "scale"),
+                    ("⏎", "to list"),
+                    ("esc/l", "back"),
+                )
+            )
+        )
 
     def update_title(self) -> None:
         view = self.view

@@ -16,6 +16,7 @@ from textual.widgets import Static
 from sniffer.text import plain
 from sniffer.tui.regtable import PollRow, RegisterTable
 from sniffer.tui.render import time_text, time_width
+from sniffer.tui.widgets.keybar import key_hints
 from sniffer.tui.widgets.status import StatusBar
 
 if TYPE_CHECKING:
@@ -183,17 +184,17 @@ class TableScreen(Screen[int | None]):
     def on_mount(self) -> None:
         self.view.focus()
         self.update_title()
-        keys = Text()
-        for key, what in (
-            ("↑↓ PgUp PgDn", "move"),
-            ("←→", "columns"),
-            ("End/f", "follow"),
-            ("⏎", "to frame"),
-            ("esc", "back"),
-        ):
-            keys.append(key, "bold")
-            keys.append(f" {what}  ")
-        self.keys.update(keys)
+        self.keys.update(
+            key_hints(
+                (
+                    ("↑↓ PgUp PgDn", "move"),
+                    ("←→", "columns"),
+                    ("End/f", "follow"),
+                    ("⏎", "to frame"),
+                    ("esc", "back"),
+                )
+            )
+        )
 
     def progress(self, scanned: float | None) -> None:
         """How much of the capture the table has read (None: all of it)."""

@@ -15,6 +15,15 @@ from sniffer.tui.keys import KEYS, Context, Key
 MAX_LINES = 2
 
 
+def key_hints(pairs: Sequence[tuple[str, str]]) -> Text:
+    """One line of `key what` hints, keys in bold (the full screens' key lines)."""
+    text = Text()
+    for key, what in pairs:
+        text.append(key, "bold")
+        text.append(f" {what}  ")
+    return text
+
+
 def key_lines(keys: Sequence[Key], width: int, key_style: Style, text_style: Style) -> Text:
     """The keys as `key text` pairs, wrapped at `width` cells, at most MAX_LINES lines:
     two spaces between pairs, or one when two do not fit. When even that does not fit,
