@@ -10,11 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from rich.text import Text
-from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.screen import Screen
-from textual.widget import Widget
-from textual.widgets import Static
 
 from sniffer.tui.ladder import (
     Ladder,
@@ -27,8 +23,7 @@ from sniffer.tui.ladder import (
     scale_text,
 )
 from sniffer.tui.render import Styles, time_width
-from sniffer.tui.widgets.keybar import key_hints
-from sniffer.tui.widgets.status import StatusBar
+from sniffer.tui.screens.view import RowsWidget, ViewScreen
 
 if TYPE_CHECKING:
     from sniffer.tui.model import ViewModel
@@ -54,7 +49,7 @@ STYLE_NAMES = (
 SCALE_STEPS = (0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 
 
-class LadderView(Widget, can_focus=True):
+class LadderView(RowsWidget):
     """The ladder's lines from `top` (a view position); `cursor` is a view position."""
 
     COMPONENT_CLASSES: ClassVar[set[str]] = {f"ladder--{n}" for n in STYLE_NAMES}
@@ -167,7 +162,7 @@ class LadderView(Widget, can_focus=True):
         return view.row(self.cursor) if 0 <= self.cursor < view.count else None
 
 
-class LadderScreen(Screen[int | None]):
+class LadderScreen(ViewScreen):
     """Dismissed with the row to select in the list (Enter), or None (Esc, l, q)."""
 
     BINDINGS: ClassVar[list[BindingType]] = [
@@ -183,35 +178,19 @@ class LadderScreen(Screen[int | None]):
         Binding("minus", "zoom(1)", "zoom out", priority=True),
     ]
 
+    HINTS: ClassVar[tuple[tuple[str, str], ...]] = (
+        ("↑↓ PgUp PgDn", "move"),
+        ("End/f", "follow"),
+        ("+/-", "scale"),
+        ("⏎", "to list"),
+        ("esc/l", "back"),
+    )
+
     def __init__(self, model: ViewModel, cursor: int, following: bool = False) -> None:
-        super().__init__(id="ladder-screen")
         self.model = model
-        self.title_bar = Static(Text(""), id="ladder-title")
         self.view = LadderView(model, cursor, id="ladder")
         self.view.following = following
-        self.status = StatusBar(id="ladder-status")
-        self.keys = Static(Text(""), id="ladder-keys")
-
-    def compose(self) -> ComposeResult:
-        yield self.title_bar
-        yield self.view
-        yield self.status
-        yield self.keys
-
-    def on_mount(self) -> None:
-        self.view.focus()
-        self.update_title()
-        self.keys.update(
-            key_hints(
-                (
-                    ("↑↓ PgUp PgDn", "move"),
-                    ("End/f", "follow"),
-                    ("+/-", "scale"),
-                    ("⏎", "to list"),
-                    ("esc/l", "back"),
-                )
-            )
-        )
+        super().__init__(self.view, id="ladder-screen")
 
     def update_title(self) -> None:
         view = self.view
@@ -233,15 +212,6 @@ class LadderScreen(Screen[int | None]):
         """New rows were published (live, indexing) or the filter changed."""
         self.view.refresh()
         self.update_title()
-
-    def action_close(self) -> None:
-        self.dismiss(None)
-
-    def action_jump(self) -> None:
-        self.dismiss(self.view.cursor_row)
-
-    def action_move(self, step: int) -> None:
-        self.view.move(step)
 
     def action_page(self, step: int) -> None:
         self.view.page(step)

@@ -7,17 +7,12 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from rich.text import Text
-from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.screen import Screen
-from textual.widget import Widget
-from textual.widgets import Static
 
 from sniffer.text import plain
 from sniffer.tui.regtable import PollRow, RegisterTable
 from sniffer.tui.render import time_text, time_width
-from sniffer.tui.widgets.keybar import key_hints
-from sniffer.tui.widgets.status import StatusBar
+from sniffer.tui.screens.view import RowsWidget, ViewScreen
 
 if TYPE_CHECKING:
     from sniffer.tui.watch import Series
@@ -25,7 +20,7 @@ if TYPE_CHECKING:
 COL_MIN, COL_MAX = 9, 18
 
 
-class TableView(Widget, can_focus=True):
+class TableView(RowsWidget):
     """The table's header (two lines) and the rows from `top`; `cursor` is a row index."""
 
     COMPONENT_CLASSES: ClassVar[set[str]] = {
@@ -148,7 +143,7 @@ class TableView(Widget, can_focus=True):
         return rows[self.cursor].row if 0 <= self.cursor < len(rows) else None
 
 
-class TableScreen(Screen[int | None]):
+class TableScreen(ViewScreen):
     """Dismissed with the frame of the selected poll (Enter), or None (Esc, q)."""
 
     BINDINGS: ClassVar[list[BindingType]] = [
@@ -164,37 +159,21 @@ class TableScreen(Screen[int | None]):
         Binding("right,l", "columns(1)", "right", priority=True),
     ]
 
+    HINTS: ClassVar[tuple[tuple[str, str], ...]] = (
+        ("↑↓ PgUp PgDn", "move"),
+        ("←→", "columns"),
+        ("End/f", "follow"),
+        ("⏎", "to frame"),
+        ("esc", "back"),
+    )
+
     def __init__(
         self, table: RegisterTable, series: list[Series], origin: float, absolute: bool
     ) -> None:
-        super().__init__(id="table-screen")
         self.table = table
-        self.title_bar = Static(Text(""), id="table-title")
         self.view = TableView(table, series, origin, absolute, id="table")
-        self.status = StatusBar(id="table-status")
-        self.keys = Static(Text(""), id="table-keys")
         self.scanned: float | None = 0.0
-
-    def compose(self) -> ComposeResult:
-        yield self.title_bar
-        yield self.view
-        yield self.status
-        yield self.keys
-
-    def on_mount(self) -> None:
-        self.view.focus()
-        self.update_title()
-        self.keys.update(
-            key_hints(
-                (
-                    ("↑↓ PgUp PgDn", "move"),
-                    ("←→", "columns"),
-                    ("End/f", "follow"),
-                    ("⏎", "to frame"),
-                    ("esc", "back"),
-                )
-            )
-        )
+        super().__init__(self.view, id="table-screen")
 
     def progress(self, scanned: float | None) -> None:
         """How much of the capture the table has read (None: all of it)."""
@@ -215,15 +194,6 @@ class TableScreen(Screen[int | None]):
             title.append("  ")
             title.append(f"PARTIAL: {self.scanned:.0%} read", "bold reverse")
         self.title_bar.update(title)
-
-    def action_close(self) -> None:
-        self.dismiss(None)
-
-    def action_jump(self) -> None:
-        self.dismiss(self.view.cursor_row)
-
-    def action_move(self, step: int) -> None:
-        self.view.move(step)
 
     def action_page(self, step: int) -> None:
         self.view.move(step * max(1, self.view.size.height - 3))
