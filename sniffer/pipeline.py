@@ -33,6 +33,7 @@ from sniffer.vocab import Flag, Kind
 
 CAPTURE_COMPLETE = "capture complete"  # a source's last word: when the capture ended
 BYTE_ERRORS = ("framing error", "parity error")  # events about the byte before them
+READ_GAPS = 4096  # gaps between host reads that the read resolution is estimated from
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 
@@ -75,7 +76,10 @@ class Pipeline:
         self.store = store if store is not None else FrameStore()
         self.store.stamps = stamps
         self.store.resolution = resolution
+        # host reads of unknown resolution: gaps between reads are kept until there are
+        # enough (READ_GAPS) to give it
         self._estimating = stamps == Stamp.READ_END and not resolution
+        self._frame_starts = stamps == Stamp.FRAME_START
         self._read_gaps: list[float] = []  # for host reads of unknown resolution
         self._resolution_from = 0  # gaps the estimate was made from
         self._last_read: float | None = None
@@ -107,11 +111,11 @@ class Pipeline:
         if isinstance(chunk, Reads):
             self._feed_reads(chunk)
             return
-        if self.stamps == Stamp.FRAME_START and chunk.data and chunk.t_start is None:
+        if self._frame_starts and chunk.data and chunk.t_start is None:
             # the stamp is when the frame began: it ends when its bytes are through
             end = chunk.t_end + len(chunk.data) * self.line.char_time
             chunk = Chunk(chunk.data, end, chunk.t_end, chunk.channel, chunk.direction)
-        elif self.stamps == Stamp.READ_END and chunk.data and self._estimating:
+        elif self._estimating and chunk.data:
             self._note_read(chunk.t_end)
         ch = self.channels.get(chunk.channel)
         if ch is None:
@@ -152,18 +156,15 @@ class Pipeline:
             ch is None
             or ch.framer is None
             or self.multi
-            or self.stamps == Stamp.FRAME_START
+            or self._frame_starts
             or (ch.hint_dir is not None and ch.hint_dir[-1:] != [reads.direction])
         ):
             for chunk in reads.split():
                 self.feed(chunk)
             return
-        if self.stamps == Stamp.READ_END and self._estimating:
-            if len(self._read_gaps) < 4096:
-                for t in reads.t_ends:
-                    self._note_read(t)
-            else:
-                self._last_read = reads.t_end
+        if self._estimating:
+            for t in reads.t_ends:
+                self._note_read(t)
         ch.fed += len(reads.data)
         ch.framer.feed_reads(reads)
         ch.last_t = reads.t_end
@@ -205,10 +206,12 @@ class Pipeline:
 
     def _note_read(self, t_end: float) -> None:
         """Keep the first gaps between host reads: their median is the read resolution."""
-        if self._last_read is not None and len(self._read_gaps) < 4096:
+        if self._last_read is not None:
             gap = t_end - self._last_read
             if 0 < gap < 0.1:  # reads of a busy line, not pauses between polls
                 self._read_gaps.append(gap)
+                if len(self._read_gaps) >= READ_GAPS:
+                    self._estimating = False  # enough to tell
         self._last_read = t_end
 
     def _estimate_resolution(self) -> None:
