@@ -194,14 +194,3 @@ exit status:
      before and after the damage are there, the warnings say where
   2  nothing usable was read, or a user error (one line says what to fix)
 """
-
-EXIT_OK = 0  # everything was read
-EXIT_WARNINGS = 1  # read, with warnings (a truncated file, a damaged record)
-EXIT_NOTHING = 2  # nothing usable was read (also every user error)
-
-
-def read_status(warnings: list[str], rows: int) -> int:
-    """The exit status of a command that read a capture, as capture tools use them."""
-    if not warnings:
-        return EXIT_OK
-    return EXIT_WARNINGS if rows else EXIT_NOTHING

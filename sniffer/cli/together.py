@@ -38,11 +38,13 @@ def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
 
 def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
     from sniffer.cli.filtering import query_of
-    from sniffer.cli.options import bindings_for, read_options, read_status
+    from sniffer.cli.options import bindings_for, read_options
     from sniffer.cli.replay import stdin_copy, write_listing
+    from sniffer.cli.verdicts import finish_read
     from sniffer.gateway_report import gateway_table, server_table
     from sniffer.multifile import align, link_files, merge
     from sniffer.session import open_session
+    from sniffer.verdict import ALL_READ, READ_WITH_WARNINGS
 
     if files.count("-") > 1:
         raise UsageError("standard input (-) can be given once")
@@ -66,8 +68,7 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
             else:
                 paths.append(Path(f))
         sessions = []
-        capture_warnings: list[str] = []
-        rows = 0
+        statuses = []  # each file's verdict, as replay of it alone would give it
         for f, path in zip(files, paths, strict=True):
             if f != "-" and not path.exists():
                 raise UsageError(f"{f}: no such file")
@@ -79,8 +80,7 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
                 err.write(f"modscope: note: {plain(shown)}: {plain(note)}\n")
             for w in session.warnings:
                 err.write(f"modscope: warning: {plain(w)}\n")
-            capture_warnings += capture.warnings
-            rows += len(session.store)
+            statuses.append(finish_read(capture, session, err))
             sessions.append(session)
     alignments = align(files, sessions, given)
     for a in alignments:
@@ -99,7 +99,7 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
                 "clocks; the files are merged as their clocks say (give --offset "
                 "FILE=SECONDS)\n"
             )
-    status = read_status(capture_warnings + warnings, rows)
+    status = max([*statuses, READ_WITH_WARNINGS if warnings else ALL_READ])
     use_tui = (
         args.format is None
         and not args.stats
