@@ -245,10 +245,11 @@ def test_the_command_line_filter_never_loads_the_tui_package() -> None:
 
 def test_the_tui_rows_module_shares_the_core_matcher() -> None:
     import sniffer.select
-    import sniffer.tui.rows
+    import sniffer.tui.model
 
-    assert sniffer.tui.rows.FilterJob is sniffer.select.FilterJob
-    assert sniffer.tui.rows.Options is sniffer.select.Options
+    used = vars(sniffer.tui.model)  # what the TUI's list model filters with
+    assert used["FilterJob"] is sniffer.select.FilterJob
+    assert used["Options"] is sniffer.select.Options
 
 
 def test_filtered_replay_in_small_blocks_gives_the_same_rows(

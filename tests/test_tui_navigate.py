@@ -9,10 +9,10 @@ import time
 import pytest
 from textual.pilot import Pilot
 
+from sniffer.query import parse_query
+from sniffer.select import Options
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.navigate import find_row
-from sniffer.tui.query import parse_query
-from sniffer.tui.rows import Options
 from tests.test_tui_support import burst, hostile_session, synthetic_session
 
 

@@ -17,12 +17,13 @@ from rich.style import Style
 from dissectors.values import Dissection
 from sniffer.describe import FrameDetail, register_span
 from sniffer.model import Chunk, LineSettings
+from sniffer.query import Query, QueryError, TimePoint, parse_query, parse_time_point
+from sniffer.select import FilterJob, Options
 from sniffer.session import Session
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.synth import polling_frames, stress_stream
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture, feed_live, live_status
 from sniffer.tui.model import ViewModel
-from sniffer.tui.query import Query, QueryError, TimePoint, parse_query, parse_time_point
 from sniffer.tui.render import (
     ago_text,
     bytes_per_line,
@@ -38,7 +39,7 @@ from sniffer.tui.render import (
     sparkline,
     time_width,
 )
-from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
+from sniffer.tui.rows import RowView, StoreReader, last_answers
 from sniffer.tui.watch import HISTORY, Sample, Series, Watch
 from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 from tests.test_tui_support import (
@@ -236,7 +237,7 @@ def test_column_scan_matches_the_reference(
 def test_a_scan_in_small_steps_gives_the_same_rows(
     stress: Session, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sniffer.tui.rows as rows_module
+    import sniffer.select as select_module  # where the matcher reads its step
 
     q = parse_query("-fc:3 status:ok,exception,timeout")
     o = Options(transactions=True)
@@ -244,7 +245,7 @@ def test_a_scan_in_small_steps_gives_the_same_rows(
     n = len(store)
     whole = FilterJob(store, q, o, stress.annotator, store.t[0])
     whole.advance(n, budget=60, final=True)
-    monkeypatch.setattr(rows_module, "BLOCK", 97)
+    monkeypatch.setattr(select_module, "BLOCK", 97)
     growing = FilterJob(store, q, o, stress.annotator, store.t[0])
     for upto in range(0, n + 1, 250):  # rows arrive as a live capture delivers them
         while growing.advance(upto, budget=0.001):

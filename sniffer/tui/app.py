@@ -28,7 +28,9 @@ from textual.worker import get_current_worker
 from sniffer.describe import Describer
 from sniffer.listing import FORMATS, Lister
 from sniffer.model import Chunk
+from sniffer.query import Query, QueryError, parse_query, parse_time_point
 from sniffer.recorder import RecordError
+from sniffer.select import FilterJob, resolve_time, time_bounds
 from sniffer.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
 from sniffer.store import FrameStore
@@ -45,9 +47,7 @@ from sniffer.tui.feed import (
 from sniffer.tui.keys import Context, key_context
 from sniffer.tui.model import ViewModel
 from sniffer.tui.navigate import find_row
-from sniffer.tui.query import Query, QueryError, parse_query, parse_time_point
 from sniffer.tui.regtable import RegisterTable
-from sniffer.tui.rows import FilterJob, resolve_time, time_bounds
 from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.ladder import LadderScreen
 from sniffer.tui.screens.main import MainScreen

@@ -10,11 +10,12 @@ from __future__ import annotations
 from rich.text import Text
 
 from sniffer.describe import Describer, FrameDetail
+from sniffer.query import Query
+from sniffer.select import FilterJob, Options
 from sniffer.session import Session
 from sniffer.store import NO_PARTNER
-from sniffer.tui.query import Query
 from sniffer.tui.render import Columns, Styles, delta_text, row_text, time_text
-from sniffer.tui.rows import FilterJob, Options, RowView, StoreReader, last_answers
+from sniffer.tui.rows import RowView, StoreReader, last_answers
 from sniffer.vocab import Kind
 
 

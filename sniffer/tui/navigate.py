@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from itertools import compress
 
 from sniffer.describe import Describer
+from sniffer.query import Query
+from sniffer.select import Options, column_mask, detail_matches
 from sniffer.store import FrameStore
-from sniffer.tui.query import Query
-from sniffer.tui.rows import Options, column_mask, detail_matches
 
 BLOCK = 65536
 

@@ -1,8 +1,8 @@
 """Provides the rows the frame list shows: all of them, one per transaction, or a filter's matches.
 
 The matcher itself (`FilterJob`, the column masks, `Options`) lives in `sniffer.select`,
-shared with the command line's `--filter`; it is re-exported here. This module adds what
-only the list needs: a read-only view of a store another thread fills, the mapping from
+shared with the command line's `--filter`. This module adds what only the list needs: a
+read-only view of a store another thread fills, the mapping from
 list positions to rows, and each unit's last answer. Nothing here imports Textual; the
 app runs `FilterJob.advance` in a worker thread while the UI reads `FilterJob.rows`.
 """
@@ -12,43 +12,9 @@ from __future__ import annotations
 from array import array
 from bisect import bisect_left
 
-from sniffer.select import (  # the matcher lives in the core, shared with the CLI's --filter
-    BLOCK,
-    FilterJob,
-    Options,
-    _and,
-    _bytes_mask,
-    _table,
-    column_mask,
-    detail_matches,
-    flag_mask,
-    function_codes,
-    problem_mask,
-    resolve_time,
-    row_words,
-    status_mask,
-    time_bounds,
-)
+from sniffer.select import _and, _bytes_mask, _table  # the masks last_answers scans
 from sniffer.store import FrameStore
 from sniffer.vocab import Kind
-
-__all__ = [
-    "BLOCK",
-    "FilterJob",
-    "Options",
-    "RowView",
-    "StoreReader",
-    "column_mask",
-    "detail_matches",
-    "flag_mask",
-    "function_codes",
-    "last_answers",
-    "problem_mask",
-    "resolve_time",
-    "row_words",
-    "status_mask",
-    "time_bounds",
-]
 
 
 class StoreReader(FrameStore):
