@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import contextlib
 import json
+import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -84,6 +87,23 @@ def _text(frames: list[bytes]) -> str:
     return ANSI.sub("", b"".join(frames).decode("utf-8", "replace"))
 
 
+def stop_group(browser: subprocess.Popen[bytes]) -> None:
+    """End chromium and every helper process it started, and wait until all are gone:
+    helpers outliving the browser go on writing its profile while it is being removed."""
+    group = browser.pid  # start_new_session: the group id is the browser's pid
+    for sig, grace in ((signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(group, sig)
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            browser.poll()  # reap the browser itself, or the group never empties
+            try:
+                os.killpg(group, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.05)
+
+
 def main() -> int:
     url, seconds, words = sys.argv[1], float(sys.argv[2]), sys.argv[3:]
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -101,16 +121,12 @@ def main() -> int:
             ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,  # its helpers (zygote, renderers) share its group
         )
         try:
             result = asyncio.run(watch(port, url, seconds, words))
         finally:
-            browser.terminate()
-            try:
-                browser.wait(10)
-            except subprocess.TimeoutExpired:
-                browser.kill()
-                browser.wait()
+            stop_group(browser)
     print(json.dumps(result))
     return 0
 
