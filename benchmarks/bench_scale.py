@@ -102,20 +102,34 @@ def write_frames(path: Path, frames: list[SynthFrame]) -> None:
 
 
 def make_files(folder: Path, n: int) -> tuple[Path, Path]:
-    """`reads-n.pcapng` and `frames-n.pcapng` in `folder`, written unless already there."""
+    """`reads-n.pcapng` and `frames-n.pcapng` in `folder`, written unless already there.
+
+    They are written by a child process: Linux carries a process's peak RSS over fork
+    and exec (`ru_maxrss`), so a benchmark that had built a million frames itself would
+    report that peak for every command it timed afterwards."""
     folder.mkdir(parents=True, exist_ok=True)
     reads, one = folder / f"reads-{n}.pcapng", folder / f"frames-{n}.pcapng"
     if not (reads.exists() and one.exists()):
-        t = time.perf_counter()
-        frames = _frames(n)
-        count = write_reads(reads, frames)
-        write_frames(one, frames)
-        size = sum(len(f.raw) for f in frames)
-        print(
-            f"wrote {n:,} frames ({size / 1e6:.1f} MB of bus bytes, {count:,} reads) to "
-            f"{reads.name} and {one.name} in {time.perf_counter() - t:.1f} s"
+        subprocess.run(
+            [sys.executable, __file__, "--write-files", str(n), "--dir", str(folder)],
+            check=True,
         )
     return reads, one
+
+
+def write_files(folder: Path, n: int) -> None:
+    """Write the two files of `make_files` here (in the child process)."""
+    reads, one = folder / f"reads-{n}.pcapng", folder / f"frames-{n}.pcapng"
+    t = time.perf_counter()
+    frames = _frames(n)
+    count = write_reads(reads, frames)
+    write_frames(one, frames)
+    size = sum(len(f.raw) for f in frames)
+    print(
+        f"wrote {n:,} frames ({size / 1e6:.1f} MB of bus bytes, {count:,} reads) to "
+        f"{reads.name} and {one.name} in {time.perf_counter() - t:.1f} s",
+        flush=True,
+    )
 
 
 @dataclass
@@ -221,7 +235,11 @@ def main() -> None:
     parser.add_argument("--dir", type=Path, default=Path("/tmp/modscope-bench"))
     parser.add_argument("--no-tshark", action="store_true", help="time modscope only")
     parser.add_argument("--only-index", action="store_true", help="skip listings and export")
+    parser.add_argument("--write-files", type=int, metavar="N", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.write_files is not None:
+        write_files(args.dir, args.write_files)
+        return
     print(f"machine: {machine()}")
     n, ln, runs = args.frames, args.listing_frames, args.runs
     reads, one = make_files(args.dir, n)
