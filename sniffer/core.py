@@ -13,6 +13,7 @@ runs, and why not the compiled one.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from types import ModuleType
 
@@ -20,10 +21,12 @@ from types import ModuleType
 def _load() -> tuple[ModuleType | None, str]:
     if os.environ.get("MODSCOPE_PURE_PYTHON", "") == "1":
         return None, "MODSCOPE_PURE_PYTHON=1"
+    if importlib.util.find_spec("sniffer._core") is None:
+        return None, "the compiled extension is not built"
     try:
         from sniffer import _core  # type: ignore[attr-defined]
     except ImportError as exc:
-        return None, f"the compiled extension is not built ({exc})"
+        return None, f"the compiled extension does not load ({exc})"
     module: ModuleType = _core
     return module, ""
 
@@ -31,15 +34,6 @@ def _load() -> tuple[ModuleType | None, str]:
 # The compiled module, or None for the pure-Python core. The readers and the framer look
 # it up at each call, so tests can set it to None to run the pure-Python core.
 FAST, REASON = _load()
-
-
-def compiled_available() -> bool:
-    """Whether the compiled extension imports (whatever MODSCOPE_PURE_PYTHON says)."""
-    try:
-        from sniffer import _core  # type: ignore[attr-defined]  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def describe() -> str:
