@@ -13,6 +13,8 @@ Every byte fed in leaves in exactly one frame or one noise span, in order.
 
 from __future__ import annotations
 
+import math
+from array import array
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -30,6 +32,7 @@ from dissectors.functions import (
     LengthRule,
     fixed,
 )
+from sniffer import core
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
 
@@ -304,6 +307,8 @@ class RtuFramer(_Framer):
             self.answer_up,
             self.answer_byte,
         )
+        # the same, flat, for the compiled fast paths (sniffer.core)
+        self.table_bytes = array("q", [v for table in self.tables for v in table]).tobytes()
         self._appenders_of: FrameStore | None = None  # the store `_appenders` write into
         self._appenders: tuple[Callable[[Any], None], ...] = ()
         self.pending_len = 0
@@ -377,13 +382,25 @@ class RtuFramer(_Framer):
         timeout = self.timeout
         add_read = tl.add_read
         count = len(reads.ends) if reads is not None else 0
+        fast = core.FAST
         k = prev = 0
         while True:  # once, or once a read of the batch
-            if reads is not None:
+            if fast is not None and self.noise_start < 0 and not exact:
+                # the compiled copy of the fast paths below (and, over a batch, of
+                # add_read): it stops where the slow path must decide, and this loop goes
+                # on from there in the current read
+                if reads is not None and k == count:
+                    break
+                slow, k, prev, end = self._fast_scan(fast, buf, final, end, reads, k, prev, base)
+                if not slow and reads is not None:
+                    break  # every read is done
+                # (done without a batch: the loop below finds nothing more to do)
+            elif reads is not None:
                 if k == count:
                     break
                 read_end = reads.ends[k]
-                add_read(read_end - prev, reads.t_starts[k], reads.t_ends[k])
+                t_start = reads.t_starts[k]
+                add_read(read_end - prev, None if t_start != t_start else t_start, reads.t_ends[k])
                 prev = read_end
                 end = self.scan_end = base + read_end
                 k += 1
@@ -533,6 +550,115 @@ class RtuFramer(_Framer):
                 break
             if len(tl.spans) > 64:
                 tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+
+    def _fast_scan(
+        self,
+        fast: Any,
+        buf: bytearray,
+        final: bool,
+        end: int,
+        reads: Reads | None,
+        k: int,
+        prev: int,
+        base: int,
+    ) -> tuple[bool, int, int, int]:
+        """Run the compiled fast paths (`sniffer._core.rtu_scan`): from `self.pos` to
+        `end`, or over the reads of the batch from read `k` on (`prev`: the end of read
+        k - 1 in the batch), adding each to the timeline. What they found goes into the
+        store, the pairs and the framer's and timeline's state, as the loop in
+        `_scan_bytes` would have left them. Returns whether the slow path must decide at
+        `self.pos`, the next read, the end of the last read added, and the scan's end."""
+        tl = self.timeline
+        out = self.out
+        last_end = tl.last_end
+        first_too_fast = tl.first_too_fast
+        if reads is not None:
+            ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
+        else:
+            ends, t_starts, t_ends = _NO_READS
+        (
+            slow,
+            pos,
+            k,
+            prev,
+            end,
+            self.pending_unit,
+            self.pending_fc,
+            self.pending_len,
+            self.pending_deadline,
+            self.pending_row,
+            _row,
+            offsets,
+            lengths,
+            times,
+            time_ends,
+            kinds,
+            units,
+            codes,
+            pairs,
+            tl.cur_start,
+            tl.cur_t0,
+            tl.cur_rate,
+            tl.offset,
+            last_end,
+            tl.too_fast,
+            first_too_fast,
+            spans,
+            boundaries,
+        ) = fast.rtu_scan(
+            buf,
+            self.table_bytes,
+            self.pos,
+            end,
+            final,
+            reads is not None,
+            self.pending_unit,
+            self.pending_fc,
+            self.pending_len,
+            self.pending_deadline,
+            self.pending_row if self.pair_inline else -1,
+            len(out.t),
+            self.timeout,
+            tl.cur_start,
+            tl.cur_t0,
+            tl.cur_rate,
+            tl.offset,
+            math.nan if last_end is None else last_end,
+            tl.slack,
+            tl.char,
+            tl.t35,
+            tl.too_fast,
+            math.nan if first_too_fast is None else first_too_fast,
+            ends,
+            t_starts,
+            t_ends,
+            k,
+            prev,
+            base,
+        )
+        self.pos = pos
+        self.scan_end = end
+        tl.last_end = None if math.isnan(last_end) else last_end
+        tl.first_too_fast = None if math.isnan(first_too_fast) else first_too_fast
+        if spans:
+            tl.spans.extend([_Span(*span) for span in spans])
+            tl.starts.extend([span[0] for span in spans])
+            tl.boundaries.extend(boundaries)
+        if offsets:
+            out.offset.frombytes(offsets)
+            out.length.frombytes(lengths)
+            out.t.frombytes(times)
+            out.t_end.frombytes(time_ends)
+            out.kind.frombytes(kinds)
+            out.unit.frombytes(units)
+            out.fc.frombytes(codes)
+        if pairs:
+            flat: array[int] = array("q")
+            flat.frombytes(pairs)
+            self.pairs.extend(flat)
+        if reads is not None and len(tl.spans) > 64:
+            tl.forget_before(self.pos)
+        return slow, k, prev, end
 
     def _predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
         rule = self.answer[fc]
@@ -741,6 +867,9 @@ class RtuFramer(_Framer):
         self.flush()
         self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
 
+
+# the empty batch the compiled fast paths get when there is none
+_NO_READS: tuple[array[int], array[float], array[float]] = (array("q"), array("d"), array("d"))
 
 # preference of a length rule's kind when it is not the answer the open request predicts
 PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}

@@ -18,7 +18,7 @@ import traceback
 from collections.abc import Sequence
 from typing import TextIO
 
-from sniffer import __version__
+from sniffer import __version__, core
 from sniffer.cli import (
     dictcmd,
     diff,
@@ -71,7 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=f"modscope {__version__}")
+    parser.add_argument(
+        "--version", action="version", version=f"modscope {__version__} ({core.describe()})"
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve, manual):
         module.register(sub)

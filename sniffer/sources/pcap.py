@@ -44,8 +44,10 @@ character time per byte after the interface's previous packet.
 from __future__ import annotations
 
 import json
+import math
 import os
 import struct
+from array import array
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,6 +55,7 @@ from typing import BinaryIO
 
 import sniffer.sources.net as net
 from dissectors.envelope import open_ascii, rtu_frame
+from sniffer import core
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import MAX_TIME, Capture, ReadOptions
 from sniffer.sources.detect import PCAP_MAGICS
@@ -788,35 +791,40 @@ def _bulk_blocks(
     flags_value = struct.Struct(order + "I")
     rtac_head = RTAC_HEADER
     rx_start = RTAC_DATA_RX_START
+    # the compiled walk over data records (sniffer.core), given the section's interfaces
+    fast = core.FAST
+    fast_ifaces: list[tuple[int, int, int] | None] = _fast_interfaces(section)
     # the batch being gathered
     parts: list[bytes] = []
-    ends: list[int] = []
-    t_starts: list[float | None] = []
-    t_ends: list[float] = []
+    ends: array[int] = array("q")
+    t_starts: array[float] = array("d")  # NaN: not known
+    t_ends: array[float] = array("d")
     b_iface: _Interface | None = None
+    b_index = -1  # b_iface's index in the section while `parts` is not empty, else -1
     b_dir = Direction.UNKNOWN
     b_bytes = 0
     b_first = 0.0
     directions: dict[tuple[int, int | None], Direction] = {}  # by channel and EPB flags
 
     def batch() -> Reads:
+        nonlocal ends, t_starts, t_ends, b_index
         assert b_iface is not None
         data = b"".join(parts)
         b_iface.last_end = t_ends[-1]
+        first = t_starts[0]
         reads = Reads(
             data,
             t_ends[-1],
-            t_starts[0],
+            None if math.isnan(first) else first,
             b_iface.channel,
             b_dir,
-            ends=ends.copy(),
-            t_starts=t_starts.copy(),
-            t_ends=t_ends.copy(),
+            ends=ends,
+            t_starts=t_starts,
+            t_ends=t_ends,
         )
         parts.clear()
-        ends.clear()
-        t_starts.clear()
-        t_ends.clear()
+        ends, t_starts, t_ends = array("q"), array("d"), array("d")
+        b_index = -1
         return reads
 
     while True:
@@ -828,6 +836,27 @@ def _bulk_blocks(
             if parts:
                 yield batch()
             return None if base + pos == size else (base + pos, order)
+        if fast is not None and base + pos:
+            # the compiled copy of the data record branch below, up to the first block it
+            # does not take (that block is then looked at here, as without it)
+            pos, cut, b_index, direction_value, b_bytes, b_first, data, e, ts, te = (
+                fast.bulk_epbs(
+                    buf, pos, size - base, order == ">", fast_ifaces, b_index, int(b_dir),
+                    b_bytes, b_first,
+                )
+            )  # fmt: skip
+            if e:
+                b_iface = section.current[b_index]
+                b_dir = Direction(direction_value)
+                parts.append(data)
+                ends.frombytes(e)
+                t_starts.frombytes(ts)
+                t_ends.frombytes(te)
+            if cut:
+                yield batch()
+                continue
+            if pos + 12 > len(buf):
+                continue
         block_type, total = head.unpack_from(buf, pos)
         offset = base + pos
         if block_type == BLOCK_SHB:
@@ -863,20 +892,20 @@ def _bulk_blocks(
             tail = pos + 28 + caplen + (-caplen % 4)
             stop = pos + total - 4
             flags: int | None = None
-            fast = (
+            fast_record = (
                 iface is not None
                 and iface.linktype == LINKTYPE_RTAC_SERIAL
                 and caplen > RTAC_HEADER_LEN
                 and tail <= stop
             )
-            if fast and tail != stop:
-                fast = (
+            if fast_record and tail != stop:
+                fast_record = (
                     stop - tail == 12
                     and buf[tail : tail + 4] == flags_head
                     and buf[tail + 8 : stop] == b"\0\0\0\0"
                 )
                 flags = flags_value.unpack_from(buf, tail + 4)[0]
-            if fast:
+            if fast_record:
                 assert iface is not None
                 data_at = pos + 28
                 secs, usecs, event, _lines, _footer = rtac_head.unpack_from(buf, data_at)
@@ -895,24 +924,42 @@ def _bulk_blocks(
                     ):
                         yield batch()
                     if not parts:
-                        b_iface, b_dir, b_bytes, b_first = iface, direction, 0, t
+                        b_iface, b_index, b_dir, b_bytes, b_first = iface, index, direction, 0, t
                     seconds = secs + usecs / 1e6
                     lead = t - seconds
                     parts.append(buf[data_at + RTAC_HEADER_LEN : data_at + caplen])
                     b_bytes += caplen - RTAC_HEADER_LEN
                     ends.append(b_bytes)
-                    t_starts.append(seconds if 0.0 < lead < RTAC_MAX_LEAD else None)
+                    t_starts.append(seconds if 0.0 < lead < RTAC_MAX_LEAD else math.nan)
                     t_ends.append(t)
                     pos += total
                     continue
         if parts:
             yield batch()
         block = _Block(offset, block_type, buf[pos + 8 : pos + total - 4], order)
-        if block_type in (BLOCK_SHB, BLOCK_IDB):
-            directions.clear()
         pos += total
         if not (yield from _one_block(block, section, decoder, info, warnings)):
             return None
+        if block_type in (BLOCK_SHB, BLOCK_IDB):
+            directions.clear()
+            fast_ifaces = _fast_interfaces(section)
+
+
+def _fast_interfaces(section: _Section) -> list[tuple[int, int, int] | None]:
+    """What the compiled walk needs of each interface of the section: ticks per second,
+    offset seconds and role of those of link type 250 (None for the others, and where
+    those numbers are out of the range it computes times for exactly)."""
+    out: list[tuple[int, int, int] | None] = []
+    for iface in section.current:
+        fits = (
+            iface.linktype == LINKTYPE_RTAC_SERIAL
+            and 0 < iface.ticks_per_second <= 1 << 62
+            and abs(iface.offset_seconds) < 1 << 53
+        )
+        out.append(
+            (iface.ticks_per_second, iface.offset_seconds, int(iface.note.role)) if fits else None
+        )
+    return out
 
 
 def _packet_block(

@@ -14,6 +14,8 @@ chunk per read as before.
 
 from __future__ import annotations
 
+import math
+from array import array
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -47,13 +49,15 @@ class Reads(Chunk):
     """Consecutive reads of one channel and direction, none empty, none an event.
 
     `ends[k]` is the offset in `data` just past read k; `t_ends[k]` its time;
-    `t_starts[k]` its first byte's time or None (estimated from the line speed, as for a
-    lone chunk). The chunk's own `t_end` is the last read's, `t_start` the first's.
+    `t_starts[k]` its first byte's time or NaN when the source does not know it (then it
+    is estimated from the line speed, as for a lone chunk whose `t_start` is None). The
+    chunk's own `t_end` is the last read's, `t_start` the first's. Arrays, so that a
+    compiled reader can fill them (sniffer.core).
     """
 
-    ends: list[int] = field(default_factory=list)
-    t_starts: list[float | None] = field(default_factory=list)
-    t_ends: list[float] = field(default_factory=list)
+    ends: array[int] = field(default_factory=lambda: array("q"))
+    t_starts: array[float] = field(default_factory=lambda: array("d"))
+    t_ends: array[float] = field(default_factory=lambda: array("d"))
 
     def __len__(self) -> int:
         return len(self.ends)
@@ -62,5 +66,8 @@ class Reads(Chunk):
         """The reads one chunk each, as a reader outside `batching()` gives them."""
         start = 0
         for end, t0, t1 in zip(self.ends, self.t_starts, self.t_ends, strict=True):
-            yield Chunk(self.data[start:end], t1, t0, self.channel, self.direction, note=self.note)
+            first = None if math.isnan(t0) else t0
+            yield Chunk(
+                self.data[start:end], t1, first, self.channel, self.direction, note=self.note
+            )
             start = end

@@ -1,0 +1,41 @@
+"""Says which core runs: the compiled one (`sniffer._core`, a C extension that
+`pip install` builds where a C compiler is found) or the pure-Python one.
+
+The compiled core runs the loops that cost once a packet or a frame: the pcapng reader's
+walk over link type 250 data records (`sniffer.sources.pcap`) and the RTU framer's fast
+paths with its timeline of reads (`sniffer.framing`). Each is a copy of Python code that
+stays, runs where the extension is missing, and takes over wherever the compiled loop
+meets anything else, so both cores give the same rows, bit for bit.
+
+`MODSCOPE_PURE_PYTHON=1` forces the pure-Python core. `modscope --version` says which
+runs, and why not the compiled one.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from types import ModuleType
+
+
+def _load() -> tuple[ModuleType | None, str]:
+    if os.environ.get("MODSCOPE_PURE_PYTHON", "") == "1":
+        return None, "MODSCOPE_PURE_PYTHON=1"
+    if importlib.util.find_spec("sniffer._core") is None:
+        return None, "the compiled extension is not built"
+    try:
+        from sniffer import _core  # type: ignore[attr-defined]
+    except ImportError as exc:
+        return None, f"the compiled extension does not load ({exc})"
+    module: ModuleType = _core
+    return module, ""
+
+
+# The compiled module, or None for the pure-Python core. The readers and the framer look
+# it up at each call, so tests can set it to None to run the pure-Python core.
+FAST, REASON = _load()
+
+
+def describe() -> str:
+    """Which core runs, as `modscope --version` says it."""
+    return "compiled core" if FAST is not None else f"pure-Python core: {REASON}"

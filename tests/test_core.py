@@ -1,0 +1,310 @@
+"""The compiled core (sniffer._core) and the pure-Python core give the same results.
+
+Every store column of every row, the streams, the pairs, the statistics and every
+warning are compared, with the compiled core and without it, on the demo capture and on
+recordings of polling traffic with noise, damage, CRC errors, broadcasts, exceptions,
+echoed answers (FC 5, 6, 8) and unknown codes, cut into reads at every position, one
+frame per packet and many. Without the extension these tests skip, saying so, unless
+MODSCOPE_REQUIRE_COMPILED=1 (check.sh sets it): then they fail.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dissectors.checks import crc16_py, with_crc
+from sniffer import core
+from sniffer.model import Chunk
+from sniffer.session import Session, open_session
+from sniffer.sources import open_capture
+from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0
+from sniffer.sources.reads import Reads, batching
+from tests.test_bulk_reads import COLUMNS, FRAMES, LINE, T0, _capture, _recording, damage, packet
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO = ROOT / "sniffer" / "demo" / "demo.pcapng"
+
+
+def _compiled() -> ModuleType:
+    try:
+        from sniffer import _core  # type: ignore[attr-defined]
+    except ImportError as exc:
+        if os.environ.get("MODSCOPE_REQUIRE_COMPILED") == "1":
+            pytest.fail(f"MODSCOPE_REQUIRE_COMPILED=1 but the compiled core is not built: {exc}")
+        pytest.skip(f"the compiled core is not built here ({exc}); pip install -e . builds it")
+    module: ModuleType = _core
+    return module
+
+
+@pytest.fixture
+def compiled() -> ModuleType:
+    return _compiled()
+
+
+def _ingest(path: Path, fast: ModuleType | None, batched: bool = True) -> Session:
+    saved = core.FAST
+    core.FAST = fast
+    try:
+        session, capture = open_session(path, index=False)
+        session.batch_reads = batched
+        session.ingest(capture.chunks())
+    finally:
+        core.FAST = saved
+    return session
+
+
+def _assert_same(path: Path, fast: ModuleType, batched: bool = True) -> Session:
+    pure, comp = _ingest(path, None, batched), _ingest(path, fast, batched)
+    for name in COLUMNS:
+        assert getattr(comp.store, name) == getattr(pure.store, name), name
+    assert comp.store.streams == pure.store.streams
+    assert comp.store.notes == pure.store.notes
+    assert comp.store.resolution == pure.store.resolution
+    assert comp.stats.table() == pure.stats.table()
+    assert (comp.warnings, comp.notes) == (pure.warnings, pure.notes)
+    return pure
+
+
+def _chunks(path: Path, fast: ModuleType | None) -> tuple[list[Chunk], list[str]]:
+    saved = core.FAST
+    core.FAST = fast
+    try:
+        capture = open_capture(path)
+        got: list[Chunk] = []
+        with batching(True):
+            for chunk in capture.chunks():
+                got.extend(chunk.split() if isinstance(chunk, Reads) else [chunk])
+    finally:
+        core.FAST = saved
+    return got, capture.warnings
+
+
+def test_demo_capture_is_the_same_with_either_core(compiled: ModuleType) -> None:
+    pure = _assert_same(DEMO, compiled)
+    assert len(pure.store) > 100
+
+
+def test_crc16_matches_the_table_of_the_pure_core(compiled: ModuleType) -> None:
+    rng = random.Random(5)
+    for n in range(0, 300, 7):
+        data = bytes(rng.getrandbits(8) for _ in range(n))
+        assert compiled.crc16(data) == crc16_py(data)
+    assert compiled.crc16(with_crc(b"\x01\x03\x00\x00\x00\x02")) == 0
+
+
+# -- traffic with everything the fast paths hand over to the slow path ---------------------
+
+
+def _frame(rng: random.Random, what: str) -> list[bytes]:
+    """One exchange (request and answer, or a lone frame or junk) of the kind `what`."""
+    unit = rng.choice((1, 2, 7, 247))
+    if what == "read":
+        count = rng.randrange(1, 20)
+        req = with_crc(bytes([unit, 3, 0, rng.randrange(256), 0, count]))
+        data = bytes(rng.getrandbits(8) for _ in range(2 * count))
+        return [req, with_crc(bytes([unit, 3, 2 * count]) + data)]
+    if what == "exception":
+        req = with_crc(bytes([unit, 4, 0, 1, 0, 2]))
+        return [req, with_crc(bytes([unit, 0x84, rng.randrange(1, 5)]))]
+    if what == "echo":
+        fc = rng.choice((5, 6, 8))
+        req = with_crc(bytes([unit, fc, 0, rng.randrange(256), 0xFF, 0]))
+        return [req, req] if rng.random() < 0.8 else [req, req, req]  # a retry
+    if what == "write":  # FC 16: a counted request, a fixed answer
+        n = rng.randrange(1, 5)
+        body = bytes([unit, 16, 0, 10, 0, n, 2 * n]) + bytes(2 * n)
+        return [with_crc(body), with_crc(bytes([unit, 16, 0, 10, 0, n]))]
+    if what == "broadcast":
+        return [with_crc(bytes([0, 6, 0, 1, 0, rng.randrange(256)]))]
+    if what == "unknown":
+        return [with_crc(bytes([unit, 0x41]) + bytes(rng.randrange(0, 6)))]
+    if what == "crc":
+        frame = bytearray(with_crc(bytes([unit, 3, 0, 0, 0, 1])))
+        frame[-1] ^= 0x55
+        return [bytes(frame)]
+    if what == "flip":
+        frame = bytearray(with_crc(bytes([unit, 3, 2, 0, rng.randrange(256)])))
+        frame[rng.randrange(len(frame))] ^= 1 << rng.randrange(8)
+        return [bytes(frame)]
+    if what == "zeros":
+        return [with_crc(bytes([unit, 6, 0, 2, 0, 0])) + bytes(rng.randrange(1, 3))]
+    if what == "silent":  # a request nobody answers
+        return [with_crc(bytes([unit, 1, 0, 0, 0, rng.randrange(1, 16)]))]
+    return [bytes(rng.getrandbits(8) for _ in range(rng.randrange(1, 6)))]  # noise
+
+
+KINDS = ["read"] * 6 + [
+    "exception",
+    "echo",
+    "write",
+    "broadcast",
+    "unknown",
+    "crc",
+    "flip",
+    "zeros",
+    "silent",
+    "noise",
+]
+
+
+def _traffic(seed: int, n: int, mix: list[str]) -> list[tuple[bytes, float]]:
+    """Frames with their end times on the wire: each frame separated by a little more
+    than t3.5, sometimes by a long silence."""
+    rng = random.Random(seed)
+    char = LINE.char_time
+    out: list[tuple[bytes, float]] = []
+    t = T0
+    for _ in range(n):
+        for frame in _frame(rng, rng.choice(mix)):
+            t += len(frame) * char
+            out.append((frame, t))
+            t += LINE.t35 * rng.uniform(1.05, 1.5) + (0.3 if rng.random() < 0.02 else 0.0)
+    return out
+
+
+def _cut(
+    frames: list[tuple[bytes, float]], cuts: list[int], lag: float
+) -> list[tuple[bytes, float]]:
+    """The frames' bytes in reads of the sizes `cuts` gives in turn (0: one read per
+    frame), each stamped when its last byte came, some later."""
+    if not cuts or cuts == [0]:
+        return frames
+    stream = b"".join(f for f, _ in frames)
+    ends: list[float] = []
+    for f, t in frames:
+        ends += [t - (len(f) - 1 - i) * LINE.char_time for i in range(len(f))]
+    reads: list[tuple[bytes, float]] = []
+    pos = k = 0
+    while pos < len(stream):
+        n = cuts[k % len(cuts)] or 1
+        k += 1
+        stop = min(len(stream), pos + n)
+        reads.append((stream[pos:stop], ends[stop - 1] + (lag if k % 4 == 0 else 0.0)))
+        pos = stop
+    return reads
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 10**6),
+    n=st.integers(1, 120),
+    mix=st.sampled_from([["read"], KINDS, ["read", "echo", "exception", "broadcast", "write"]]),
+    cuts=st.one_of(st.just([0]), st.lists(st.integers(1, 90), min_size=1, max_size=50)),
+    lag=st.sampled_from([0.0, 0.0, 0.004, 0.05]),
+    batched=st.booleans(),
+)
+def test_random_traffic_is_the_same_with_either_core(
+    tmp_path_factory: pytest.TempPathFactory,
+    seed: int,
+    n: int,
+    mix: list[str],
+    cuts: list[int],
+    lag: float,
+    batched: bool,
+) -> None:
+    fast = _compiled()
+    path = tmp_path_factory.mktemp("core") / "r.pcapng"
+    _recording(path, _cut(_traffic(seed, n, mix), cuts, lag))
+    _assert_same(path, fast, batched)
+
+
+def test_reads_split_at_every_position_are_the_same_with_either_core(
+    tmp_path: Path, compiled: ModuleType
+) -> None:
+    frames = _traffic(3, 14, KINDS)
+    stream = b"".join(f for f, _ in frames)
+    t_end = frames[-1][1]
+    for at in range(1, len(stream)):
+        path = tmp_path / f"split{at}.pcapng"
+        first = t_end - (len(stream) - at) * LINE.char_time
+        _recording(path, [(stream[:at], first), (stream[at:], t_end)])
+        _assert_same(path, compiled)
+        path.unlink()
+
+
+def test_large_polling_recording_is_the_same_with_either_core(
+    tmp_path: Path, compiled: ModuleType
+) -> None:
+    frames = [(f, T0 + k * 0.004) for k, f in enumerate(FRAMES)]
+    for cuts in ([0], [37, 90, 5, 64]):
+        path = tmp_path / "poll.pcapng"
+        _recording(path, _cut(frames, cuts, 0.0))
+        pure = _assert_same(path, compiled)
+        assert len(pure.store) == len(FRAMES)
+
+
+# -- the pcapng walk -------------------------------------------------------------------------
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    order=st.sampled_from(["<", ">"]),
+    linktypes=st.sampled_from(
+        [[LINKTYPE_RTAC_SERIAL], [LINKTYPE_RTAC_SERIAL] * 2, [LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]]
+    ),
+    packets=st.lists(packet, max_size=40),
+    second_section=st.integers(-1, 40),
+    hurt=damage,
+)
+def test_the_bulk_walk_gives_the_same_chunks_and_warnings_with_either_core(
+    tmp_path_factory: pytest.TempPathFactory,
+    order: str,
+    linktypes: list[int],
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    second_section: int,
+    hurt: tuple[object, ...] | None,
+) -> None:
+    fast = _compiled()
+    data = bytearray(_capture(order, linktypes, packets, second_section))
+    if hurt is not None and hurt[0] == "cut":
+        del data[max(1, int(str(hurt[1])) % (len(data) + 1)) :]
+    elif hurt is not None:
+        at = int(str(hurt[1])) % len(data)
+        poke = hurt[2]
+        assert isinstance(poke, bytes)
+        data[at : at + len(poke)] = poke
+    path = tmp_path_factory.mktemp("walk") / "c.pcapng"
+    path.write_bytes(bytes(data))
+    assert _chunks(path, fast) == _chunks(path, None)
+
+
+# -- which core runs -------------------------------------------------------------------------
+
+
+def _run(code: str, **env: str) -> str:
+    environment = {**os.environ, "PYTHONPATH": str(ROOT), **env}
+    return subprocess.run(
+        [sys.executable, "-c", code],
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+    ).stdout.strip()
+
+
+VERSION = "from sniffer.cli import main; main(['--version'])"
+
+
+def test_modscope_pure_python_selects_the_pure_core() -> None:
+    said = _run("from sniffer import core; print(core.FAST is None, core.describe())",
+                MODSCOPE_PURE_PYTHON="1")  # fmt: skip
+    assert said == "True pure-Python core: MODSCOPE_PURE_PYTHON=1"
+    assert _run(VERSION, MODSCOPE_PURE_PYTHON="1").endswith(
+        "(pure-Python core: MODSCOPE_PURE_PYTHON=1)"
+    )
+
+
+def test_version_says_the_compiled_core_runs(compiled: ModuleType) -> None:
+    assert _run(VERSION, MODSCOPE_PURE_PYTHON="0").endswith("(compiled core)")
+    said = _run("from sniffer import core; print(core.FAST is not None)", MODSCOPE_PURE_PYTHON="")
+    assert said == "True"
