@@ -41,10 +41,15 @@ for pair in $PEERS; do
     [[ " ${missing_pkgs[*]-} " == *" $pkg "* ]] || missing_pkgs+=("$pkg")
   fi
 done
-# the compiled core (sniffer/_core.c, built by pip install) needs a C compiler and headers
+# the compiled core (sniffer/_core.c, built by pip install) needs a C compiler and the
+# headers of the Python that builds it (Debian's python3-dev for Debian's python3)
 if ! have cc; then
   missing_progs+=(cc)
-  missing_pkgs+=(gcc python3-dev)
+  missing_pkgs+=(gcc)
+fi
+if ! "$PYTHON" -c 'import os, sysconfig, sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' 2>/dev/null; then
+  missing_progs+=(Python.h)
+  missing_pkgs+=(python3-dev)
 fi
 SUDO=""
 can_apt=no
