@@ -185,13 +185,18 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
     listed = [0]  # frames listed (each frame is listed once; updates are not counted)
     noise = 0
     updates = 0
+    bad: list[bytes] = []
 
     def read_listing() -> None:
         nonlocal noise, updates
         assert proc.stdout is not None
         for raw_line in proc.stdout:
             arrived = time.monotonic()
-            rec_ = json.loads(raw_line)
+            try:
+                rec_ = json.loads(raw_line)
+            except ValueError:  # counted and shown: a listing line must be whole JSON
+                bad.append(raw_line)
+                continue
             if "update" in rec_:  # a request listed while open, settled since
                 updates += 1
                 continue
@@ -253,6 +258,8 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
             f"        frames listed {listed[0]:,} of {writer.count:,} written, noise {noise}, "
             f"updates {updates:,}"
         )
+        if bad:
+            print(f"        {len(bad)} lines not JSON, the first: {bad[0][:300]!r}")
         if latencies:
             ordered = sorted(latencies)
             p99 = ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))]
