@@ -1,6 +1,6 @@
 """Provides the live benchmark: modscope listening to a 921600 baud polling stream on a pty.
 
-Run: python benchmarks/bench_live.py [--seconds S] [--baud N] [--per-frame]
+Run: python benchmarks/bench_live.py [--seconds S] [--baud N] [--per-frame] [--only live]
 
 A writer thread plays a realistic polling stream (sniffer.synth) into one end of a
 pseudo-terminal at the line's own pace: every millisecond it writes the bytes whose last
@@ -14,12 +14,19 @@ and the JSONL stream). Figures:
   /proc/PID/stat, so start-up does not count), as a share of one core;
 - latency: from the moment the writer wrote a frame's last byte to the moment its JSONL
   line arrived on modscope's stdout (median, 99th percentile, worst);
-- frames written and listed, bytes lost (must be 0).
+- frames written and listed, bytes lost (must be 0);
+- memory: modscope's resident set (VmRSS, sampled every second from /proc/PID/status)
+  after warm-up (`--warmup` seconds into the stream), at the end, and the growth per
+  frame listed between the two (`--rss-log FILE` keeps every sample).
+
+The writer plays one cycle of synthetic frames (about two minutes of the line) over and
+over, so an hour's run does not hold an hour of frames in this process.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import statistics
@@ -29,6 +36,7 @@ import tempfile
 import threading
 import time
 import tty
+from array import array
 from collections import defaultdict, deque
 from pathlib import Path
 
@@ -39,6 +47,17 @@ from sniffer.synth import polling_frames
 
 MODSCOPE = str(Path(sys.executable).with_name("modscope"))
 TICK = os.sysconf("SC_CLK_TCK")
+
+
+CYCLE_SECONDS = 120.0  # the writer's cycle of frames, played again and again
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process now, in MiB (Linux)."""
+    for text in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if text.startswith("VmRSS:"):
+            return int(text.split()[1]) / 1024
+    return 0.0
 
 
 def cpu_seconds(pid: int) -> float:
@@ -56,7 +75,8 @@ class Writer(threading.Thread):
         super().__init__(daemon=True)
         self.fd = fd
         self.per_frame = per_frame
-        n = int(seconds * line.baud / line.char_bits / 20) + 1000  # more than enough
+        cycle = min(seconds, CYCLE_SECONDS)
+        n = int(cycle * line.baud / line.char_bits / 20) + 1000  # more than enough
         self.frames = polling_frames(n, line=line)
         char = line.char_time
         if dense:
@@ -68,30 +88,33 @@ class Writer(threading.Thread):
                 t += len(f.raw) * char
                 self.ends.append(t)
                 t += 3.5 * char
+            self.period = t
         else:
             self.ends = [f.t + len(f.raw) * char for f in self.frames]
+            self.period = self.ends[-1] + 3.5 * char
         self.seconds = seconds
-        self.sent: dict[str, deque[float]] = defaultdict(deque)
+        self.sent: dict[bytes, deque[float]] = defaultdict(deque)
         self.count = 0
         self.bytes = 0
         self.stop = threading.Event()
 
     def run(self) -> None:
         start = time.monotonic()
-        k = 0
-        frames, ends = self.frames, self.ends
-        while not self.stop.is_set() and k < len(frames):
+        k = 0  # next frame of the cycle
+        base = 0.0  # the start of the current cycle, in stream seconds
+        frames, ends, count = self.frames, self.ends, len(self.frames)
+        while not self.stop.is_set():
             now = time.monotonic() - start
             if now >= self.seconds:
                 break
             if self.per_frame:
-                wait = ends[k] - now
+                wait = base + ends[k] - now
                 if wait > 0:
                     time.sleep(wait)
                 due = k + 1
             else:
                 due = k
-                while due < len(frames) and ends[due] <= now:
+                while due < count and base + ends[due] <= now:
                     due += 1
                 if due == k:
                     time.sleep(0.001)
@@ -99,13 +122,40 @@ class Writer(threading.Thread):
             data = b"".join(f.raw for f in frames[k:due])
             written = time.monotonic()  # noted before writing: modscope may list it at once
             for f in frames[k:due]:
-                self.sent[f.raw.hex()].append(written)
+                self.sent[f.raw].append(written)
             view = memoryview(data)
             while view:
                 view = view[os.write(self.fd, view) :]
             self.count += due - k
             self.bytes += len(data)
             k = due
+            if k == count:  # the cycle again, after it
+                k = 0
+                base += self.period
+
+
+class Sampler(threading.Thread):
+    """VmRSS of a process every second, with how many frames were listed by then."""
+
+    def __init__(self, pid: int, listed: list[int]) -> None:
+        super().__init__(daemon=True)
+        self.pid = pid
+        self.listed = listed  # one counter, shared with the listing reader
+        self.samples: list[tuple[float, float, int]] = []  # (seconds, MB, frames listed)
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        start = time.monotonic()
+        while not self.stop.wait(1.0):
+            try:
+                mb = rss_mb(self.pid)
+            except OSError:
+                return
+            self.samples.append((time.monotonic() - start, mb, self.listed[0]))
+
+    def at(self, seconds: float) -> tuple[float, float, int] | None:
+        """The first sample at or after `seconds`."""
+        return next((x for x in self.samples if x[0] >= seconds), None)
 
 
 def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> None:
@@ -127,35 +177,51 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
         if "listening on" in text or "modscope: recording" in text:
             break
     writer = Writer(master, line, args.seconds, args.per_frame, not args.polling_gaps)
-    latencies: list[float] = []
-    listed: set[int] = set()
+    # the cycle's frames are long-lived: keep this process's garbage collector from
+    # walking them while the listing is read (its pauses would count as latency)
+    gc.collect()
+    gc.freeze()
+    latencies = array("d")
+    listed = [0]  # frames listed (each frame is listed once; updates are not counted)
     noise = 0
+    updates = 0
+    bad: list[bytes] = []
 
     def read_listing() -> None:
-        nonlocal noise
+        nonlocal noise, updates
         assert proc.stdout is not None
         for raw_line in proc.stdout:
             arrived = time.monotonic()
-            rec_ = json.loads(raw_line)
+            try:
+                rec_ = json.loads(raw_line)
+            except ValueError:  # counted and shown: a listing line must be whole JSON
+                bad.append(raw_line)
+                continue
+            if "update" in rec_:  # a request listed while open, settled since
+                updates += 1
+                continue
             if rec_["kind"] == "noise":
                 noise += 1
-            if rec_["kind"] in ("noise", "event") or rec_["index"] in listed:
-                continue  # a request listed again when it timed out is counted once
-            listed.add(rec_["index"])
-            times = writer.sent.get(rec_["raw"])
+            if rec_["kind"] in ("noise", "event"):
+                continue
+            listed[0] += 1
+            times = writer.sent.get(bytes.fromhex(rec_["raw"]))
             if times:
                 latencies.append(arrived - times.popleft())
 
     reader = threading.Thread(target=read_listing, daemon=True)
     reader.start()
+    sampler = Sampler(proc.pid, listed)
+    sampler.start()
     writer.start()
     time.sleep(1.0)  # warm up, then measure
     cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
     writer.join()
     cpu1, wall1 = cpu_seconds(proc.pid), time.monotonic()
+    sampler.stop.set()
     time.sleep(0.5)
     proc.send_signal(2)
-    _, err = proc.communicate(timeout=30)
+    _, err = proc.communicate(timeout=60)
     reader.join(5)
     os.close(master)
     os.close(slave)
@@ -170,8 +236,30 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
     )
     lost = [x for x in err.decode().splitlines() if "data lost" in x]
     print(f"        losses reported: {len(lost)}" + (f" ({lost[0]})" if lost else ""))
+    samples = sampler.samples
+    if samples:
+        warm = sampler.at(args.warmup) or samples[-1]
+        last = samples[-1]
+        peak = max(mb for _, mb, _ in samples)
+        grown = last[1] - warm[1]
+        frames = last[2] - warm[2]
+        per = ""
+        if frames > 0 and mode == "live":
+            per = f", {grown * 2**20 / frames:+.1f} B per frame listed"
+        print(
+            f"        RSS {warm[1]:.1f} MiB at {warm[0]:.0f} s (warm), {last[1]:.1f} MiB at "
+            f"{last[0]:.0f} s (end), peak {peak:.1f} MiB: {grown:+.1f} MiB{per}"
+        )
+        if args.rss_log:
+            with open(f"{args.rss_log}.{mode}", "w") as log:
+                log.writelines(f"{t:.0f} {mb:.1f} {n}\n" for t, mb, n in samples)
     if mode == "live":
-        print(f"        frames listed {len(listed):,} of {writer.count:,} written, noise {noise}")
+        print(
+            f"        frames listed {listed[0]:,} of {writer.count:,} written, noise {noise}, "
+            f"updates {updates:,}"
+        )
+        if bad:
+            print(f"        {len(bad)} lines not JSON, the first: {bad[0][:300]!r}")
         if latencies:
             ordered = sorted(latencies)
             p99 = ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))]
@@ -196,6 +284,13 @@ def main() -> None:
         "not back-to-back frames",
     )
     parser.add_argument("--only", choices=("record", "live"), help="run one mode")
+    parser.add_argument(
+        "--warmup",
+        type=float,
+        default=30.0,
+        help="seconds into the stream at which RSS counts as warmed up (default 30)",
+    )
+    parser.add_argument("--rss-log", metavar="FILE", help="every RSS sample, to FILE.MODE")
     args = parser.parse_args()
     line = LineSettings(baud=args.baud, bytesize=8, parity="N", stopbits=1, mode="rtu")
     style = "one write per frame" if args.per_frame else "1 ms delivery"

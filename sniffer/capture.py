@@ -5,6 +5,13 @@ pairing, annotation) and a `Recorder` (pcapng link type 250). The recorder drain
 own feed in its own thread, so a slow screen or pipe never costs the recording a byte;
 the session is fed by whoever calls `pump()`: the command line's loop, or the TUI.
 
+Headless (a listing, a recording with --mqtt), the capture is given a `window`: once the
+session's store holds that many rows, the next `pump()` at a settled moment (see
+`Session.new_segment`) forgets them and goes on in an empty store, rows numbered on from
+`session.base`. Memory then stays bounded however long the capture runs; the rows live
+on in the recording (-w) if one is made. `GlobalRows` shows a windowed session's rows to
+a lister or exporter with their numbers in the whole capture.
+
 For the TUI: `run_tui(session, None, live=capture)` gets a started `LiveCapture`. Call
 `capture.pump(timeout)` from one thread (it feeds the session and returns the range of
 new rows in `session.store`); `capture.messages` holds what happened on the ports
@@ -17,17 +24,23 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol, cast
 
+from sniffer.describe import Describer, FrameDetail
 from sniffer.model import Chunk
 from sniffer.recorder import Recorder, RecordError
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
+from sniffer.store import NO_PARTNER, FrameStore
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
 RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
+# rows a headless live session keeps before it starts a new segment: about 7 MB of store
+# (65 bytes a row) and some 30 s of a 921600 baud line
+WINDOW_ROWS = 100_000
 
 Notify = Callable[[str], None]
 
@@ -65,6 +78,8 @@ class Publisher(Protocol):
     """An output fed as the session is (`sniffer.mqtt.publish.BusPublisher`): every chunk
     as it is read, then the new rows after each pump. It must never block for long."""
 
+    next: int  # the next store row it will look at (back to 0 in a new segment)
+
     def chunk(self, chunk: Chunk) -> None: ...
     def rows(self, final: bool = False) -> None: ...
     def close(self, drain: float = 10.0) -> str: ...
@@ -90,7 +105,11 @@ class LiveCapture:
         notify: Notify | None = None,
         quiet: float | None = None,
         publisher: Publisher | None = None,
+        window: int | None = None,
     ) -> None:
+        """`window`: rows the session keeps in memory before a new segment starts (see
+        the module's docstring); None keeps every row (the TUI scrolls back through
+        them)."""
         if publisher is not None and session is None:
             raise ValueError("a publisher is fed from the session: give the capture one")
         self.reader = reader
@@ -104,7 +123,9 @@ class LiveCapture:
         self.quiet = quiet if quiet is not None else max(line.t35, IDLE_QUIET)
         self.messages: deque[str] = deque(maxlen=200)
         self.failure: str | None = None
-        self.shown = 0
+        self.shown = 0  # rows of the session's store handed out by pump()
+        self.window = window
+        self.segments = 0  # new segments started
         self.feed: ChunkFeed | None = None
         if session is not None:
             self.feed = reader.subscribe(queue_size)
@@ -208,6 +229,10 @@ class LiveCapture:
         with self._pumping:
             if self._stopped:
                 return range(self.shown, self.shown)
+            if self.window is not None and self.shown >= self.window:
+                # every row so far was handed out last time and has been listed: the
+                # store may start afresh if the line is at a settled moment
+                self._cut()
             self._take(self.feed.get(timeout))
             if time.monotonic() - self._last_data >= self.quiet:
                 self.session.idle(self.reader.clock.now())
@@ -231,6 +256,14 @@ class LiveCapture:
             got_data = got_data or bool(chunk.data)
         if got_data:
             self._last_data = time.monotonic()
+
+    def _cut(self) -> None:
+        assert self.session is not None
+        if self.shown == len(self.session.store) and self.session.new_segment():
+            self.shown = 0
+            self.segments += 1
+            if self.publisher is not None:
+                self.publisher.next = 0
 
     def _new_rows(self) -> range:
         assert self.session is not None
@@ -266,3 +299,58 @@ class LiveCapture:
                     "not recorded (marked in the file)"
                 )
                 lost = feed.lost_bytes
+
+
+# -- a windowed session's rows, numbered as in the whole capture --------------------------
+
+
+class _Column:
+    """A column of the session's current store, indexed by row number in the capture."""
+
+    __slots__ = ("name", "session")
+
+    def __init__(self, session: Session, name: str) -> None:
+        self.session = session
+        self.name = name
+
+    def __getitem__(self, i: int) -> Any:
+        session = self.session
+        return getattr(session.store, self.name)[i - session.base]
+
+
+class _GlobalStore:
+    """What a lister or an exporter reads of the store, by row number in the capture
+    (row times and channels); anything else is the current store's."""
+
+    def __init__(self, session: Session) -> None:
+        self._session = session
+        self.t = _Column(session, "t")
+        self.t_end = _Column(session, "t_end")
+        self.channel = _Column(session, "channel")
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._session.store, name)
+
+
+class GlobalRows(Describer):
+    """The details of a windowed live session's rows by their number in the whole
+    capture (`session.base` plus the row in the current store): index, partner and
+    transaction ids as one store of every row would give them. For a `Lister` or a
+    `PcapExporter`; give it rows from `session.base` on."""
+
+    def __init__(self, session: Session) -> None:  # the session's describer does the work
+        self.session = session
+        self.store = cast(FrameStore, _GlobalStore(session))
+
+    def forget(self, i: int) -> None:
+        self.session.describer.forget(i - self.session.base)
+
+    def detail(self, i: int) -> FrameDetail:
+        session = self.session
+        base = session.base
+        d = session.describer.detail(i - base)
+        if not base:
+            return d
+        v = d.view
+        partner = v.partner + base if v.partner != NO_PARTNER else NO_PARTNER
+        return replace(d, view=replace(v, index=i, partner=partner))

@@ -19,6 +19,7 @@ from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.sources.reads import Reads, batching
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
+from sniffer.vocab import Status
 
 
 def _demo_file(name: str) -> Path:
@@ -81,6 +82,9 @@ class Session:
         self.warnings: list[str] = []
         self.notes: list[str] = []  # what the user should know, not faults
         self.chunks = 0
+        # rows of earlier segments (a windowed live capture, see new_segment): row i of
+        # `store` is row `base + i` of the capture
+        self.base = 0
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
         # the sidecar index (sniffer.index): where it came from, or what to save it as
         self.indexed_from: Path | None = None
@@ -110,6 +114,62 @@ class Session:
         # what the source's labels and stamps turned out to be worth, said once
         self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
         self.notes.extend(n for n in self.pipeline.timing_notes() if n not in self.notes)
+
+    def new_segment(self) -> bool:
+        """Forget the rows framed so far and go on in an empty store, numbering rows on
+        from where they were (`base`): what keeps a headless live capture's memory
+        bounded. Only at a settled moment: every byte read decided, no request waiting
+        for its answer or its timeout, no row waiting to be merged or counted; False
+        (nothing done) otherwise. The framers, the pairer, the annotation state and the
+        statistics carry on as they are, so the rows that follow are those one store
+        would have had, shifted by `base`. Callers must be done with the old rows (listed,
+        exported, published) and tell every consumer that numbers rows (see
+        `sniffer.capture.LiveCapture.cut`)."""
+        pipeline = self.pipeline
+        store = self.store
+        if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
+            return False  # network captures (several open requests) are not windowed
+        if store.status.tobytes().find(bytes([Status.OPEN])) >= 0:
+            return False
+        for ch in pipeline.channels.values():
+            framer = ch.framer
+            if framer is None or ch.held is not None or not _settled(framer):
+                return False
+            if ch.staging is not None and ch.read < len(ch.staging):
+                return False
+        rows = len(store)
+        fresh = FrameStore(store.streams)  # the same bytearrays, emptied below
+        fresh.stamps, fresh.resolution = store.stamps, store.resolution
+        fresh.fill_channel = store.fill_channel
+        fresh.peers, fresh.servers = store.peers, store.servers
+        for ch in pipeline.channels.values():
+            assert ch.framer is not None
+            _rebase(ch.framer)
+            if ch.staging is None:
+                ch.framer.out = fresh
+            ch.fed = 0
+            if ch.hint_at is not None and ch.hint_dir:
+                ch.hint_at, ch.hint_dir = [0], ch.hint_dir[-1:]
+        for stream in store.streams.values():
+            del stream[:]
+        pipeline.store = fresh
+        pipeline.pairer.store = fresh
+        pipeline.pairer.next = 0
+        pipeline._hint_checked = 0
+        self.annotator.next = 0
+        for track in self.annotator.tracks.values():  # the parameter selected last
+            if track.rows:
+                track.rows, track.numbers = [-1], track.numbers[-1:]
+        for unit in self.annotator.sunspec.units.values():  # scale factors as they are
+            for history in unit.scale.values():
+                if history.rows:
+                    history.rows, history.values = [-1], history.values[-1:]
+        self.stats.store = fresh
+        self.stats.next = 0
+        self.describer = Describer(fresh, self.annotator, self.describer.size)
+        self.store = fresh
+        self.base += rows
+        return True
 
     def ingest(
         self,
@@ -159,6 +219,33 @@ class Session:
 
     def _sidecar_bytes(self) -> int:
         return sum(len(s) for s in self.store.streams.values())
+
+
+def _settled(framer: Any) -> bool:  # a sniffer.framing framer (only pipelines import it)
+    """Whether a framer has decided every byte it was given and waits for no answer it
+    predicted (so its next row owes nothing to the bytes before)."""
+    return (
+        framer.pos == len(framer.stream) == framer.timeline.offset
+        and framer.pending_unit < 0
+        and getattr(framer, "noise_start", -1) < 0  # RTU: no noise span under way
+        and getattr(framer, "open", -1) < 0  # ASCII: no frame under way
+        and getattr(framer, "pending_row", -1) < 0
+        and not getattr(framer, "pairs", None)
+    )
+
+
+def _rebase(framer: Any) -> None:
+    """A settled framer's stream offsets from 0 again, its stream about to be emptied:
+    what it knows of time (the last read's end, the line's resolution) stays."""
+    framer.pos = 0
+    if hasattr(framer, "scan_end"):
+        framer.scan_end = 0
+    timeline = framer.timeline
+    timeline.offset = timeline.cur_start = 0
+    timeline.spans.clear()
+    timeline.starts.clear()
+    timeline.boundaries.clear()
+    timeline.line_errors.clear()
 
 
 def open_session(

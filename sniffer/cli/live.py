@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from typing import TextIO
 
-from sniffer.capture import PUMP_SECONDS, LiveCapture, Notify, Reader
+from sniffer.capture import PUMP_SECONDS, WINDOW_ROWS, GlobalRows, LiveCapture, Notify, Reader
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
@@ -38,6 +38,7 @@ from sniffer.export import PcapExporter
 from sniffer.listing import Lister
 from sniffer.pipeline import LIVE_MERGE_SLACK
 from sniffer.recorder import parse_size
+from sniffer.select import FilterJob
 from sniffer.session import Session
 from sniffer.vocab import Status
 
@@ -119,6 +120,8 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         notify=None if use_tui else notify,
         quiet=MQTT_QUIET if source is not None else None,
         publisher=publisher,
+        # headless, rows listed and settled are let go (the TUI scrolls back through all)
+        window=None if use_tui else WINDOW_ROWS,
     )
     exporter: PcapExporter | None = None
     pcap_file = None
@@ -131,7 +134,9 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                     f"{args.pcap}: cannot be written ({exc.strerror or exc}); choose a "
                     "folder you can write to"
                 ) from None
-            exporter = PcapExporter(pcap_file, session.describer, specs[0].line, name=specs[0].name)
+            exporter = PcapExporter(
+                pcap_file, GlobalRows(session), specs[0].line, name=specs[0].name
+            )
         capture.start()
         if use_tui:
             # what the ports said while opening shows in the TUI, not behind it
@@ -144,7 +149,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             lister = Lister(
                 io.StringIO(),
                 args.format or "text",
-                session.describer,
+                GlobalRows(session),
                 absolute=args.time == "abs",
                 raw_csv=args.raw_csv,
             )
@@ -232,8 +237,12 @@ def stream(
     stops the capture, rows it cannot take are dropped and reported, and Ctrl-C ends
     the loop within about a second whatever the output does."""
     end = None if duration is None else time.monotonic() + duration
-    assert capture.session is not None
-    store = capture.session.store
+    session = capture.session
+    assert session is not None
+    # rows by their number in the whole capture: the capture may start a new segment of
+    # its session now and then (LiveCapture's window), numbering rows on from
+    # `session.base`; the lister and the exporter read them through GlobalRows
+    base = session.base
     waiting: list[int] = []  # requests listed while open: each gets one update record
     sink = io.StringIO()
     if lister is not None:
@@ -248,18 +257,28 @@ def stream(
     last_said = 0.0
 
     def emit(rows: range, deadline: float | None = None, final: bool = False) -> None:
-        nonlocal waiting, said, last_said
+        nonlocal waiting, said, last_said, base
+        if session.base != base:  # a new segment: its rows count from 0 in its store
+            base = session.base
+            if selection is not None:
+                _new_segment(selection)
         picked: list[int] | None = None  # the rows a filter or -c lets through
         if selection is not None and (selection.query is not None or selection.left is not None):
             picked = selection.take(rows.stop, final=final) if rows.stop else []
-        todo: list[int] | range = rows if picked is None else picked
+        todo: list[int] | range = (
+            range(rows.start + base, rows.stop + base)
+            if picked is None
+            else [i + base for i in picked]
+        )
         if lister is not None and backlog is not None:
             # each frame is listed once; what is learnt later about a request listed
             # while open (its answer, its timeout) follows as one update record
+            store = session.store
             store.sync()
             status = store.status
-            settled = [i for i in waiting if status[i] != Status.OPEN]
-            waiting = [i for i in waiting if status[i] == Status.OPEN]
+            # (a new segment starts only when no request is open: none is below base)
+            settled = [i for i in waiting if status[i - base] != Status.OPEN]
+            waiting = [i for i in waiting if status[i - base] == Status.OPEN]
             if settled:
                 if backlog.full:
                     backlog.drop(len(settled))
@@ -275,7 +294,7 @@ def stream(
                     break
                 part = todo[k : k + RENDER_ROWS]
                 lister.write(part, flush=False)
-                waiting += [i for i in part if status[i] == Status.OPEN]
+                waiting += [i for i in part if status[i - base] == Status.OPEN]
                 backlog.add(sink.getvalue())
                 sink.seek(0)
                 sink.truncate()
@@ -286,7 +305,7 @@ def stream(
                     notify(_dropped_text(backlog.dropped))
                     said, last_said = backlog.dropped, now
         if exporter is not None:
-            exporter.write(rows if picked is None else picked)
+            exporter.write(todo)
 
     try:
         with stop_requests() as stop:
@@ -319,6 +338,18 @@ def stream(
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0
+
+
+def _new_segment(selection: Selection) -> None:
+    """The capture started a new segment: the selection goes on over its store, from its
+    first row (a filter keeps the time origin it had)."""
+    selection.given = 0
+    job = selection.job
+    if job is not None:
+        session = selection.session
+        selection.job = FilterJob(
+            session.store, job.query, job.options, session.annotator, job.origin
+        )
 
 
 def _dropped_text(rows: int) -> str:

@@ -7,7 +7,7 @@ import argparse
 import time
 from typing import TYPE_CHECKING, TextIO
 
-from sniffer.capture import LiveCapture
+from sniffer.capture import WINDOW_ROWS, LiveCapture
 from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
@@ -69,7 +69,13 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             recorder.close(reader.clock.now())
             raise
     capture = LiveCapture(
-        reader, session, recorder=recorder, queue_size=queue, notify=notify, publisher=publisher
+        reader,
+        session,
+        recorder=recorder,
+        queue_size=queue,
+        notify=notify,
+        publisher=publisher,
+        window=WINDOW_ROWS,  # --mqtt: rows published are let go
     )
     announce(err, "recording", specs, recorder)
     end = None if deadline is None else time.monotonic() + deadline

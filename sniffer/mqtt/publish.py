@@ -354,7 +354,7 @@ class BusPublisher:
                 "raw": list(r.raw),
                 "t": v.t,
                 "time": iso_time(v.t),
-                "frame": v.index,
+                "frame": v.index + self.session.base,  # in the whole capture (windowed live)
                 "access": access,
             }
             if entry.spec.bits and isinstance(r.value, int) and not isinstance(r.value, bool):
@@ -374,7 +374,7 @@ class BusPublisher:
             "kind": kind,
             "t": v.t,
             "time": iso_time(v.t),
-            "frame": v.index,
+            "frame": v.index + self.session.base,  # in the whole capture (windowed live)
             "frame_kind": KIND_NAMES[v.kind],
             "unit": v.unit if framed else None,
             "device": d.label,
@@ -388,7 +388,7 @@ class BusPublisher:
             body = v.body()
             message["exception_code"] = body[2] if len(body) > 2 else None
         if v.partner != NO_PARTNER:
-            message["partner"] = v.partner
+            message["partner"] = v.partner + self.session.base
         self._send(self.target.topic("events"), json.dumps(message, ensure_ascii=False))
         self.events += 1
 
