@@ -256,6 +256,23 @@ class _Framer:
     def finish(self) -> None:
         self._scan(final=True)
 
+    def settled(self) -> bool:
+        """Whether every byte given has been decided and no answer it predicted is
+        awaited: the next row owes nothing to the bytes before (see `rebase`)."""
+        return self.pos == len(self.stream) == self.timeline.offset and self.pending_unit < 0
+
+    def rebase(self) -> None:
+        """A settled framer's stream offsets from 0 again, its stream about to be emptied
+        (a headless live capture's next segment, `sniffer.session.Session.new_segment`):
+        what it knows of time (the last read's end, the line's resolution) stays."""
+        self.pos = 0
+        timeline = self.timeline
+        timeline.offset = timeline.cur_start = 0
+        timeline.spans.clear()
+        timeline.starts.clear()
+        timeline.boundaries.clear()
+        timeline.line_errors.clear()
+
     def line_error(self) -> None:
         """The source says the last byte fed came with a framing or parity error: the
         frame or noise span that ends up holding it is flagged."""
@@ -323,6 +340,16 @@ class RtuFramer(_Framer):
     def idle(self) -> None:
         """The line has been silent for at least t3.5: decide everything buffered."""
         self._scan(final=True)
+
+    def settled(self) -> bool:
+        # no noise span under way, no row waiting for its answer, no pair unrecorded
+        return (
+            super().settled() and self.noise_start < 0 and self.pending_row < 0 and not self.pairs
+        )
+
+    def rebase(self) -> None:
+        super().rebase()
+        self.scan_end = 0
 
     # -- the scanner ---------------------------------------------------------------------
 
@@ -886,6 +913,9 @@ class AsciiFramer(_Framer):
         }
         self.pending_len = -1  # the open request's answer body length (-1: not known)
         self.pending_end = 0.0  # when the open request ended
+
+    def settled(self) -> bool:
+        return super().settled() and self.open < 0  # no frame under way
 
     def idle(self) -> None:
         """ASCII allows 1 s between characters: idleness alone does not close a frame."""

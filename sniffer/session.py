@@ -133,7 +133,7 @@ class Session:
             return False
         for ch in pipeline.channels.values():
             framer = ch.framer
-            if framer is None or ch.held is not None or not _settled(framer):
+            if framer is None or ch.held is not None or not framer.settled():
                 return False
             if ch.staging is not None and ch.read < len(ch.staging):
                 return False
@@ -144,7 +144,7 @@ class Session:
         fresh.peers, fresh.servers = store.peers, store.servers
         for ch in pipeline.channels.values():
             assert ch.framer is not None
-            _rebase(ch.framer)
+            ch.framer.rebase()
             if ch.staging is None:
                 ch.framer.out = fresh
             ch.fed = 0
@@ -219,33 +219,6 @@ class Session:
 
     def _sidecar_bytes(self) -> int:
         return sum(len(s) for s in self.store.streams.values())
-
-
-def _settled(framer: Any) -> bool:  # a sniffer.framing framer (only pipelines import it)
-    """Whether a framer has decided every byte it was given and waits for no answer it
-    predicted (so its next row owes nothing to the bytes before)."""
-    return (
-        framer.pos == len(framer.stream) == framer.timeline.offset
-        and framer.pending_unit < 0
-        and getattr(framer, "noise_start", -1) < 0  # RTU: no noise span under way
-        and getattr(framer, "open", -1) < 0  # ASCII: no frame under way
-        and getattr(framer, "pending_row", -1) < 0
-        and not getattr(framer, "pairs", None)
-    )
-
-
-def _rebase(framer: Any) -> None:
-    """A settled framer's stream offsets from 0 again, its stream about to be emptied:
-    what it knows of time (the last read's end, the line's resolution) stays."""
-    framer.pos = 0
-    if hasattr(framer, "scan_end"):
-        framer.scan_end = 0
-    timeline = framer.timeline
-    timeline.offset = timeline.cur_start = 0
-    timeline.spans.clear()
-    timeline.starts.clear()
-    timeline.boundaries.clear()
-    timeline.line_errors.clear()
 
 
 def open_session(
