@@ -1,21 +1,42 @@
-"""Provides the framing benchmark: index a 1M-frame stream, against pymodbus's RTU framer.
+"""Provides the framing benchmark: index a 1M-frame stream, against pymodbus's RTU framer,
+and the compiled core against the pure-Python one.
 
-Run: python benchmarks/bench_framing.py [--frames N]. modscope frames a stream whose
-direction it must infer; pymodbus is told each frame's direction and gets each frame
-as its own read (its framer takes one frame per call), which only helps it.
+Run: python benchmarks/bench_framing.py [--frames N] [--only pymodbus|cores] [--dir DIR]
+
+pymodbus: modscope frames a stream whose direction it must infer; pymodbus is told each
+frame's direction and gets each frame as its own read (its framer takes one frame per
+call), which only helps it.
+
+cores: CPU time per frame in this process (`time.process_time`, median of --runs) of
+reading a capture file (the chunks `Session.ingest` takes, batched) and of reading,
+framing and pairing it, with the compiled core (`sniffer.core`) and with the pure-Python
+one, on three file shapes of the same N frames: `modscope record`'s 16 ms reads and one
+frame per packet (link type 250, written by bench_scale into DIR and kept), and one frame
+per packet of link type 147 (as bench_tui writes).
 """
 
 from __future__ import annotations
 
+import argparse
 import os
+import statistics
+import subprocess
 import sys
+import time
+from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.common import LINE, arguments, file_reads, peak_rss_mb, timed, usb_reads, workload
+from benchmarks.common import LINE, file_reads, peak_rss_mb, timed, usb_reads, workload
+from sniffer import core
 from sniffer.pipeline import Pipeline
+from sniffer.session import open_session
+from sniffer.sources import open_capture
+from sniffer.sources.reads import batching
 from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind
+
+HERE = Path(__file__).resolve().parent
 
 
 def index(chunks: list) -> FrameStore:  # type: ignore[type-arg]
@@ -40,9 +61,71 @@ def pymodbus_frames(frames: list) -> int:  # type: ignore[type-arg]
     return n
 
 
-def main() -> None:
-    args = arguments(__doc__ or "")
-    frames = workload(args.frames)
+def shapes(folder: Path, n: int) -> dict[str, Path]:
+    """The capture files of the comparison, written by child processes unless there."""
+    from benchmarks.bench_scale import make_files
+
+    reads, one = make_files(folder, n)
+    user0 = folder / f"user0-frames-{n}.pcapng"
+    if not user0.exists():
+        subprocess.run(
+            [sys.executable, str(HERE / "bench_tui.py"), "--make", str(user0), "--frames", str(n)],
+            check=True,
+        )
+    return {
+        "16 ms reads (250)": reads,
+        "one frame per packet (250)": one,
+        "one frame per packet (147)": user0,
+    }
+
+
+def _reading(path: Path) -> float:
+    capture = open_capture(path)
+    t = time.process_time()
+    with batching(True):
+        for _chunk in capture.chunks():
+            pass
+    return time.process_time() - t
+
+
+def _indexing(path: Path) -> tuple[float, int]:
+    session, capture = open_session(path, index=False)
+    pipeline = session.pipeline
+    t = time.process_time()
+    with batching(True):
+        for chunk in capture.chunks():
+            pipeline.feed(chunk)
+    pipeline.finish()
+    return time.process_time() - t, len(session.store)
+
+
+def compare_cores(folder: Path, n: int, runs: int) -> None:
+    """Reading, and reading with framing and pairing, per frame: compiled and pure."""
+    files = shapes(folder, n)
+    compiled = core.FAST
+    print(f"\ncores: CPU time per frame in this process, median of {runs} ({core.describe()})")
+    if compiled is None:
+        print("  the compiled core is not built here: nothing to compare")
+        return
+    print(f"  {'file':<28} {'core':<10} {'reading':>12} {'read+frame+pair':>18}")
+    for name, path in files.items():
+        for label, module in (("pure", None), ("compiled", compiled)):
+            core.FAST = module
+            try:
+                read = statistics.median(_reading(path) for _ in range(runs))
+                measured = [_indexing(path) for _ in range(runs)]
+            finally:
+                core.FAST = compiled
+            rows = measured[0][1]
+            index = statistics.median(m[0] for m in measured)
+            print(
+                f"  {name:<28} {label:<10} {read / rows * 1e6:9.2f} us "
+                f"{index / rows * 1e6:15.2f} us"
+            )
+
+
+def pymodbus_comparison(frames_wanted: int) -> None:
+    frames = workload(frames_wanted)
     n = len(frames)
     reads = file_reads(frames)
     size = sum(len(c.data) for c in reads)
@@ -66,6 +149,23 @@ def main() -> None:
         f"ratio modscope/pymodbus: file reads {t_pm / t_file:.1f}x, USB reads {t_pm / t_usb:.1f}x"
     )
     print(f"store: {store.memory_bytes() / n:.1f} bytes per frame; peak RSS {peak_rss_mb():.0f} MB")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--frames", type=int, default=1_000_000, help="frames in the stream")
+    parser.add_argument("--only", choices=("pymodbus", "cores"), help="run one comparison")
+    parser.add_argument(
+        "--dir", type=Path, default=Path("/tmp/modscope-bench"), help="capture files (kept)"
+    )
+    parser.add_argument("--runs", type=int, default=3, help="runs of each core (median)")
+    args = parser.parse_args()
+    if args.only != "cores":
+        pymodbus_comparison(args.frames)
+    if args.only != "pymodbus":
+        compare_cores(args.dir, args.frames, args.runs)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
 /* modscope's optional compiled core: the two loops that run once a byte or a packet.
  *
- *  - bulk_epbs: walks the blocks of a piece of a pcapng file while they are link type 250
- *    data records of one batch (sniffer/sources/pcap.py: _bulk_blocks);
+ *  - bulk_epbs: walks the blocks of a piece of a pcapng file while they are data packets
+ *    (link type 250 data records, link type 147 packets) of one batch
+ *    (sniffer/sources/pcap.py: _bulk_blocks);
+ *  - bulk_pcap: the same over the records of a classic pcap file (_bulk_pcap_records);
  *  - rtu_scan: the RTU framer's fast paths 1 and 2 with the read-by-read timeline step
  *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read).
  *
@@ -77,7 +79,7 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
     return PyLong_FromLong(c);
 }
 
-/* ---- pcapng: runs of link type 250 data records -------------------------------------- */
+/* ---- pcapng: runs of data packets (link type 250 data records, link type 147) ---------- */
 
 #define BLOCK_EPB 6u
 #define MAX_BLOCK (1u << 26)
@@ -126,6 +128,7 @@ typedef struct {
     uint64_t tps;
     double offset;
     int role;
+    uint32_t skip; /* bytes of header before the bytes read: 12 for RTAC records, 0 USER0 */
 } Iface;
 
 /* bulk_epbs(buf, pos, limit, big, ifaces, b_index, b_dir, b_bytes, b_first)
@@ -133,7 +136,8 @@ typedef struct {
  * Takes data records from `pos` while _bulk_blocks would take them into the batch
  * described by b_index (-1: none open), b_dir, b_bytes, b_first. `limit` is the file's
  * size less the file offset of buf[0]. `ifaces` holds, per interface index of the
- * section, None or (ticks per second, offset seconds, role). Stops at the first block
+ * section, None or (ticks per second, offset seconds, role, header length: 12 for link
+ * type 250, whose RTAC header is read, 0 for 147). Stops at the first block
  * the Python walk must look at; `cut` says the batch must be passed on before the
  * record at `pos`. ends are int64, times float64 (NaN: no start time), native order. */
 static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
@@ -168,12 +172,17 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
         if (item == Py_None) continue;
         unsigned long long tps;
         long long offset;
-        int role;
-        if (!PyArg_ParseTuple(item, "KLi", &tps, &offset, &role)) goto done;
+        int role, skip;
+        if (!PyArg_ParseTuple(item, "KLii", &tps, &offset, &role, &skip)) goto done;
+        if (skip != 0 && skip != RTAC_HEADER_LEN) {
+            PyErr_SetString(PyExc_ValueError, "header length must be 0 or 12");
+            goto done;
+        }
         ifaces[i].ok = 1;
         ifaces[i].tps = tps;
         ifaces[i].offset = (double)offset; /* |offset| < 2**53: exact, as Python converts */
         ifaces[i].role = role;
+        ifaces[i].skip = (uint32_t)skip;
     }
 
     for (;;) {
@@ -181,7 +190,7 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
         const unsigned char *b = buf + pos;
         uint32_t type = rd32(b, big), total = rd32(b + 4, big);
         if (type != BLOCK_EPB) break;
-        if (total < 44 || total % 4 || total > MAX_BLOCK || pos + (Py_ssize_t)total > limit ||
+        if (total < 36 || total % 4 || total > MAX_BLOCK || pos + (Py_ssize_t)total > limit ||
             pos + (Py_ssize_t)total > len)
             break;
         if (rd32(b + total - 4, big) != total) break;
@@ -192,7 +201,7 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
         Iface *iface = &ifaces[index];
         uint64_t tail = 28 + (uint64_t)caplen + ((4 - caplen % 4) % 4);
         uint64_t stop = total - 4;
-        if (caplen <= RTAC_HEADER_LEN || tail > stop) break;
+        if (caplen <= iface->skip || tail > stop) break;
         uint32_t flags = 0;
         if (tail != stop) {
             const unsigned char *o = b + tail;
@@ -202,8 +211,12 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
             flags = rd32(o + 4, big);
         }
         const unsigned char *rec = b + 28;
-        uint32_t secs = rd32(rec, 1), usecs = rd32(rec + 4, 1);
-        if (rec[8] != RTAC_DATA_RX_START) break;
+        uint32_t secs = 0, usecs = 0;
+        if (iface->skip) {
+            secs = rd32(rec, 1);
+            usecs = rd32(rec + 4, 1);
+            if (rec[8] != RTAC_DATA_RX_START) break;
+        }
         double t;
         if (!exact_quotient(ticks, iface->tps, &t)) break;
         t = t + iface->offset;
@@ -220,13 +233,16 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
             b_bytes = 0;
             b_first = t;
         }
-        double seconds = (double)secs + (double)usecs / 1e6;
-        double lead = t - seconds;
-        double t_start = (0.0 < lead && lead < RTAC_MAX_LEAD) ? seconds : Py_NAN;
+        double t_start = Py_NAN;
+        if (iface->skip) {
+            double seconds = (double)secs + (double)usecs / 1e6;
+            double lead = t - seconds;
+            if (0.0 < lead && lead < RTAC_MAX_LEAD) t_start = seconds;
+        }
         int64_t end;
-        b_bytes += caplen - RTAC_HEADER_LEN;
+        b_bytes += caplen - iface->skip;
         end = b_bytes;
-        if (buf_put(&data, rec + RTAC_HEADER_LEN, caplen - RTAC_HEADER_LEN) < 0 ||
+        if (buf_put(&data, rec + iface->skip, caplen - iface->skip) < 0 ||
             buf_put(&ends, &end, 8) < 0 || buf_put(&starts, &t_start, 8) < 0 ||
             buf_put(&tends, &t, 8) < 0)
             goto done;
@@ -245,6 +261,88 @@ static PyObject *py_bulk_epbs(PyObject *self, PyObject *args) {
     }
 done:
     PyMem_Free(ifaces);
+    buf_free(&data);
+    buf_free(&ends);
+    buf_free(&starts);
+    buf_free(&tends);
+    PyBuffer_Release(&view);
+    return result;
+}
+
+/* bulk_pcap(buf, pos, limit, big, header, skip, tps, b_open, b_bytes, b_first)
+ *   -> (pos, cut, b_open, b_bytes, b_first, data, ends, t_starts, t_ends)
+ * The records of a classic pcap file from `pos` while _bulk_pcap_records would take them
+ * into the batch described by b_open, b_bytes, b_first: `header` is the record header's
+ * length (16, or 24 for the "modified" format), `skip` that of the payload's header (12:
+ * link type 250, whose RTAC header is read; 0: link type 147), `tps` 10**6 or 10**9.
+ * `limit` as for bulk_epbs. The packet time is secs + frac / tps, both exact doubles, so
+ * one rounding each as Python's int + int / int. */
+static PyObject *py_bulk_pcap(PyObject *self, PyObject *args) {
+    Py_buffer view;
+    Py_ssize_t pos, limit, header, skip, b_bytes;
+    unsigned long long tps;
+    int big, b_open;
+    double b_first;
+    if (!PyArg_ParseTuple(args, "y*nnpnnKpnd", &view, &pos, &limit, &big, &header, &skip, &tps,
+                          &b_open, &b_bytes, &b_first))
+        return NULL;
+    const unsigned char *buf = (const unsigned char *)view.buf;
+    Py_ssize_t len = view.len;
+    Buf data = {0}, ends = {0}, starts = {0}, tends = {0};
+    PyObject *result = NULL;
+    int cut = 0;
+    if ((header != 16 && header != 24) || (skip != 0 && skip != RTAC_HEADER_LEN) || tps == 0 ||
+        tps > (1ull << 53) || pos < 0) {
+        PyErr_SetString(PyExc_ValueError, "bulk_pcap: bad record layout");
+        goto done;
+    }
+    for (;;) {
+        if (pos + header > len) break;
+        const unsigned char *b = buf + pos;
+        uint32_t secs = rd32(b, big), frac = rd32(b + 4, big), length = rd32(b + 8, big);
+        if (length > MAX_BLOCK || pos + header + (Py_ssize_t)length > limit ||
+            pos + header + (Py_ssize_t)length > len)
+            break;
+        if (length <= (uint32_t)skip) break;
+        double t = (double)secs + (double)frac / (double)tps;
+        if (!(0.0 <= t && t < MAX_TIME)) break;
+        const unsigned char *rec = b + header;
+        double t_start = Py_NAN;
+        if (skip) {
+            if (rec[8] != RTAC_DATA_RX_START) break;
+            double seconds = (double)rd32(rec, 1) + (double)rd32(rec + 4, 1) / 1e6;
+            double lead = t - seconds;
+            if (0.0 < lead && lead < RTAC_MAX_LEAD) t_start = seconds;
+        }
+        if (b_open && (t - b_first > MAX_BATCH_SPAN || b_bytes > MAX_BATCH_BYTES)) {
+            cut = 1;
+            break;
+        }
+        if (!b_open) {
+            b_open = 1;
+            b_bytes = 0;
+            b_first = t;
+        }
+        int64_t end;
+        b_bytes += length - skip;
+        end = b_bytes;
+        if (buf_put(&data, rec + skip, length - skip) < 0 || buf_put(&ends, &end, 8) < 0 ||
+            buf_put(&starts, &t_start, 8) < 0 || buf_put(&tends, &t, 8) < 0)
+            goto done;
+        pos += header + length;
+    }
+    {
+        PyObject *d = buf_bytes(&data), *e = buf_bytes(&ends), *s = buf_bytes(&starts),
+                 *te = buf_bytes(&tends);
+        if (d && e && s && te)
+            result = Py_BuildValue("(nOOndOOOO)", pos, cut ? Py_True : Py_False,
+                                   b_open ? Py_True : Py_False, b_bytes, b_first, d, e, s, te);
+        Py_XDECREF(d);
+        Py_XDECREF(e);
+        Py_XDECREF(s);
+        Py_XDECREF(te);
+    }
+done:
     buf_free(&data);
     buf_free(&ends);
     buf_free(&starts);
@@ -522,7 +620,8 @@ done:
 
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
-    {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "Link type 250 data records of one batch."},
+    {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
+    {"bulk_pcap", py_bulk_pcap, METH_VARARGS, "Classic pcap data packets of one batch."},
     {"rtu_scan", py_rtu_scan, METH_VARARGS, "The RTU framer's fast paths over reads."},
     {NULL, NULL, 0, NULL},
 };

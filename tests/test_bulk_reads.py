@@ -1,8 +1,9 @@
-"""The bulk pcapng walk and batches of reads give what the block-by-block walk gives.
+"""The bulk pcapng and pcap walks and batches of reads give what the block-by-block walk
+gives.
 
-`Session.ingest` lets the pcapng reader pass runs of link type 250 reads as one
-`sniffer.sources.reads.Reads`; everything else reads a capture one chunk per read. Both
-must agree on every chunk, warning and row, for clean, odd and damaged files alike.
+`Session.ingest` lets the pcapng and pcap readers pass runs of link type 250 and 147 reads
+as one `sniffer.sources.reads.Reads`; everything else reads a capture one chunk per read.
+Both must agree on every chunk, warning and row, for clean, odd and damaged files alike.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from sniffer.sources import open_capture
 from sniffer.sources.linktypes import (
     LINKTYPE_RTAC_SERIAL,
     LINKTYPE_USER0,
+    LINKTYPE_WIRESHARK_UPPER_PDU,
     RTAC_CAPTURE_DATA_LOST,
     RTAC_DATA_RX_START,
     RTAC_DATA_TX_START,
@@ -122,6 +124,17 @@ def _chunks(path: Path, batched: bool) -> tuple[list[Chunk], list[str], int]:
     return got, capture.warnings, capture.data_bytes
 
 
+# the interfaces of a pcapng capture: data records, plain reads, both, and a link type that
+# is not batched (252, whose packets are not interpreted as reads here)
+LINKTYPE_MIXES = [
+    [LINKTYPE_RTAC_SERIAL],
+    [LINKTYPE_RTAC_SERIAL] * 2,
+    [LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0],
+    [LINKTYPE_USER0],
+    [LINKTYPE_USER0] * 2,
+    [LINKTYPE_USER0, LINKTYPE_WIRESHARK_UPPER_PDU],
+]
+
 damage = st.one_of(
     st.none(),
     st.tuples(st.just("cut"), st.integers(0, 10**6)),
@@ -129,12 +142,23 @@ damage = st.one_of(
 )
 
 
+def hurt_file(data: bytes, hurt: tuple[object, ...] | None) -> bytes:
+    """The file cut short or with a few bytes overwritten, as `damage` drew."""
+    out = bytearray(data)
+    if hurt is not None and hurt[0] == "cut":
+        del out[max(1, int(str(hurt[1])) % (len(out) + 1)) :]  # an empty file is refused
+    elif hurt is not None:
+        at = int(str(hurt[1])) % len(out)
+        poke = hurt[2]
+        assert isinstance(poke, bytes)
+        out[at : at + len(poke)] = poke
+    return bytes(out)
+
+
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     order=st.sampled_from(["<", ">"]),
-    linktypes=st.sampled_from(
-        [[LINKTYPE_RTAC_SERIAL], [LINKTYPE_RTAC_SERIAL] * 2, [LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]]
-    ),
+    linktypes=st.sampled_from(LINKTYPE_MIXES),
     packets=st.lists(packet, max_size=40),
     second_section=st.integers(-1, 40),
     hurt=damage,
@@ -147,27 +171,106 @@ def test_bulk_walk_gives_the_chunks_and_warnings_of_the_block_walk(
     second_section: int,
     hurt: tuple[object, ...] | None,
 ) -> None:
-    data = bytearray(_capture(order, linktypes, packets, second_section))
-    if hurt is not None and hurt[0] == "cut":
-        del data[max(1, int(str(hurt[1])) % (len(data) + 1)) :]  # an empty file is refused
-    elif hurt is not None:
-        at = int(str(hurt[1])) % len(data)
-        poke = hurt[2]
-        assert isinstance(poke, bytes)
-        data[at : at + len(poke)] = poke
+    data = hurt_file(_capture(order, linktypes, packets, second_section), hurt)
     path = tmp_path_factory.mktemp("bulk") / "c.pcapng"
-    path.write_bytes(bytes(data))
+    path.write_bytes(data)
     plain = _chunks(path, False)
     batched = _chunks(path, True)
     assert batched == plain
 
 
-def _recording(path: Path, reads: list[tuple[bytes, float]]) -> None:
+PCAP_MAGIC = {(False, False): 0xA1B2C3D4, (True, False): 0xA1B23C4D, (False, True): 0xA1B2CD34}
+
+
+def pcap_capture(
+    order: str,
+    nanoseconds: bool,
+    modified: bool,
+    linktype: int,
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+) -> bytes:
+    """A classic pcap file of the `packet` draws (one interface: no flags, no comments)."""
+    magic = PCAP_MAGIC[nanoseconds, modified]
+    out = bytearray(struct.pack(order + "IHHiIII", magic, 2, 4, 0, 0, 65535, linktype))
+    t = T0
+    for _iface, what, _flags, _comment, start, count, lead, step in packets:
+        t += step
+        data = b"".join(FRAMES[start : start + count])
+        event = {"data": RTAC_DATA_RX_START, "sent": RTAC_DATA_TX_START}.get(what)
+        if event is None:
+            event = RTAC_FRAMING_ERROR if what == "event" else RTAC_CAPTURE_DATA_LOST
+            data = b""
+        body = rtac_record(max(t - lead, 0.0), data, event=event)
+        if linktype != LINKTYPE_RTAC_SERIAL:
+            body = data
+        ticks = round(t * (1e9 if nanoseconds else 1e6))
+        secs, frac = divmod(ticks, 10**9 if nanoseconds else 10**6)
+        fields = (secs, frac, len(body), len(body)) + ((0, 0, 0, 0) if modified else ())
+        out += struct.pack(order + ("IIIIIHBB" if modified else "IIII"), *fields) + body
+    return bytes(out)
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    order=st.sampled_from(["<", ">"]),
+    layout=st.sampled_from(list(PCAP_MAGIC)),  # nanoseconds, modified record header
+    linktype=st.sampled_from([LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]),
+    packets=st.lists(packet, max_size=40),
+    hurt=damage,
+)
+def test_bulk_pcap_walk_gives_the_chunks_and_warnings_of_the_record_walk(
+    tmp_path_factory: pytest.TempPathFactory,
+    order: str,
+    layout: tuple[bool, bool],
+    linktype: int,
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    hurt: tuple[object, ...] | None,
+) -> None:
+    data = hurt_file(pcap_capture(order, *layout, linktype, packets), hurt)
+    path = tmp_path_factory.mktemp("bulkpcap") / "c.pcap"
+    path.write_bytes(data)
+    plain = _chunks(path, False)
+    batched = _chunks(path, True)
+    assert batched == plain
+
+
+def test_data_packets_of_every_shape_come_in_batches(tmp_path: Path) -> None:
+    """The batches are real: a clean capture's reads come as few `Reads`."""
+    reads = [(FRAMES[k % 50], T0 + k * 0.01) for k in range(300)]
+    for shape in SHAPES:
+        path = tmp_path / f"{shape.replace(' ', '')}.cap"
+        _recording(path, reads, shape)
+        with batching(True):
+            chunks = list(open_capture(path).chunks())
+        assert 1 < len(chunks) < 30
+        assert all(isinstance(c, Reads) for c in chunks)
+        assert sum(len(c) for c in chunks if isinstance(c, Reads)) == 300
+
+
+# the shapes a recording of reads is written in: pcapng link type 250 (RTAC records with
+# the first byte's time) or 147 (the bytes alone), classic pcap of either
+SHAPES = ["pcapng 250", "pcapng 147", "pcap 250", "pcap 147"]
+
+
+def _recording(path: Path, reads: list[tuple[bytes, float]], shape: str = "pcapng 250") -> None:
     order = "<"
-    out = bytearray(_shb(order) + _idb(order, LINKTYPE_RTAC_SERIAL, True))
+    linktype = LINKTYPE_RTAC_SERIAL if shape.endswith("250") else LINKTYPE_USER0
+    if shape.startswith("pcap "):
+        out = bytearray(struct.pack("<IHHiIII", PCAP_MAGIC[True, False], 2, 4, 0, 0, 0, linktype))
+        for data, t in reads:
+            body = data
+            if linktype == LINKTYPE_RTAC_SERIAL:
+                body = rtac_record(t - len(data) * LINE.char_time, data)
+            secs, frac = divmod(round(t * 1e9), 10**9)
+            out += struct.pack("<IIII", secs, frac, len(body), len(body)) + body
+        path.write_bytes(bytes(out))
+        return
+    out = bytearray(_shb(order) + _idb(order, linktype, True))
     for data, t in reads:
-        start = t - len(data) * LINE.char_time
-        out += _epb(order, 0, t, rtac_record(start, data), [_opt(order, 2, b"\1\0\0\0")])
+        body = data
+        if linktype == LINKTYPE_RTAC_SERIAL:
+            body = rtac_record(t - len(data) * LINE.char_time, data)
+        out += _epb(order, 0, t, body, [_opt(order, 2, b"\1\0\0\0")])
     path.write_bytes(bytes(out))
 
 
@@ -198,12 +301,14 @@ COLUMNS = [
     cuts=st.lists(st.integers(1, 90), min_size=1, max_size=400),
     noise=st.lists(st.tuples(st.integers(0, 5000), st.binary(max_size=3)), max_size=8),
     lag=st.floats(0.0, 0.02),
+    shape=st.sampled_from(SHAPES),
 )
 def test_batches_frame_pair_and_count_as_the_reads_one_by_one(
     tmp_path_factory: pytest.TempPathFactory,
     cuts: list[int],
     noise: list[tuple[int, bytes]],
     lag: float,
+    shape: str,
 ) -> None:
     stream = bytearray(b"".join(FRAMES))
     for at, junk in sorted(noise, reverse=True):
@@ -217,7 +322,7 @@ def test_batches_frame_pair_and_count_as_the_reads_one_by_one(
         reads.append((bytes(stream[pos : pos + n]), t))
         pos += n
     path = tmp_path_factory.mktemp("rec") / "r.pcapng"
-    _recording(path, reads)
+    _recording(path, reads, shape)
     one, many = _store_of(path, False), _store_of(path, True)
     for name in COLUMNS:
         assert getattr(many.store, name) == getattr(one.store, name), name

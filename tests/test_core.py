@@ -10,10 +10,13 @@ MODSCOPE_REQUIRE_COMPILED=1 (check.sh sets it): then they fail.
 
 from __future__ import annotations
 
+import math
 import os
 import random
+import struct
 import subprocess
 import sys
+from fractions import Fraction
 from pathlib import Path
 from types import ModuleType
 
@@ -28,7 +31,25 @@ from sniffer.session import Session, open_session
 from sniffer.sources import open_capture
 from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0
 from sniffer.sources.reads import Reads, batching
-from tests.test_bulk_reads import COLUMNS, FRAMES, LINE, T0, _capture, _recording, damage, packet
+from tests.test_bulk_reads import (
+    COLUMNS,
+    FRAMES,
+    LINE,
+    LINKTYPE_MIXES,
+    PCAP_MAGIC,
+    SHAPES,
+    T0,
+    _block,
+    _capture,
+    _opt,
+    _opts,
+    _recording,
+    _shb,
+    damage,
+    hurt_file,
+    packet,
+    pcap_capture,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "sniffer" / "demo" / "demo.pcapng"
@@ -201,6 +222,7 @@ def _cut(
     cuts=st.one_of(st.just([0]), st.lists(st.integers(1, 90), min_size=1, max_size=50)),
     lag=st.sampled_from([0.0, 0.0, 0.004, 0.05]),
     batched=st.booleans(),
+    shape=st.sampled_from(SHAPES),
 )
 def test_random_traffic_is_the_same_with_either_core(
     tmp_path_factory: pytest.TempPathFactory,
@@ -210,10 +232,11 @@ def test_random_traffic_is_the_same_with_either_core(
     cuts: list[int],
     lag: float,
     batched: bool,
+    shape: str,
 ) -> None:
     fast = _compiled()
     path = tmp_path_factory.mktemp("core") / "r.pcapng"
-    _recording(path, _cut(_traffic(seed, n, mix), cuts, lag))
+    _recording(path, _cut(_traffic(seed, n, mix), cuts, lag), shape)
     _assert_same(path, fast, batched)
 
 
@@ -235,11 +258,12 @@ def test_large_polling_recording_is_the_same_with_either_core(
     tmp_path: Path, compiled: ModuleType
 ) -> None:
     frames = [(f, T0 + k * 0.004) for k, f in enumerate(FRAMES)]
-    for cuts in ([0], [37, 90, 5, 64]):
-        path = tmp_path / "poll.pcapng"
-        _recording(path, _cut(frames, cuts, 0.0))
-        pure = _assert_same(path, compiled)
-        assert len(pure.store) == len(FRAMES)
+    for shape in SHAPES:
+        for cuts in ([0], [37, 90, 5, 64]):
+            path = tmp_path / "poll.pcapng"
+            _recording(path, _cut(frames, cuts, 0.0), shape)
+            pure = _assert_same(path, compiled)
+            assert len(pure.store) == len(FRAMES)
 
 
 # -- the pcapng walk -------------------------------------------------------------------------
@@ -248,9 +272,7 @@ def test_large_polling_recording_is_the_same_with_either_core(
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     order=st.sampled_from(["<", ">"]),
-    linktypes=st.sampled_from(
-        [[LINKTYPE_RTAC_SERIAL], [LINKTYPE_RTAC_SERIAL] * 2, [LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]]
-    ),
+    linktypes=st.sampled_from(LINKTYPE_MIXES),
     packets=st.lists(packet, max_size=40),
     second_section=st.integers(-1, 40),
     hurt=damage,
@@ -264,17 +286,68 @@ def test_the_bulk_walk_gives_the_same_chunks_and_warnings_with_either_core(
     hurt: tuple[object, ...] | None,
 ) -> None:
     fast = _compiled()
-    data = bytearray(_capture(order, linktypes, packets, second_section))
-    if hurt is not None and hurt[0] == "cut":
-        del data[max(1, int(str(hurt[1])) % (len(data) + 1)) :]
-    elif hurt is not None:
-        at = int(str(hurt[1])) % len(data)
-        poke = hurt[2]
-        assert isinstance(poke, bytes)
-        data[at : at + len(poke)] = poke
+    data = hurt_file(_capture(order, linktypes, packets, second_section), hurt)
     path = tmp_path_factory.mktemp("walk") / "c.pcapng"
-    path.write_bytes(bytes(data))
+    path.write_bytes(data)
     assert _chunks(path, fast) == _chunks(path, None)
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    order=st.sampled_from(["<", ">"]),
+    layout=st.sampled_from(list(PCAP_MAGIC)),
+    linktype=st.sampled_from([LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]),
+    packets=st.lists(packet, max_size=40),
+    hurt=damage,
+)
+def test_the_bulk_pcap_walk_gives_the_same_chunks_and_warnings_with_either_core(
+    tmp_path_factory: pytest.TempPathFactory,
+    order: str,
+    layout: tuple[bool, bool],
+    linktype: int,
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    hurt: tuple[object, ...] | None,
+) -> None:
+    fast = _compiled()
+    data = hurt_file(pcap_capture(order, *layout, linktype, packets), hurt)
+    path = tmp_path_factory.mktemp("walkpcap") / "c.pcap"
+    path.write_bytes(data)
+    assert _chunks(path, fast) == _chunks(path, None)
+
+
+def test_packet_times_halfway_between_two_doubles_round_half_to_even(
+    tmp_path: Path, compiled: ModuleType
+) -> None:
+    """A timestamp of 2**-23 s ticks (if_tsresol 0x97) with 54 significant bits lies
+    exactly halfway between two doubles: Python's int / int rounds it to the even one,
+    and so must the compiled walk (exact_quotient), down or up as the even one lies."""
+    tps = 1 << 23
+    whole = 1_714_564_800  # 31 bits: a double keeps 22 bits of fraction, the ticks 23
+    order = "<"
+    resolution = _opt(order, 9, bytes([0x80 | 23]))
+    idb = struct.pack(order + "HHI", LINKTYPE_USER0, 0, 0) + _opts(order, [resolution])
+    out = bytearray(_shb(order) + _block(order, 1, idb))
+    all_ticks = [(whole << 23) + odd for odd in range(1, 2000, 2)]
+    for ticks in all_ticks:
+        data = FRAMES[ticks % len(FRAMES)]
+        head = (0, ticks >> 32, ticks & 0xFFFFFFFF, len(data), len(data))
+        body = struct.pack(order + "IIIII", *head)
+        out += _block(order, 6, body + data + b"\0" * (-len(data) % 4))
+    path = tmp_path / "ties.pcapng"
+    path.write_bytes(bytes(out))
+    chunks, warnings = _chunks(path, compiled)
+    assert not warnings
+    assert [c.t_end for c in chunks] == [ticks / tps for ticks in all_ticks]
+    # every one is a tie, and the even neighbour lies below for some, above for others
+    down = up = 0
+    for ticks, chunk in zip(all_ticks, chunks, strict=True):
+        low = (ticks >> 1) / (tps >> 1)  # 53 bits over a power of two: exact
+        high = math.nextafter(low, math.inf)
+        assert Fraction(low) + Fraction(high) == 2 * Fraction(ticks, tps)  # exactly halfway
+        down += chunk.t_end == low
+        up += chunk.t_end == high
+    assert down == up == len(all_ticks) // 2
+    assert _chunks(path, None)[0] == chunks
 
 
 # -- which core runs -------------------------------------------------------------------------

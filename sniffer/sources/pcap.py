@@ -406,6 +406,10 @@ def _pcap_records(
     with path.open("rb") as handle:
         size = _file_size(handle)
         offset = 24
+        if batching_enabled() and iface.linktype in PLAIN_HEADER:
+            # runs of data packets as batches; the loop below reads on from a damaged or
+            # truncated record, with its warning
+            offset = yield from _bulk_pcap_records(handle, header, record, iface, decoder)
         handle.seek(offset)
         while offset < size:
             raw = handle.read(record.size)
@@ -432,6 +436,118 @@ def _pcap_records(
             t = secs + frac / iface.ticks_per_second
             yield from decoder.chunks(iface, t, data, None, "", offset)
             offset += record.size + incl_len
+
+
+def _bulk_pcap_records(
+    handle: BinaryIO,
+    header: _PcapHeader,
+    record: struct.Struct,
+    iface: _Interface,
+    decoder: _PacketDecoder,
+) -> Generator[Chunk, None, int]:
+    """Walk a pcap file of a link type in `PLAIN_HEADER` in large reads and pass runs of
+    its data packets as `Reads` batches (as `_bulk_blocks` does for pcapng); other
+    whole records go through the decoder one by one. Returns the offset of the first
+    record that is damaged or cut short (or the file's size), from which `_pcap_records`
+    reads on and says what is wrong."""
+    size = _file_size(handle)
+    skip = PLAIN_HEADER[iface.linktype]
+    ticks = iface.ticks_per_second
+    rtac_head, rx_start = RTAC_HEADER, RTAC_DATA_RX_START
+    fast = core.FAST
+    big = header.order == ">"
+    # no EPB flags here: a data packet's direction is the interface's (UNKNOWN in pcap)
+    direction = packet_direction(iface.linktype, iface.note.role, None)
+    handle.seek(24)
+    buf = b""
+    base = 24  # file offset of buf[0]
+    pos = 0
+    parts: list[bytes] = []
+    ends: array[int] = array("q")
+    t_starts: array[float] = array("d")
+    t_ends: array[float] = array("d")
+    b_bytes = 0
+    b_first = 0.0
+
+    def batch() -> Reads:
+        nonlocal ends, t_starts, t_ends
+        iface.last_end = t_ends[-1]
+        first = t_starts[0]
+        reads = Reads(
+            b"".join(parts),
+            t_ends[-1],
+            None if math.isnan(first) else first,
+            iface.channel,
+            direction,
+            ends=ends,
+            t_starts=t_starts,
+            t_ends=t_ends,
+        )
+        parts.clear()
+        ends, t_starts, t_ends = array("q"), array("d"), array("d")
+        return reads
+
+    while True:
+        if pos + record.size > len(buf):
+            more = handle.read(BULK_READ)
+            if more:
+                buf, base, pos = buf[pos:] + more, base + pos, 0
+                continue
+            if parts:
+                yield batch()
+            return base + pos
+        if fast is not None:
+            # the compiled copy of the data packet branch below
+            pos, cut, _, b_bytes, b_first, data, e, ts, te = fast.bulk_pcap(
+                buf, pos, size - base, big, record.size, skip, ticks, bool(parts), b_bytes,
+                b_first,
+            )  # fmt: skip
+            if e:
+                parts.append(data)
+                ends.frombytes(e)
+                t_starts.frombytes(ts)
+                t_ends.frombytes(te)
+            if cut:
+                yield batch()
+                continue
+            if pos + record.size > len(buf):
+                continue
+        secs, frac, length = record.unpack_from(buf, pos)[:3]
+        offset = base + pos
+        if length > MAX_BLOCK or offset + record.size + length > size:
+            if parts:
+                yield batch()
+            return offset
+        if pos + record.size + length > len(buf):
+            more = handle.read(max(BULK_READ, record.size + length))
+            buf, base, pos = buf[pos:] + more, base + pos, 0
+            continue
+        data_at = pos + record.size
+        t = secs + frac / ticks
+        if length > skip and 0.0 <= t < MAX_TIME:
+            t_start = math.nan
+            event = rx_start
+            if skip:
+                r_secs, r_usecs, event, _lines, _footer = rtac_head.unpack_from(buf, data_at)
+                seconds = r_secs + r_usecs / 1e6
+                if 0.0 < t - seconds < RTAC_MAX_LEAD:
+                    t_start = seconds
+            if event == rx_start:
+                if parts and (t - b_first > MAX_BATCH_SPAN or b_bytes > MAX_BATCH_BYTES):
+                    yield batch()
+                if not parts:
+                    b_bytes, b_first = 0, t
+                parts.append(buf[data_at + skip : data_at + length])
+                b_bytes += length - skip
+                ends.append(b_bytes)
+                t_starts.append(t_start)
+                t_ends.append(t)
+                pos = data_at + length
+                continue
+        if parts:
+            yield batch()
+        yield from decoder.chunks(iface, t, buf[data_at : data_at + length], None, "", offset)
+        pos = data_at + length
 
 
 # ---------------------------------------------------------------- pcapng
@@ -757,7 +873,14 @@ def _one_block(
     return True
 
 
-BULK_READ = 1 << 22  # bytes read from the file at a time by the bulk walk
+BULK_READ = 1 << 22  # bytes read from the file at a time by the bulk walks
+
+# Link types whose data packets the bulk walks batch, with the length of the header before
+# the bytes read: an RTAC record's (only its "data received" records are taken), none for
+# USER0. Their packets mean the same thing: the bytes of one read, stamped at its end (an
+# RTAC header may add the first byte's time), in a direction the EPB flags or the
+# interface's role give (packet_direction).
+PLAIN_HEADER = {LINKTYPE_RTAC_SERIAL: RTAC_HEADER_LEN, LINKTYPE_USER0: 0}
 
 
 def _bulk_blocks(
@@ -767,8 +890,9 @@ def _bulk_blocks(
     info: SourceInfo,
     warnings: list[str],
 ) -> Generator[Chunk, None, tuple[int, str] | None]:
-    """Walk the file in large reads and pass runs of link type 250 data records of one
-    interface as `Reads` batches, without a Python object per packet.
+    """Walk the file in large reads and pass runs of data packets (`PLAIN_HEADER`: link
+    type 250 data records, link type 147 packets) of one interface as `Reads` batches,
+    without a Python object per packet.
 
     Only blocks whose lengths all agree, that lie wholly in the file, are taken here;
     other blocks (section and interface headers, comments, events, other link types)
@@ -793,7 +917,7 @@ def _bulk_blocks(
     rx_start = RTAC_DATA_RX_START
     # the compiled walk over data records (sniffer.core), given the section's interfaces
     fast = core.FAST
-    fast_ifaces: list[tuple[int, int, int] | None] = _fast_interfaces(section)
+    fast_ifaces: list[tuple[int, int, int, int] | None] = _fast_interfaces(section)
     # the batch being gathered
     parts: list[bytes] = []
     ends: array[int] = array("q")
@@ -837,7 +961,7 @@ def _bulk_blocks(
                 yield batch()
             return None if base + pos == size else (base + pos, order)
         if fast is not None and base + pos:
-            # the compiled copy of the data record branch below, up to the first block it
+            # the compiled copy of the data packet branch below, up to the first block it
             # does not take (that block is then looked at here, as without it)
             pos, cut, b_index, direction_value, b_bytes, b_first, data, e, ts, te = (
                 fast.bulk_epbs(
@@ -885,19 +1009,16 @@ def _bulk_blocks(
             if parts:
                 yield batch()
             return offset, order
-        if block_type == BLOCK_EPB and total >= 44:
+        if block_type == BLOCK_EPB and total >= 36:
             _, _, index, high, low = epb.unpack_from(buf, pos)
             caplen = flags_value.unpack_from(buf, pos + 20)[0]
             iface = section.current[index] if index < len(section.current) else None
             tail = pos + 28 + caplen + (-caplen % 4)
             stop = pos + total - 4
             flags: int | None = None
-            fast_record = (
-                iface is not None
-                and iface.linktype == LINKTYPE_RTAC_SERIAL
-                and caplen > RTAC_HEADER_LEN
-                and tail <= stop
-            )
+            # the payload's header: RTAC records carry one, USER0 packets are the bytes
+            skip = -1 if iface is None else PLAIN_HEADER.get(iface.linktype, -1)
+            fast_record = skip >= 0 and caplen > skip and tail <= stop
             if fast_record and tail != stop:
                 fast_record = (
                     stop - tail == 12
@@ -908,7 +1029,11 @@ def _bulk_blocks(
             if fast_record:
                 assert iface is not None
                 data_at = pos + 28
-                secs, usecs, event, _lines, _footer = rtac_head.unpack_from(buf, data_at)
+                t_start = math.nan
+                secs = usecs = 0
+                event = rx_start
+                if skip:
+                    secs, usecs, event, _lines, _footer = rtac_head.unpack_from(buf, data_at)
                 t = ((high << 32) | low) / iface.ticks_per_second + iface.offset_seconds
                 if event == rx_start and 0.0 <= t < MAX_TIME:
                     direction = directions.get((iface.channel, flags))
@@ -925,12 +1050,15 @@ def _bulk_blocks(
                         yield batch()
                     if not parts:
                         b_iface, b_index, b_dir, b_bytes, b_first = iface, index, direction, 0, t
-                    seconds = secs + usecs / 1e6
-                    lead = t - seconds
-                    parts.append(buf[data_at + RTAC_HEADER_LEN : data_at + caplen])
-                    b_bytes += caplen - RTAC_HEADER_LEN
+                    if skip:
+                        seconds = secs + usecs / 1e6
+                        lead = t - seconds
+                        if 0.0 < lead < RTAC_MAX_LEAD:
+                            t_start = seconds
+                    parts.append(buf[data_at + skip : data_at + caplen])
+                    b_bytes += caplen - skip
                     ends.append(b_bytes)
-                    t_starts.append(seconds if 0.0 < lead < RTAC_MAX_LEAD else math.nan)
+                    t_starts.append(t_start)
                     t_ends.append(t)
                     pos += total
                     continue
@@ -945,19 +1073,23 @@ def _bulk_blocks(
             fast_ifaces = _fast_interfaces(section)
 
 
-def _fast_interfaces(section: _Section) -> list[tuple[int, int, int] | None]:
+def _fast_interfaces(section: _Section) -> list[tuple[int, int, int, int] | None]:
     """What the compiled walk needs of each interface of the section: ticks per second,
-    offset seconds and role of those of link type 250 (None for the others, and where
-    those numbers are out of the range it computes times for exactly)."""
-    out: list[tuple[int, int, int] | None] = []
+    offset seconds, role and the length of the header before the bytes read of those of
+    a link type in `PLAIN_HEADER` (None for the others, and where those numbers are out
+    of the range it computes times for exactly)."""
+    out: list[tuple[int, int, int, int] | None] = []
     for iface in section.current:
+        skip = PLAIN_HEADER.get(iface.linktype, -1)
         fits = (
-            iface.linktype == LINKTYPE_RTAC_SERIAL
+            skip >= 0
             and 0 < iface.ticks_per_second <= 1 << 62
             and abs(iface.offset_seconds) < 1 << 53
         )
         out.append(
-            (iface.ticks_per_second, iface.offset_seconds, int(iface.note.role)) if fits else None
+            (iface.ticks_per_second, iface.offset_seconds, int(iface.note.role), skip)
+            if fits
+            else None
         )
     return out
 
