@@ -25,7 +25,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import crc16_py, with_crc
-from sniffer import core
+from sniffer import core, framing
 from sniffer.model import Chunk
 from sniffer.session import Session, open_session
 from sniffer.sources import open_capture
@@ -72,14 +72,15 @@ def compiled() -> ModuleType:
 
 
 def _ingest(path: Path, fast: ModuleType | None, batched: bool = True) -> Session:
-    saved = core.FAST
+    saved = core.FAST, framing.FAST_MIN_BYTES
     core.FAST = fast
+    framing.FAST_MIN_BYTES = 0  # the compiled path for every lone chunk too, however short
     try:
         session, capture = open_session(path, index=False)
         session.batch_reads = batched
         session.ingest(capture.chunks())
     finally:
-        core.FAST = saved
+        core.FAST, framing.FAST_MIN_BYTES = saved
     return session
 
 
