@@ -159,6 +159,7 @@ class Describer:
         self._lookups = 0
         self._hits = 0
         self._paused = 0  # rows left before the cache is tried again (see GUARD_*)
+        self._fresh: FrameView | None = None  # the view the last `shared` call made
 
     def forget(self, i: int) -> None:
         self._cache.pop(i, None)
@@ -190,6 +191,19 @@ class Describer:
         answer, its request's bytes and mode; the unit is in the bytes. A unit whose
         dictionary has parameter windows is decoded with the parameters the windows
         had selected when the row was sent: those are part of the key too."""
+        return self._shared_of(i, None)
+
+    def view(self, i: int) -> FrameView:
+        """Row `i`'s view: the one `shared(i)` made, if it was just called and had to
+        describe the row (saves 3 us a new content), else a new one."""
+        fresh = self._fresh
+        if fresh is not None and fresh.index == i:
+            self._fresh = None
+            return fresh
+        return self.store.view(i)
+
+    def _shared_of(self, i: int, view: FrameView | None) -> Shared | None:
+        self._fresh = None
         if self.shared_size <= 0:
             return None
         if self._paused:
@@ -237,7 +251,12 @@ class Describer:
             if made is not None:
                 self._hits += 1
                 return made
-        made = self._content(store.view(i))
+        if view is None:
+            view = self._fresh = store.view(i)
+        request: bytes | None = None
+        if kind in _ANSWERS and partner != NO_PARTNER and not store.flags[partner] & _MODE:
+            request = asked[:-2]  # an RTU request's body, as its view would give it
+        made = self._content(view, request)
         if found is not None:
             assert isinstance(found, _Windowed)
             if len(found.by_selection) < 64:
@@ -263,10 +282,15 @@ class Describer:
         cache[key] = entry
 
     def _make(self, i: int) -> FrameDetail:
+        view = self.store.view(i)
+        shared = self._shared_of(i, view)
+        return self.complete(view, shared if shared is not None else self._content(view))
+
+    def complete(self, view: FrameView, content: Shared) -> FrameDetail:
+        """The details of row `view.index` from what its content says: the latencies
+        and the slow answer's problem added."""
         store = self.store
-        view = store.view(i)
-        shared = self.shared(i)
-        content = shared if shared is not None else self._content(view)
+        i = view.index
         problems = content.problems
         if not content.timed:
             c = content
@@ -292,8 +316,9 @@ class Describer:
             measured.seconds * 1000 if measured is not None and measured.bound else None,
         )
 
-    def _content(self, view: FrameView) -> Shared:
-        """What row `view.index` says apart from its latency and the slow answer."""
+    def _content(self, view: FrameView, request: bytes | None = None) -> Shared:
+        """What row `view.index` says apart from its latency and the slow answer (an
+        answer's `request` body is looked up unless given)."""
         store = self.store
         i = view.index
         note = store.notes.get(i, "")
@@ -309,8 +334,7 @@ class Describer:
             text = "frame too short to read"
             return Shared("?", text, None, (), tuple(problems), label, timed=False)
         role = Role.RESPONSE if view.kind in (Kind.RESPONSE, Kind.EXCEPTION) else Role.REQUEST
-        request: bytes | None = None
-        if role == Role.RESPONSE and view.partner != NO_PARTNER:
+        if role == Role.RESPONSE and view.partner != NO_PARTNER and request is None:
             request = store.view(view.partner).body()
         # the annotator's registry holds the bound devices' own codes: one path for all
         d = dissect(body, role, request=request, registry=self.annotator.registry)
@@ -357,9 +381,14 @@ class Describer:
             plain(summary),
             d,
             tuple(registers),
-            tuple(Problem(p.kind, p.severity, plain(p.text), p.span) for p in problems),
+            tuple(_plain_problem(p) for p in problems),
             label,
         )
+
+
+def _plain_problem(p: Problem) -> Problem:
+    text = plain(p.text)
+    return p if text is p.text else Problem(p.kind, p.severity, text, p.span)
 
 
 def _window_inputs(annotator: Annotator, unit: int, d: Dissection | None) -> tuple[int, ...]:
