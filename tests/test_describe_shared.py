@@ -137,6 +137,27 @@ def test_an_exception_explained_by_one_request_and_not_by_the_other() -> None:
     assert "explained by the request" not in d.detail(3).summary
 
 
+def test_an_exception_to_the_same_write_through_a_window_that_selected_another_parameter() -> None:
+    # P.49 (node address) is documented 1-255, P.30 has no range: 300 is out of range
+    # only for the first, which explains the refusal
+    write = with_crc(struct.pack(">BBHHBH", 2, 16, 0x5003, 1, 2, 300))
+    refused = with_crc(bytes([2, 0x90, 3]))
+    select = [(write1(2, 0x5001, n), write1(2, 0x5001, n), 0.01) for n in (49, 30)]
+    s = session([select[0], (write, refused, 0.01), select[1], (write, refused, 0.01)])
+    d = same_as_uncached(s)
+    assert s.store.raw(3) == s.store.raw(7)
+    assert "explained by the request" in d.detail(3).summary
+    assert "explained by the request" not in d.detail(7).summary
+
+
+def test_the_same_request_answered_and_not() -> None:
+    ask, other = read(9, 3, 0, 1), read(9, 3, 5, 1)
+    s = session([(ask, answer(9, 3, [7]), 0.01), (ask, None, 0.0), (other, None, 0.0)])
+    d = same_as_uncached(s)
+    assert s.store.flags[0] == s.store.flags[2]
+    assert d.detail(0).problems != d.detail(2).problems  # the second timed out
+
+
 def test_the_same_frame_on_units_with_other_dictionaries() -> None:
     exchanges = [(read(u, 3, 0, 2), answer(u, 3, [0x41, 0x42]), 0.01) for u in (1, 2, 3, 9)]
     s = session(exchanges * 2)
