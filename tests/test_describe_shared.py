@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import struct
+from collections.abc import Sequence
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -40,7 +41,7 @@ def write1(unit: int, address: int, value: int) -> bytes:
     return with_crc(struct.pack(">BBHH", unit, 6, address, value))
 
 
-def session(exchanges: list[tuple[bytes, bytes | None, float]], bound: bool = True) -> Session:
+def session(exchanges: Sequence[tuple[bytes, bytes | None, float]], bound: bool = True) -> Session:
     """Each (request, answer or None, seconds to the answer) 0.3 s after the last."""
     s = Session(LINE, bindings=BINDINGS if bound else {})
     t = T0
