@@ -219,8 +219,8 @@ class PcapExporter:
     A packet's block is the same for every row with the same content (see
     `Describer.shared`) but for its time and, for Modbus/TCP, its transaction id: the
     first such row's block is written by the pcapng writer and kept as a template,
-    the next ones are that template with their time and id put in (1.5 us a row
-    instead of 10)."""
+    the next ones are that template with their time and id put in (2.7 us a row; over
+    the 100k-frame benchmark 19 us a row, 48 before)."""
 
     def __init__(
         self,

@@ -19,7 +19,7 @@ CSV_TEXT_LIMIT = 1 << 20  # a CSV cell keeps its whole text (raw hex of a frame 
 FORMULA_START = frozenset("=+-@\t\r")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 # what `plain` escapes; text with none of it is returned as it is (one regex search
-# instead of a loop over its characters: 0.3 us instead of 8 us for a summary)
+# instead of a loop over its characters: 0.4 us instead of 5 us for an 88-character summary)
 _UNSAFE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
 
 
