@@ -34,8 +34,9 @@ from __future__ import annotations
 
 import csv
 import json
+import struct
 from collections.abc import Iterable, Iterator
-from typing import Any, BinaryIO, TextIO
+from typing import Any, BinaryIO, TextIO, cast
 
 from dissectors import mbap
 from dissectors.envelope import open_ascii, open_rtu, rtu_frame
@@ -51,6 +52,7 @@ from sniffer.sources.pcapng_writer import (
     LINKTYPE_WIRESHARK_UPPER_PDU,
     PcapngWriter,
     describe_interface,
+    time_ticks,
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
@@ -152,10 +154,16 @@ def line_bytes_text(raw: bytes, ascii_mode: bool) -> tuple[str, str, bytes | Non
 def tcp_packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     """(link type 252 packet for `mbtcp`, EPB flags, comment) for one row (the default
     export: see the module's docstring)."""
+    return _tcp_packet(d)[:3]
+
+
+def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
+    """`tcp_packet_for`, and where in the packet the MBAP transaction id lies (None
+    when the packet has none)."""
     v = d.view
     problems = list(d.problem_texts)
     if v.kind in (Kind.EVENT, Kind.NOISE):
-        return packet_for(d)
+        return (*packet_for(d), None)
     flags = 0
     if v.kind == Kind.REQUEST:
         flags |= EPB_FLAG_OUTBOUND
@@ -172,18 +180,47 @@ def tcp_packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
         head = f"{shown}; {check}"
     if body is None or len(body) < 2:
         note = "not a Modbus frame that Wireshark can take; exported as bytes"
-        return upper_pdu_record(v.raw, "data"), flags, "; ".join([head, note, *problems])
+        return upper_pdu_record(v.raw, "data"), flags, "; ".join([head, note, *problems]), None
     if v.kind == Kind.UNKNOWN:
         problems.insert(0, "direction unknown; exported as a query")
     ends = TO_MASTER if v.kind in (Kind.RESPONSE, Kind.EXCEPTION) else TO_SLAVE
     packet = build_mbtcp_pdu(ends, _transaction_id(d), body[0], body[1:])
-    return packet, flags, "; ".join([head, *problems])
+    # the MBAP header (id, protocol, length, unit) ends where the PDU begins
+    at = len(packet) - (len(body) - 1) - 7
+    return packet, flags, "; ".join([head, *problems]), at
+
+
+class _Blocks:
+    """Where the exporter's pcapng writer writes: the blocks are kept until the
+    exporter passes them on, so that it can reuse a packet block's bytes."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+
+    def write(self, data: bytes) -> int:
+        self.parts.append(data)
+        return len(data)
+
+    def flush(self) -> None:
+        pass
+
+
+_EPB_TIME = struct.Struct("<II")  # an enhanced packet block's time: high and low words
+_TID = struct.Struct(">H")
+_DEVICE_SLOW = int(Flag.DEVICE_SLOW)
+TICKS = 1_000_000_000  # the writer's default resolution (nanoseconds)
 
 
 class PcapExporter:
-    """Writes rows of a session's store as link type 252 packets, flushed per packet:
-    for Wireshark's Modbus/TCP dissector (`style` "modbus-tcp", the default) or byte for
-    byte for its RTU dissector ("rtu")."""
+    """Writes rows of a session's store as link type 252 packets, flushed after every
+    `write`: for Wireshark's Modbus/TCP dissector (`style` "modbus-tcp", the default) or
+    byte for byte for its RTU dissector ("rtu").
+
+    A packet's block is the same for every row with the same content (see
+    `Describer.shared`) but for its time and, for Modbus/TCP, its transaction id: the
+    first such row's block is written by the pcapng writer and kept as a template,
+    the next ones are that template with their time and id put in (2.7 us a row; over
+    the 100k-frame benchmark 19 us a row, 48 before)."""
 
     def __init__(
         self,
@@ -196,29 +233,79 @@ class PcapExporter:
     ) -> None:
         if style not in PCAP_STYLES:
             raise ValueError(f"style must be one of {', '.join(PCAP_STYLES)}, not {style!r}")
-        self.packet_for = tcp_packet_for if style == "modbus-tcp" else packet_for
+        self.style = style
+        self.packet_for = self._tcp_packet if style == "modbus-tcp" else self._rtu_packet
         self.describer = describer
-        self.writer = PcapngWriter(stream, application=f"modscope {__version__}")
+        self.stream = stream
+        self._blocks = _Blocks()
+        self.writer = PcapngWriter(
+            cast(BinaryIO, self._blocks), application=f"modscope {__version__}"
+        )
         self.interface = self.writer.add_interface(
             LINKTYPE_WIRESHARK_UPPER_PDU, name=name, description=describe_interface(line)
         )
+        self._pass_on()
         self.packets = 0
+
+    @staticmethod
+    def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
+        return _tcp_packet(d)
+
+    @staticmethod
+    def _rtu_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
+        return (*packet_for(d), None)
+
+    def _pass_on(self) -> None:
+        parts = self._blocks.parts
+        if parts:
+            self.stream.write(b"".join(parts))
+            parts.clear()
+        self.stream.flush()
 
     def write(self, rows: Iterable[int]) -> int:
         n = 0
+        describer = self.describer
+        store = describer.store
+        parts = self._blocks.parts
+        key = f"pcapng {self.style} {self.interface}"
         for i in rows:
-            d = self.describer.detail(i)
-            packet, flags, comment = self.packet_for(d)
-            self.writer.write_packet(
-                self.interface,
-                max(d.view.t_end, 0.0),
-                packet,
-                flags=flags,
-                comment=comment or None,
-            )
+            shared = describer.shared(i)
+            t = max(store.t_end[i], 0.0)
+            if shared is None or store.flags[i] & _DEVICE_SLOW:
+                self._write(describer.detail(i), t)
+            else:
+                template = shared.memo.get(key)
+                if template is None:
+                    d = describer.complete(describer.view(i), shared)
+                    template = shared.memo[key] = self._write(d, t)
+                else:
+                    ticks = time_ticks(t, TICKS)
+                    head, middle, tail = template
+                    when = _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
+                    if tail is None:
+                        parts.append(head + when + middle)
+                    else:
+                        kind, partner = store.kind[i], store.partner[i]
+                        tid = partner if kind != Kind.REQUEST and partner != NO_PARTNER else i
+                        parts.append(head + when + middle + _TID.pack(tid & 0xFFFF) + tail)
             n += 1
+            if len(parts) >= 1024:
+                self._pass_on()
+        self._pass_on()
         self.packets += n
         return n
+
+    def _write(self, d: FrameDetail, t: float) -> tuple[bytes, bytes, bytes | None]:
+        """Write row `d`'s packet with the writer; returns its block as a template: the
+        bytes before the time, those between the time and the transaction id (or to
+        the end), and those after the id (None when the packet has no id)."""
+        packet, flags, comment, at = self.packet_for(d)
+        self.writer.write_packet(self.interface, t, packet, flags=flags, comment=comment or None)
+        block = self._blocks.parts[-1]
+        # the block: type, length, interface (12 bytes), time (8), two lengths (8), packet
+        if at is None:
+            return block[:12], block[20:], None
+        return block[:12], block[20 : 28 + at], block[28 + at + 2 :]
 
 
 # -- transactions and registers -------------------------------------------------------------

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import csv
+import json
+import math
 from collections.abc import Iterable, Iterator, Sequence
 from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from dissectors.values import Field
-from sniffer.describe import Describer, FrameDetail
+from sniffer.describe import Describer, FrameDetail, Shared
 from sniffer.model import Stamp
+from sniffer.pairing import measure
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.text import csv_row, json_line
-from sniffer.vocab import STATUS_NAMES, Kind
+from sniffer.vocab import STATUS_NAMES, Flag, Kind
 
 FORMATS = ("text", "jsonl", "csv")
 KIND_NAMES = {
@@ -54,10 +57,15 @@ SYNTHETIC_HEADER = (
 )
 
 
+_SCALARS = frozenset((int, bool, float, str, type(None)))
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, bytes):
         return value.hex()
     if isinstance(value, tuple):
+        if _SCALARS.issuperset(map(type, value)):  # words or bits: 3 us, not 13 (120 words)
+            return list(value)
         return [_jsonable(v) for v in value]
     return value
 
@@ -262,23 +270,96 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False, peer: str =
         when += f"  {peer:<21}"
     if v.kind == Kind.EVENT:
         return f"{when}  ---  {d.summary}"
+    head, tail = _text_parts(d)
+    lat = "" if v.kind == Kind.REQUEST else _latency_text(d.latency_ms, d.latency_max_ms)
+    return when + head + lat + tail
+
+
+def _text_parts(d: FrameDetail) -> tuple[str, str]:
+    """What a frame's text line says before its latency and after it (the time and
+    peer go first): all of it decided by the row's content, but for a slow answer's
+    problem."""
+    v = d.view
     if v.kind == Kind.NOISE:
-        return f"{when}  ???  noise {len(v.raw):3d}B  {v.raw[:24].hex(' ')}"
+        return f"  ???  noise {len(v.raw):3d}B  {v.raw[:24].hex(' ')}", ""
     unit = f"u{v.unit:<3d}"
     check = "ok " if v.check_ok else "BAD"
     fc = f"{v.function:02d}{'!' if v.exception else ' '}"
     status = STATUS_NAMES[v.status]
-    lat = ""
-    if v.kind != Kind.REQUEST:
-        if d.latency_ms is not None:
-            lat = f" {d.latency_ms:7.1f}ms"
-        elif d.latency_max_ms is not None:
-            lat = f" {'<' + format(d.latency_max_ms, '.0f'):>7}ms"
-    line = f"{when}  {d.direction}  {unit} {fc} {d.name[:28]:<28} {len(v.raw):3d}B {check} "
-    line += f"{status:<9}{lat}  {d.summary}"
+    head = f"  {d.direction}  {unit} {fc} {d.name[:28]:<28} {len(v.raw):3d}B {check} "
+    head += f"{status:<9}"
+    tail = f"  {d.summary}"
     if d.problems:
-        line += "  [" + "; ".join(d.problem_texts) + "]"
-    return line
+        tail += "  [" + "; ".join(d.problem_texts) + "]"
+    return head, tail
+
+
+def _latency_text(ms: float | None, max_ms: float | None) -> str:
+    if ms is not None:
+        return f" {ms:7.1f}ms"
+    if max_ms is not None:
+        return f" {'<' + format(max_ms, '.0f'):>7}ms"
+    return ""
+
+
+def _json_float(x: float) -> str:
+    """A float as `json.dumps` writes it."""
+    return repr(x) if math.isfinite(x) else json.dumps(x)
+
+
+def _json_item(key: str, value: Any) -> str:
+    """`"key": value` as `json_line` writes it inside an object."""
+    return json_line({key: value})[1:-1]
+
+
+_ROW_KEYS = frozenset(("index", "t", "t_end", "channel", "transaction"))
+
+
+def _json_parts(d: FrameDetail) -> tuple[str, str, str]:
+    """The parts of a row's JSONL object that its content decides, encoded: the items
+    between `t_end` and `channel`, those between `channel` and `transaction`, and
+    `registers` (empty when there are none)."""
+    rec = record(d)
+    keys = [k for k in rec if k not in _ROW_KEYS]
+    cut = list(rec).index("channel") - 3  # index, t and t_end come first
+    registers = {"registers": rec["registers"]} if "registers" in rec else {}
+    first = {k: rec[k] for k in keys[:cut]}
+    second = {k: rec[k] for k in keys[cut:] if k != "registers"}
+    return json_line(first)[1:-1], json_line(second)[1:-1], json_line(registers)[1:-1]
+
+
+_TRANSACTION_KINDS = frozenset((Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN))
+_STATUS_JSON = tuple(json.dumps(name) for name in STATUS_NAMES)
+
+
+def _transaction_json(
+    store: FrameStore, i: int, kind: int, ms: float | None, max_ms: float | None
+) -> str:
+    """`, "transaction": {...}` of row `i` as `transaction_of` gives it (empty when
+    there is none), from the store's columns and the row's measured latency."""
+    status = store.status[i]
+    if kind not in _TRANSACTION_KINDS or not status:
+        return ""
+    partner = store.partner[i]
+    request = kind == Kind.REQUEST
+    req = i if request or partner == NO_PARTNER else partner
+    if ms is None:
+        shown = "null"
+    elif partner == NO_PARTNER:
+        shown = _json_float(round(ms, 3))
+    else:
+        answer, req_row = (partner, i) if request else (i, partner)
+        gap = round(store.t[answer], 6) - round(store.t_end[req_row], 6)
+        shown = _json_float(round(gap * 1000, 3))
+    bound = "null" if max_ms is None else _json_float(round(max_ms, 3))
+    return (
+        f', "transaction": {{"id": {req}, "role": "{"request" if request else "response"}", '
+        f'"latency_ms": {shown}, "latency_max_ms": {bound}, "status": {_STATUS_JSON[status]}, '
+        f'"partner": {"null" if partner == NO_PARTNER else partner}}}'
+    )
+
+
+_DEVICE_SLOW = int(Flag.DEVICE_SLOW)
 
 
 class Lister:
@@ -305,60 +386,148 @@ class Lister:
         self.origin: float | None = None
         self.raw_csv = raw_csv
         self._csv = csv.writer(out) if fmt == "csv" else None
+        self._stamps: Stamp | None = None
+        self._timing = ""  # the JSONL `timing` item for `_stamps`
         if self._csv is not None:
             self._csv.writerow(CSV_COLUMNS)
 
     def write(self, rows: Iterable[int], flush: bool = True) -> int:
+        """List `rows`; with `flush`, each row is written and flushed as it is made (a
+        live listing), else rows are written in batches."""
         n = 0
         store = self.describer.store
+        pending: list[str] = []
         for i in rows:
             if self.origin is None:
                 self.origin = store.t[i]
                 if self.fmt == "text" and store.stamps == Stamp.NONE:
                     self.out.write(SYNTHETIC_HEADER + "\n")
-            d = self.describer.detail(i)
             peer = store.peers.get(store.channel[i], "") if store.peers else ""
-            if self.fmt == "text":
-                # with network rows about, the others name their channel in that column
-                where = peer or (f"ch{store.channel[i]}" if store.peers else "")
-                self.out.write(text_line(d, self.origin, self.absolute, where) + "\n")
-            elif self.fmt == "jsonl":
-                rec = record(d, store)
-                rec["timing"] = TIMING_NAMES[store.stamps]
-                if peer:
-                    rec["peer"] = peer
-                if i in store.links:
-                    rec["gateway"] = store.links[i]
-                self.out.write(json_line(rec) + "\n")
-            else:
-                assert self._csv is not None
-                v = d.view
-                self._csv_row(
-                    (
-                        v.index,
-                        f"{v.t:.6f}",
-                        f"{v.t_end:.6f}",
-                        d.direction,
-                        KIND_NAMES[v.kind],
-                        v.unit,
-                        v.function,
-                        d.name,
-                        len(v.raw),
-                        v.check_ok,
-                        d.status,
-                        _ms(shown_latency_ms(d, store)),
-                        d.summary,
-                        "; ".join(d.problem_texts),
-                        v.raw.hex(),
-                        "" if d.dissection is None else fields_cell(d.dissection.fields),
-                        v.channel,
-                        peer,
-                    )
-                )
+            line = self._shared_line(i, peer) if self._csv is None else None
+            if line is None:
+                line = self._line(self.describer.detail(i), peer)
             n += 1
-            if flush:
+            if line is None:  # CSV: written by the csv module
+                if flush:
+                    self.out.flush()
+            elif flush:
+                self.out.write(line + "\n")
                 self.out.flush()
+            else:
+                pending.append(line)
+                if len(pending) >= 512:
+                    pending.append("")
+                    self.out.write("\n".join(pending))
+                    pending.clear()
+        if pending:
+            pending.append("")
+            self.out.write("\n".join(pending))
         return n
+
+    def _shared_line(self, i: int, peer: str) -> str | None:
+        """Row `i`'s text or JSONL line from what rows with its content share (see
+        `Describer.shared`): made once per content, with the time, latency, channel and
+        transaction of the row put in. None when the row shares nothing (or is a slow
+        answer or a gateway's, whose lines say more): `_line` makes it.
+
+        On the 100k-frame benchmark (in-process, CPU time) a row whose content is known
+        costs 7 us in JSONL and 4 us as text; over all rows 33 us and 16 us a row, 65 and
+        37 before."""
+        store = self.describer.store
+        shared = self.describer.shared(i)
+        if shared is None or store.flags[i] & _DEVICE_SLOW:
+            return None
+        kind = store.kind[i]
+        if kind == Kind.EVENT:
+            return None
+        ms = max_ms = None
+        if shared.timed:
+            measured = measure(store, i)
+            if measured is not None:
+                if measured.bound:
+                    max_ms = measured.seconds * 1000
+                else:
+                    ms = measured.seconds * 1000
+        memo = shared.memo
+        t = store.t[i]
+        if self.fmt == "text":
+            parts = memo.get("text")
+            if parts is None:
+                parts = memo["text"] = _text_parts(self._detail(i, shared))
+            where = peer or (f"ch{store.channel[i]}" if store.peers else "")
+            assert self.origin is not None
+            when = time_text(t, self.origin, self.absolute)
+            if where:
+                when += f"  {where:<21}"
+            lat = "" if kind == Kind.REQUEST else _latency_text(ms, max_ms)
+            return when + parts[0] + lat + parts[1]
+        if i in store.links:
+            return None
+        json_parts = memo.get("jsonl")
+        if json_parts is None:
+            json_parts = memo["jsonl"] = _json_parts(self._detail(i, shared))
+        first, second, registers = json_parts
+        line = (
+            f'{{"index": {i}, "t": {_json_float(round(t, 6))}, '
+            f'"t_end": {_json_float(round(store.t_end[i], 6))}, {first}, '
+            f'"channel": {store.channel[i]}, {second}'
+            f"{_transaction_json(store, i, kind, ms, max_ms)}"
+        )
+        if registers:
+            line += ", " + registers
+        if store.stamps != self._stamps:
+            self._stamps = store.stamps
+            self._timing = ", " + _json_item("timing", TIMING_NAMES[store.stamps])
+        line += self._timing
+        if peer:
+            line += ", " + _json_item("peer", peer)
+        return line + "}"
+
+    def _detail(self, i: int, shared: Shared) -> FrameDetail:
+        return self.describer.complete(self.describer.view(i), shared)
+
+    def _line(self, d: FrameDetail, peer: str) -> str | None:
+        """Row `d` as a text or JSONL line, or written as a CSV record (None)."""
+        store = self.describer.store
+        i = d.view.index
+        if self.fmt == "text":
+            # with network rows about, the others name their channel in that column
+            where = peer or (f"ch{store.channel[i]}" if store.peers else "")
+            assert self.origin is not None
+            return text_line(d, self.origin, self.absolute, where)
+        if self.fmt == "jsonl":
+            rec = record(d, store)
+            rec["timing"] = TIMING_NAMES[store.stamps]
+            if peer:
+                rec["peer"] = peer
+            if i in store.links:
+                rec["gateway"] = store.links[i]
+            return json_line(rec)
+        assert self._csv is not None
+        v = d.view
+        self._csv_row(
+            (
+                v.index,
+                f"{v.t:.6f}",
+                f"{v.t_end:.6f}",
+                d.direction,
+                KIND_NAMES[v.kind],
+                v.unit,
+                v.function,
+                d.name,
+                len(v.raw),
+                v.check_ok,
+                d.status,
+                _ms(shown_latency_ms(d, store)),
+                d.summary,
+                "; ".join(d.problem_texts),
+                v.raw.hex(),
+                "" if d.dissection is None else fields_cell(d.dissection.fields),
+                v.channel,
+                peer,
+            )
+        )
+        return None
 
     def write_updates(self, rows: Iterable[int]) -> int:
         """One update per row listed earlier whose transaction has settled since (see
