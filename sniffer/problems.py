@@ -20,7 +20,6 @@ from sniffer.vocab import (
     STATUS_PROBLEMS,
     Flag,
     Kind,
-    Status,
 )
 
 # flags whose sentence has numbers in it: the check's here, the device's timing in the
@@ -30,12 +29,15 @@ _LISTED = tuple(
     (int(flag), m) for flag, m in FLAGS if flag & PROBLEM_MASK and not flag & _SAID_ELSEWHERE
 )
 _CHECK = dict(FLAGS)[Flag.CHECK_BAD]
+# plain ints for the per-row tests (`int & IntFlag` makes an enum member each time)
+_CHECK_BAD, _ENVELOPE_BAD = int(Flag.CHECK_BAD), int(Flag.ENVELOPE_BAD)
+_STATUS = {int(status): m for status, m in STATUS_PROBLEMS.items()}
 _ENVELOPE = dict(FLAGS)[Flag.ENVELOPE_BAD]
 
 
 def check_text(frame: FrameView) -> str:
     """`CRC 0x1234 wrong, expected 0x5678` for a bad check; empty when it is right."""
-    if frame.kind in (Kind.NOISE, Kind.EVENT) or not frame.flags & Flag.CHECK_BAD:
+    if frame.kind in (Kind.NOISE, Kind.EVENT) or not frame.flags & _CHECK_BAD:
         return ""
     envelope = open_ascii(frame.raw) if frame.ascii else open_rtu(frame.raw)
     return envelope.check_text
@@ -63,7 +65,7 @@ def frame_problems(frame: FrameView, note: str = "") -> list[Problem]:
     text = check_text(frame)
     if text:
         out.append(Problem(_CHECK.kind, _CHECK.severity, text, _check_span(frame)))
-    if frame.flags & Flag.ENVELOPE_BAD:
+    if frame.flags & _ENVELOPE_BAD:
         # the header's own sentences; its spans lie before the body, so none is given
         m = _ENVELOPE
         for p in open_mbap(frame.raw).problems:
@@ -71,7 +73,7 @@ def frame_problems(frame: FrameView, note: str = "") -> list[Problem]:
     flags = frame.flags
     if flags:
         out.extend(Problem(m.kind, m.severity, m.text, None) for f, m in _LISTED if flags & f)
-    meaning = STATUS_PROBLEMS.get(Status(frame.status))
+    meaning = _STATUS.get(frame.status)
     if meaning is not None:
         out.append(Problem(meaning.kind, meaning.severity, meaning.text, None))
     return out
