@@ -9,9 +9,10 @@ more than twice the period: the master stopped polling, or the unit was skipped.
 
 from __future__ import annotations
 
+from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from itertools import compress, repeat
+from itertools import chain, compress, repeat
 from operator import add, and_, lt, not_, sub
 
 from dissectors.dissect import dissect
@@ -136,7 +137,7 @@ def _plain_what(body: bytes) -> tuple[tuple[object, ...], str] | None:
 _IS_REQUEST = bytes(int(k) == Kind.REQUEST for k in range(256))  # kind byte -> 0/1
 _FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC
 _RETRY = int(Flag.RETRY)
-_Sendings = dict[int, dict[tuple[object, ...], tuple[str, int, list[float], list[float]]]]
+_Sendings = dict[int, dict[tuple[object, ...], tuple[str, int, list[list[int]]]]]
 
 
 def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
@@ -144,37 +145,26 @@ def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
     store.sync()
     rows, flags = _good_requests(store)
     keys = _keys(store, rows, flags)
+    # a polling master sends the same requests all day: the rows are grouped by their
+    # bytes in one pass, and each distinct request is taken apart once (1M frames, 500k
+    # requests: 0.3 s, against 1.2 s looking up a dissection and the columns row by row)
+    by_key: defaultdict[object, list[int]] = defaultdict(list)
+    for key, i in zip(keys, rows, strict=True):
+        by_key[key].append(i)
     sendings: _Sendings = {}
-    # a polling master sends the same requests all day: each request's lists are found
-    # by its bytes, and it is taken apart only the first time (1M frames, 500k requests:
-    # 0.25 s, against 1.2 s reading the columns and looking up a dissection row by row)
-    lists: dict[object, tuple[list[float], list[float]]] = {}
-
-    def lists_of(i: int, key: object) -> tuple[list[float], list[float]]:
-        found = lists.get(key)
-        if found is None:
-            if len(lists) >= 65536:  # writes with changing values: keep the memory bounded
-                lists.clear()
-            # the key is the row's bytes (and framing), so it fixes the unit and body too
-            if isinstance(key, bytes):
-                unit, body = store.unit[i], key[:-2]
-            else:
-                view = store.view(i)
-                unit, body = view.unit, view.body()
-            identity, what = _what(body)
-            sent = sendings.setdefault(unit, {}).setdefault(identity, (what, store.fc[i], [], []))
-            found = lists[key] = (sent[2], sent[3])
-        return found
-
-    get = lists.get
-    t = store.t
-    for i, key, sent_at in zip(rows, keys, map(t.__getitem__, rows), strict=True):
-        (get(key) or lists_of(i, key))[0].append(sent_at)
-    retried = list(map(and_, flags, repeat(_RETRY)))
-    if any(retried):
-        for i, key in compress(zip(rows, keys, strict=True), retried):
-            (get(key) or lists_of(i, key))[1].append(t[i])
-    return _cycles(sendings)
+    for key, sent in by_key.items():  # in order of first sending
+        i = sent[0]
+        # the key is the row's bytes (and framing), so it fixes the unit and body too
+        if isinstance(key, bytes):
+            unit, body = store.unit[i], key[:-2]
+        else:
+            view = store.view(i)
+            unit, body = view.unit, view.body()
+        identity, what = _what(body)  # writes with other values: the same identity
+        found = sendings.setdefault(unit, {}).setdefault(identity, (what, store.fc[i], []))
+        found[2].append(sent)
+    retried = set(compress(rows, map(and_, flags, repeat(_RETRY))))
+    return _cycles(store, sendings, retried)
 
 
 def _good_requests(store: FrameStore) -> tuple[list[int], list[int]]:
@@ -210,14 +200,18 @@ def _keys(store: FrameStore, rows: list[int], flags: list[int]) -> list[object]:
     return keys
 
 
-def _cycles(sendings: _Sendings) -> dict[int, UnitCycle]:
+def _cycles(store: FrameStore, sendings: _Sendings, retried: set[int]) -> dict[int, UnitCycle]:
+    """The cycles of the requests sent (the rows of each, in one or more lists)."""
     out: dict[int, UnitCycle] = {}
     for unit, requests in sorted(sendings.items()):
         cycle = out[unit] = UnitCycle(unit)
-        for what, fc, times, retries in requests.values():
-            if len(times) < MIN_REPEATS:
+        for what, fc, parts in requests.values():
+            sent = parts[0] if len(parts) == 1 else sorted(chain.from_iterable(parts))
+            if len(sent) < MIN_REPEATS:
                 cycle.once += 1
                 continue
+            times = list(map(store.t.__getitem__, sent))
+            retries = sum(map(retried.__contains__, sent)) if retried else 0
             waits = list(map(sub, times[1:], times[:-1]))
             ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
             period = _rank(ordered, 0.5)
@@ -238,7 +232,7 @@ def _cycles(sendings: _Sendings) -> dict[int, UnitCycle]:
                     gaps,
                     times[0],
                     times[-1],
-                    len(retries),
+                    retries,
                 )
             )
         cycle.polls.sort(key=lambda p: (p.period, p.what))
