@@ -28,6 +28,7 @@ from dissectors.dictionary.device import Window
 from dissectors.dissect import dissect
 from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
+from sniffer.columns import both, but_not, marking
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.sunspec import SunSpecTracker
 from sniffer.vocab import Flag, Kind
@@ -117,13 +118,13 @@ class Annotator:
             return
         # Only two sorts of row need a look, picked out with C-level scans of the columns:
         # the rows of bound units, and answers to FC 3 of the others (reads that may show
-        # a SunSpec device). 1M frames, nothing bound: 0.1 s instead of 0.5 s a row at a time.
+        # a SunSpec device). 1M frames, nothing bound: 0.12 s instead of 0.49 s a row at a time.
         bound = self.bindings
         units = store.unit[start:n].tobytes()
         answers = store.kind[start:n].tobytes().translate(_IS_RESPONSE)
         reads = store.fc[start:n].tobytes().translate(_IS_READ_HOLDING)
-        of_bound = units.translate(bytes(int(u in bound) for u in range(256)))
-        follow = _and_not(_and(answers, reads), of_bound)
+        of_bound = units.translate(marking(bound))
+        follow = but_not(both(answers, reads), of_bound)
         if 1 in follow:
             self.sunspec.follow_rows(store, compress(range(start, n), follow))
         if 1 in of_bound:
@@ -231,15 +232,5 @@ def _covers(start: int, count: int, address: int) -> bool:
     return start <= address < start + count
 
 
-_IS_RESPONSE = bytes(int(k == Kind.RESPONSE) for k in range(256))  # kind byte -> 0/1
-_IS_READ_HOLDING = bytes(int(fc == 3) for fc in range(256))  # function byte -> 0/1
-
-
-def _and(a: bytes, b: bytes) -> bytes:
-    """Two masks of 0/1 bytes, byte by byte: 1 where both are."""
-    return (int.from_bytes(a, "big") & int.from_bytes(b, "big")).to_bytes(len(a), "big")
-
-
-def _and_not(a: bytes, b: bytes) -> bytes:
-    """Two masks of 0/1 bytes, byte by byte: 1 where `a` is and `b` is not."""
-    return (int.from_bytes(a, "big") & ~int.from_bytes(b, "big")).to_bytes(len(a), "big")
+_IS_RESPONSE = marking((Kind.RESPONSE,))  # kind byte -> 0/1
+_IS_READ_HOLDING = marking((3,))  # function byte -> 0/1

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from itertools import compress, repeat
-from operator import and_
+from itertools import compress
 from pathlib import Path
 
+from sniffer.columns import both, but_not, flag_mask, marking
 from sniffer.model import Chunk, LineSettings
 from sniffer.scan import Sample, format_of, parse_format, score
 from sniffer.sources.base import ReadOptions
@@ -130,19 +130,17 @@ def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
     """A warning when a capture's bytes look read at the wrong speed: many bytes, no
     check-valid frame (and line errors, where the source reported them)."""
     store.sync()
-    n = len(store)
     kinds = store.kind.tobytes()
     # one valid frame is enough: the speed is right (the columns scanned in C: a row at a
     # time, with flag operators, this cost about 2.5 us a row when no frame was valid)
-    frames = compress(range(n), kinds.translate(_IS_FRAME))
-    if not all(map(and_, map(store.flags.__getitem__, frames), repeat(BAD_CHECK))):
+    if 1 in but_not(kinds.translate(_IS_FRAME), flag_mask(store.flags, BAD_CHECK)):
         return None
     on_bus = kinds.translate(_IS_BUS_BYTES)  # every row but events
     total = sum(compress(store.length, on_bus))
     noise = sum(compress(store.length, kinds.translate(_IS_NOISE)))
     if total < min_bytes or noise < total // 2:
         return None
-    errors = sum(map(bool, map(and_, compress(store.flags, on_bus), repeat(_LINE_ERROR))))
+    errors = both(on_bus, flag_mask(store.flags, int(Flag.LINE_ERROR))).count(1)
     lead = f"{total} bytes and no valid Modbus frame"
     if errors:
         lead += f" ({errors} rows with framing or parity errors)"
@@ -152,10 +150,9 @@ def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
     )
 
 
-_IS_BUS_BYTES = bytes(int(k != Kind.EVENT) for k in range(256))  # kind byte -> 0/1
-_IS_NOISE = bytes(int(k == Kind.NOISE) for k in range(256))
-_IS_FRAME = bytes(int(k not in (Kind.NOISE, Kind.EVENT)) for k in range(256))
-_LINE_ERROR = int(Flag.LINE_ERROR)
+_IS_BUS_BYTES = marking(k for k in range(256) if k != Kind.EVENT)  # kind byte -> 0/1
+_IS_NOISE = marking((Kind.NOISE,))
+_IS_FRAME = marking(k for k in range(256) if k not in (Kind.NOISE, Kind.EVENT))
 
 
 def describe_choice(guess: BaudGuess, line: LineSettings, why: str) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from array import array
 from collections import Counter
 from collections.abc import Sequence
@@ -10,6 +9,7 @@ from dataclasses import dataclass, field
 from itertools import compress, repeat
 from operator import ge, lt, ne, not_, sub
 
+from sniffer.columns import flag_mask, marking
 from sniffer.model import Stamp
 from sniffer.pairing import UNRESOLVED
 from sniffer.store import NO_PARTNER, FrameStore
@@ -75,21 +75,16 @@ EXCEPTION, EVENT = int(Kind.EXCEPTION), int(Kind.EVENT)
 TIMEOUT, OPEN = int(Status.TIMEOUT), int(Status.OPEN)
 
 
-def _table(*on: int) -> bytes:
-    """A `bytes.translate` table: the bytes `on` to 1, every other byte to 0."""
-    return bytes(int(b in on) for b in range(256))
-
-
 # A row's class, one byte: its kind, plus 8 for a frame with a bad check.
 BAD = 8
-_IS_NOISE = _table(NOISE)
-_IS_FRAME = _table(*(c for c in range(16) if c & 7 not in (NOISE, EVENT)))
-_IS_BAD_FRAME = _table(*(c | BAD for c in range(8) if c not in (NOISE, EVENT)))
-_IS_REQUEST = _table(REQUEST)  # with a good check
-_IS_ANSWER = _table(RESPONSE, EXCEPTION)  # with a good check
-_IS_OPEN = _table(OPEN)
-_IS_TIMEOUT = _table(TIMEOUT)
-_HAS_EXCEPTION_BIT = _table(*range(0x80, 0x100))
+_IS_NOISE = marking((NOISE,))
+_IS_FRAME = marking(c for c in range(16) if c & 7 not in (NOISE, EVENT))
+_IS_BAD_FRAME = marking(c | BAD for c in range(8) if c not in (NOISE, EVENT))
+_IS_REQUEST = marking((REQUEST,))  # with a good check
+_IS_ANSWER = marking((RESPONSE, EXCEPTION))  # with a good check
+_IS_OPEN = marking((OPEN,))
+_IS_TIMEOUT = marking((TIMEOUT,))
+_HAS_EXCEPTION_BIT = marking(range(0x80, 0x100))
 
 
 class Stats:
@@ -117,7 +112,7 @@ class Stats:
         Column by column, not row by row: the new rows are sorted out with C-level scans
         (`bytes.translate`, `itertools.compress`, `collections.Counter`) and only the times
         that are kept (requests, latencies) are handed to their unit one by one. 1M
-        frames: 0.2 s instead of 0.78 s for a loop over the rows."""
+        frames: 0.3 s instead of 0.8 s for a loop over the rows."""
         s = self.store
         s.sync()
         # requests still open last time may have timed out since
@@ -279,24 +274,6 @@ TIMING_WORDS = {
     Stamp.PRINT: "when each line was logged",
     Stamp.NONE: "synthetic",
 }
-
-
-def flag_mask(flags: array[int], bits: int, start: int = 0, end: int | None = None) -> bytes:
-    """One byte a row of `flags[start:end]`: 1 where any of `bits` is set, else 0.
-
-    Read from the column's bytes, a byte position at a time (`bytes.translate` on every
-    fourth byte): 1M rows in 3 ms, against 30 ms for `map(and_, ...)` over the ints."""
-    end = len(flags) if end is None else end
-    raw = flags[start:end].tobytes()
-    size = flags.itemsize
-    found = 0
-    for k in range(size):
-        shift = 8 * (k if sys.byteorder == "little" else size - 1 - k)
-        part = (bits >> shift) & 0xFF
-        if part:
-            table = bytes(int(b & part != 0) for b in range(256))
-            found |= int.from_bytes(raw[k::size].translate(table), "big")
-    return found.to_bytes(end - start, "big")
 
 
 _FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC

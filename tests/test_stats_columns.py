@@ -15,9 +15,9 @@ import pytest
 from sniffer.model import Stamp
 from sniffer.pairing import UNRESOLVED, measure
 from sniffer.session import DEMO_CAPTURE, replay_file
-from sniffer.stats import Stats, flag_mask
+from sniffer.stats import Stats
 from sniffer.store import NO_PARTNER, FrameStore
-from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
+from sniffer.vocab import BAD_CHECK, Kind, Status
 from tests.random_rows import random_store
 
 
@@ -177,14 +177,3 @@ def test_the_demo_capture_counted_as_row_by_row() -> None:
     expected = RowByRow(session.store)
     expected.update()
     same(session.stats, expected)  # counted as the capture was read, in several updates
-
-
-def test_flag_mask_marks_rows_with_any_of_the_bits() -> None:
-    rng = random.Random(5)
-    flags = array(
-        "I", [rng.choice((0, 1, 1 << 8, 1 << 17, 1 << 25, 0xFFFFFFFF)) for _ in range(99)]
-    )
-    for bits in (BAD_CHECK, int(Flag.LINE_ERROR), int(Flag.MBAP | Flag.RETRY), 0):
-        want = bytes(int(f & bits != 0) for f in flags)
-        assert flag_mask(flags, bits) == want
-        assert flag_mask(flags, bits, 10, 40) == want[10:40]
