@@ -6,7 +6,7 @@ from array import array
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import compress, repeat
+from itertools import compress, islice, repeat
 from operator import ge, lt, ne, not_, sub
 
 from sniffer.columns import flag_mask, marking
@@ -67,7 +67,7 @@ def median_gap(times: Sequence[float]) -> float | None:
     than two."""
     if len(times) < 2:
         return None
-    return nearest_rank(list(map(sub, times[1:], times[:-1])), 0.5)
+    return nearest_rank(list(map(sub, islice(times, 1, None), times)), 0.5)  # b - a
 
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)
