@@ -11,6 +11,7 @@ from __future__ import annotations
 import bisect
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
 
 from dissectors.dictionary import (
@@ -27,6 +28,7 @@ from dissectors.dictionary.device import Window
 from dissectors.dissect import dissect
 from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
+from sniffer.columns import both, but_not, marking
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.sunspec import SunSpecTracker
 from sniffer.vocab import Flag, Kind
@@ -111,22 +113,29 @@ class Annotator:
 
     def update(self, store: FrameStore) -> None:
         store.sync()
+        start, n = self.next, len(store)
+        if start >= n:
+            return
+        # Only two sorts of row need a look, picked out with C-level scans of the columns:
+        # the rows of bound units, and answers to FC 3 of the others (reads that may show
+        # a SunSpec device). 1M frames, nothing bound: 0.12 s instead of 0.49 s a row at a time.
         bound = self.bindings
-        kind, unit, fc = store.kind, store.unit, store.fc
-        for i in range(self.next, len(store)):
-            u = unit[i]
-            if u not in bound:
-                if fc[i] == 3 and kind[i] == Kind.RESPONSE:
-                    self.sunspec.follow(store, i)  # reads that may show a SunSpec device
-                continue
-            k = kind[i]
-            if k == Kind.NOISE:
-                continue
-            if k == Kind.REQUEST:
-                self._request(store, i, u)
-            elif k in (Kind.RESPONSE, Kind.EXCEPTION):
-                self._answer(store, i, u)
-        self.next = len(store)
+        units = store.unit[start:n].tobytes()
+        answers = store.kind[start:n].tobytes().translate(_IS_RESPONSE)
+        reads = store.fc[start:n].tobytes().translate(_IS_READ_HOLDING)
+        of_bound = units.translate(marking(bound))
+        follow = but_not(both(answers, reads), of_bound)
+        if 1 in follow:
+            self.sunspec.follow_rows(store, compress(range(start, n), follow))
+        if 1 in of_bound:
+            kind = store.kind
+            for i in compress(range(start, n), of_bound):
+                k = kind[i]
+                if k == Kind.REQUEST:
+                    self._request(store, i, store.unit[i])
+                elif k in (Kind.RESPONSE, Kind.EXCEPTION):
+                    self._answer(store, i, store.unit[i])
+        self.next = n
 
     def _request(self, store: FrameStore, i: int, unit: int) -> None:
         timing = self.bindings[unit].dictionary.timing
@@ -221,3 +230,7 @@ def registry_of(bindings: Mapping[int, Binding]) -> Registry:
 
 def _covers(start: int, count: int, address: int) -> bool:
     return start <= address < start + count
+
+
+_IS_RESPONSE = marking((Kind.RESPONSE,))  # kind byte -> 0/1
+_IS_READ_HOLDING = marking((3,))  # function byte -> 0/1

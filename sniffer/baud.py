@@ -15,8 +15,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from itertools import compress
 from pathlib import Path
 
+from sniffer.columns import both, but_not, flag_mask, marking
 from sniffer.model import Chunk, LineSettings
 from sniffer.scan import Sample, format_of, parse_format, score
 from sniffer.sources.base import ReadOptions
@@ -127,22 +129,18 @@ def choose_format(
 def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
     """A warning when a capture's bytes look read at the wrong speed: many bytes, no
     check-valid frame (and line errors, where the source reported them)."""
-    total = noise = errors = 0
-    kinds, flags, lengths = store.kind, store.flags, store.length
-    event, noise_kind, line_error = int(Kind.EVENT), int(Kind.NOISE), int(Flag.LINE_ERROR)
-    for i in range(len(store)):
-        kind = kinds[i]
-        if kind == event:
-            continue
-        total += lengths[i]
-        if kind == noise_kind:
-            noise += lengths[i]
-        elif not flags[i] & BAD_CHECK:
-            return None  # one valid frame is enough: the speed is right
-        if flags[i] & line_error:
-            errors += 1
+    store.sync()
+    kinds = store.kind.tobytes()
+    # one valid frame is enough: the speed is right (the columns scanned in C: a row at a
+    # time, with flag operators, this cost about 2.5 us a row when no frame was valid)
+    if 1 in but_not(kinds.translate(_IS_FRAME), flag_mask(store.flags, BAD_CHECK)):
+        return None
+    on_bus = kinds.translate(_IS_BUS_BYTES)  # every row but events
+    total = sum(compress(store.length, on_bus))
+    noise = sum(compress(store.length, kinds.translate(_IS_NOISE)))
     if total < min_bytes or noise < total // 2:
         return None
+    errors = both(on_bus, flag_mask(store.flags, int(Flag.LINE_ERROR))).count(1)
     lead = f"{total} bytes and no valid Modbus frame"
     if errors:
         lead += f" ({errors} rows with framing or parity errors)"
@@ -150,6 +148,11 @@ def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
         f"{lead}: were these bytes read at the wrong speed or format? "
         "On the line itself, `modscope scan PORT` finds its settings"
     )
+
+
+_IS_BUS_BYTES = marking(k for k in range(256) if k != Kind.EVENT)  # kind byte -> 0/1
+_IS_NOISE = marking((Kind.NOISE,))
+_IS_FRAME = marking(k for k in range(256) if k not in (Kind.NOISE, Kind.EVENT))
 
 
 def describe_choice(guess: BaudGuess, line: LineSettings, why: str) -> str:

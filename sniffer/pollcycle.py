@@ -9,13 +9,15 @@ more than twice the period: the master stopped polling, or the unit was skipped.
 
 from __future__ import annotations
 
+from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from itertools import pairwise
+from itertools import chain, compress, repeat
+from operator import lt, sub
 
 from dissectors.dissect import dissect
 from dissectors.values import Role
-from sniffer.stats import nearest_rank
+from sniffer.columns import both, but_not, flag_mask, marking
 from sniffer.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 
@@ -76,6 +78,11 @@ _READS = {1: "coils", 2: "discrete_inputs", 3: "holding_registers", 4: "input_re
 
 def _what(body: bytes) -> tuple[tuple[object, ...], str]:
     """The request's identity (values written left out) and a short description."""
+    return _plain_what(body) or _dissected_what(body)
+
+
+def _dissected_what(body: bytes) -> tuple[tuple[object, ...], str]:
+    """`_what` as the dissector reads the request: any function code, any damage."""
     d = dissect(body, Role.REQUEST)
     address = d.field("address")
     quantity = d.field("quantity")
@@ -86,52 +93,133 @@ def _what(body: bytes) -> tuple[tuple[object, ...], str]:
         count = len(d.data[0].values)
     if table is None or start is None:
         return (d.function, body[2:]), f"FC {d.function}"
+    return (d.function, start, count), _describe(d.function, table, start, count)
+
+
+def _describe(function: int, table: str, start: int, count: int | None) -> str:
     word = _TABLE_WORDS.get(table, table)
     span = f"{start}" if not count or count == 1 else f"{start}-{start + count - 1}"
-    verb = "write" if d.function in (5, 6, 15, 16) else "read"
-    return (d.function, start, count), f"{verb} {word} {span}"
+    verb = "write" if function in (5, 6, 15, 16) else "read"
+    return f"{verb} {word} {span}"
 
 
-def _quantile(values: list[float], q: float) -> float:
-    found = nearest_rank(values, q)
-    assert found is not None  # called with the waits of a request seen at least twice
-    return found
+_COILS_OR_REGISTERS = {5: "coils", 6: "holding_registers", 15: "coils", 16: "holding_registers"}
+_MOST = {15: 1968, 16: 123}  # the quantities a multiple write may carry
+
+
+def _plain_what(body: bytes) -> tuple[tuple[object, ...], str] | None:
+    """`_dissected_what` of a well-formed read or write (FC 1-6, 15, 16), read straight
+    from its bytes; None for anything else. Writes whose values change make a new body
+    each time: dissecting each costs about 8 us, reading it here under 1 us (1M frames,
+    13k distinct writes: 0.11 s against 0.01 s).
+    tests/test_pollcycle.py holds it to `_dissected_what` on valid and damaged bodies."""
+    size = len(body)
+    if size < 6:
+        return None
+    function = body[1]
+    start = (body[2] << 8) | body[3]
+    if size == 6:
+        if 1 <= function <= 4:
+            count = (body[4] << 8) | body[5]
+            return (function, start, count), _describe(function, _READS[function], start, count)
+        if function == 6 or (function == 5 and body[4:6] in (b"\xff\x00", b"\x00\x00")):
+            return (function, start, 1), _describe(
+                function, _COILS_OR_REGISTERS[function], start, 1
+            )
+        return None
+    if function in _MOST and size == 7 + body[6]:
+        count = (body[4] << 8) | body[5]
+        need = 2 * count if function == 16 else (count + 7) // 8
+        if 1 <= count <= _MOST[function] and body[6] == need:
+            table = _COILS_OR_REGISTERS[function]
+            return (function, start, count), _describe(function, table, start, count)
+    return None
+
+
+_IS_REQUEST = marking((Kind.REQUEST,))  # kind byte -> 0/1
+_FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC
+_RETRY = int(Flag.RETRY)
+_Sendings = dict[int, dict[tuple[object, ...], tuple[str, int, list[list[int]]]]]
 
 
 def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
     """Every unit's poll cycle, from the requests in `store`."""
     store.sync()
-    sendings: dict[int, dict[tuple[object, ...], tuple[str, int, list[float], list[float]]]] = {}
-    # a polling master sends the same requests all day: each is taken apart once
-    # (1M frames: about 6 us a request dissected, well under 1 us looked up)
-    known: dict[bytes, tuple[tuple[object, ...], str]] = {}
-    request = int(Kind.REQUEST)
-    for i in range(len(store)):
-        if store.kind[i] != request or store.flags[i] & BAD_CHECK:
-            continue
-        unit = store.unit[i]
-        raw = store.raw(i)
-        found_what = known.get(raw)
-        if found_what is None:
-            found_what = known[raw] = _what(store.view(i).body())
-            if len(known) > 65536:  # writes with changing values: keep the memory bounded
-                known.clear()
-        key, what = found_what
-        found = sendings.setdefault(unit, {}).setdefault(key, (what, store.fc[i], [], []))
-        found[2].append(store.t[i])
-        if store.flags[i] & Flag.RETRY:
-            found[3].append(store.t[i])
+    # the requests with a good check, picked out of the columns in C
+    requests = but_not(
+        store.kind.tobytes().translate(_IS_REQUEST), flag_mask(store.flags, BAD_CHECK)
+    )
+    rows = list(compress(range(len(store)), requests))
+    keys = _keys(store, requests)
+    # a polling master sends the same requests all day: the rows are grouped by their
+    # bytes in one pass, and each distinct request is taken apart once (1M frames, 500k
+    # requests: 0.36 s, against 1.15 s looking up a dissection and the columns row by row)
+    by_key: defaultdict[object, list[int]] = defaultdict(list)
+    for key, i in zip(keys, rows, strict=True):
+        by_key[key].append(i)
+    sendings: _Sendings = {}
+    for key, sent in by_key.items():  # in order of first sending
+        i = sent[0]
+        # the key is the row's bytes (and framing), so it fixes the unit and body too
+        if isinstance(key, bytes):
+            unit, body = store.unit[i], key[:-2]
+        else:
+            view = store.view(i)
+            unit, body = view.unit, view.body()
+        identity, what = _what(body)  # writes with other values: the same identity
+        found = sendings.setdefault(unit, {}).setdefault(identity, (what, store.fc[i], []))
+        found[2].append(sent)
+    retried = set(compress(range(len(store)), both(requests, flag_mask(store.flags, _RETRY))))
+    return _cycles(store, sendings, retried)
+
+
+def _keys(store: FrameStore, rows: bytes) -> list[object]:
+    """What tells one request from another, for each of `rows` (a mask): its bytes. The
+    rows of ASCII and Modbus TCP frames have their framing added (a tuple), so a key fixes
+    the row's unit and body (plain frames: the unit byte first, the CRC last)."""
+    streams = {ch: bytes(data) for ch, data in store.streams.items()}
+    starts, lengths = compress(store.offset, rows), compress(store.length, rows)
+    keys: list[object]
+    if len(streams) == 1:  # a comprehension slices faster than map(slice): 65 ms, not 120
+        (data,) = streams.values()
+        keys = [data[at : at + size] for at, size in zip(starts, lengths, strict=True)]
+    else:
+        channels = compress(store.channel, rows)
+        keys = [
+            streams[ch][at : at + size]
+            for ch, at, size in zip(channels, starts, lengths, strict=True)
+        ]
+    apart = both(rows, flag_mask(store.flags, _FRAMED_APART))
+    if 1 in apart:
+        framing = compress(store.flags, rows)
+        keys = [
+            (how & _FRAMED_APART, key) if odd else key
+            for odd, how, key in zip(compress(apart, rows), framing, keys, strict=True)
+        ]
+    return keys
+
+
+def _cycles(store: FrameStore, sendings: _Sendings, retried: set[int]) -> dict[int, UnitCycle]:
+    """The cycles of the requests sent (the rows of each, in one or more lists)."""
     out: dict[int, UnitCycle] = {}
     for unit, requests in sorted(sendings.items()):
         cycle = out[unit] = UnitCycle(unit)
-        for what, fc, times, retries in requests.values():
-            if len(times) < MIN_REPEATS:
+        for what, fc, parts in requests.values():
+            sent = parts[0] if len(parts) == 1 else sorted(chain.from_iterable(parts))
+            if len(sent) < MIN_REPEATS:
                 cycle.once += 1
                 continue
-            waits = [b - a for a, b in pairwise(times)]
-            period = _quantile(waits, 0.5)
-            jitter = _quantile(waits, 0.95) - _quantile(waits, 0.05)
-            gaps = tuple(Gap(a, b - a) for a, b in pairwise(times) if b - a > GAP_FACTOR * period)
+            times = list(map(store.t.__getitem__, sent))
+            retries = sum(map(retried.__contains__, sent)) if retried else 0
+            waits = list(map(sub, times[1:], times[:-1]))
+            ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
+            period = _rank(ordered, 0.5)
+            jitter = _rank(ordered, 0.95) - _rank(ordered, 0.05)
+            limit = GAP_FACTOR * period
+            gaps = tuple(
+                Gap(times[k], waits[k])
+                for k in compress(range(len(waits)), map(lt, repeat(limit), waits))
+            )
             cycle.polls.append(
                 Poll(
                     unit,
@@ -143,11 +231,16 @@ def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
                     gaps,
                     times[0],
                     times[-1],
-                    len(retries),
+                    retries,
                 )
             )
         cycle.polls.sort(key=lambda p: (p.period, p.what))
     return out
+
+
+def _rank(ordered: list[float], q: float) -> float:
+    """`sniffer.stats.nearest_rank` of values already sorted."""
+    return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
 
 
 def _ms(seconds: float) -> str:

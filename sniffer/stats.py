@@ -6,12 +6,14 @@ from array import array
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import pairwise
+from itertools import compress, islice, repeat
+from operator import ge, lt, ne, not_, sub
 
+from sniffer.columns import flag_mask, marking
 from sniffer.model import Stamp
-from sniffer.pairing import UNRESOLVED, measure
+from sniffer.pairing import UNRESOLVED
 from sniffer.store import NO_PARTNER, FrameStore
-from sniffer.vocab import BAD_CHECK, Kind, Status
+from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 
 @dataclass
@@ -37,6 +39,11 @@ class UnitStats:
         found = nearest_rank(self.latencies, q)
         return None if found is None else found * 1000
 
+    def latencies_ms(self, *qs: float) -> list[float | None]:
+        """`latency_ms` of each of `qs`, the latencies sorted once."""
+        ordered = sorted(self.latencies)
+        return [None if not ordered else _ranked(ordered, q) * 1000 for q in qs]
+
     def polling_period(self) -> float | None:
         """Median seconds between two requests to this unit."""
         return median_gap(self.request_times)
@@ -47,7 +54,11 @@ def nearest_rank(values: Sequence[float], q: float) -> float | None:
     the MQTT unit status all report); None for no values."""
     if not values:
         return None
-    ordered = sorted(values)
+    return _ranked(sorted(values), q)
+
+
+def _ranked(ordered: Sequence[float], q: float) -> float:
+    """The q-quantile of values already sorted (at least one), nearest rank."""
     return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
 
 
@@ -56,12 +67,24 @@ def median_gap(times: Sequence[float]) -> float | None:
     than two."""
     if len(times) < 2:
         return None
-    return nearest_rank([b - a for a, b in pairwise(times)], 0.5)
+    return nearest_rank(list(map(sub, islice(times, 1, None), times)), 0.5)  # b - a
 
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)
 EXCEPTION, EVENT = int(Kind.EXCEPTION), int(Kind.EVENT)
-TIMEOUT, OPEN = Status.TIMEOUT, Status.OPEN
+TIMEOUT, OPEN = int(Status.TIMEOUT), int(Status.OPEN)
+
+
+# A row's class, one byte: its kind, plus 8 for a frame with a bad check.
+BAD = 8
+_IS_NOISE = marking((NOISE,))
+_IS_FRAME = marking(c for c in range(16) if c & 7 not in (NOISE, EVENT))
+_IS_BAD_FRAME = marking(c | BAD for c in range(8) if c not in (NOISE, EVENT))
+_IS_REQUEST = marking((REQUEST,))  # with a good check
+_IS_ANSWER = marking((RESPONSE, EXCEPTION))  # with a good check
+_IS_OPEN = marking((OPEN,))
+_IS_TIMEOUT = marking((TIMEOUT,))
+_HAS_EXCEPTION_BIT = marking(range(0x80, 0x100))
 
 
 class Stats:
@@ -84,62 +107,111 @@ class Stats:
         return found
 
     def update(self) -> None:
+        """Count the rows added since the last update.
+
+        Column by column, not row by row: the new rows are sorted out with C-level scans
+        (`bytes.translate`, `itertools.compress`, `collections.Counter`) and only the times
+        that are kept (requests, latencies) are handed to their unit one by one. 1M
+        frames: 0.3 s instead of 0.8 s for a loop over the rows."""
         s = self.store
         s.sync()
         # requests still open last time may have timed out since
         for i in list(self._open):
-            if s.status[i] != Status.OPEN:
+            if s.status[i] != OPEN:
                 self._open.discard(i)
-                if s.status[i] == Status.TIMEOUT:
+                if s.status[i] == TIMEOUT:
                     self.unit(s.unit[i]).timeouts += 1
-        kind, unit, flags, status = s.kind, s.unit, s.flags, s.status
-        t, t_end, fc, partner = s.t, s.t_end, s.fc, s.partner
-        units = self.units
-        # pairing.measure, inlined for its common case (any stamps, a latency above
-        # UNRESOLVED is shown as it is): a Latency object per answer cost about 1 us
-        stamped = s.stamps != Stamp.NONE
-        for i in range(self.next, len(s)):
-            k = kind[i]
-            if k == NOISE:
-                self.noise_spans += 1
-                self.noise_bytes += s.length[i]
-                continue
-            if k == EVENT:
-                self.events += 1
-                continue
-            u = unit[i]
-            st = units.get(u) or self.unit(u)
-            st.last_seen = t_end[i]
-            if flags[i] & BAD_CHECK:
-                st.check_errors += 1
-                continue
-            if k == REQUEST:
-                st.requests += 1
-                st.request_times.append(t[i])
-                state = status[i]
-                if state == TIMEOUT:
-                    st.timeouts += 1
-                elif state == OPEN:
-                    self._open.add(i)
-            elif k in (RESPONSE, EXCEPTION):
-                st.responses += 1
-                if fc[i] & 0x80:
-                    body = s.view(i).body()
-                    st.exceptions[body[2] if len(body) > 2 else 0] += 1
-                j = partner[i]
-                if j != NO_PARTNER:
-                    raw = t[i] - t_end[j]  # i answers j (as pairing.latency)
-                    if stamped and raw >= UNRESOLVED:
-                        st.latencies.append(raw)
-                        continue
-                    lat = measure(s, i)
-                    if lat is None:
-                        st.unmeasured += 1
-                    elif lat.bound:
-                        st.below_resolution += 1
-                    else:
-                        st.latencies.append(lat.seconds)
-        self.next = len(s)
+        start, n = self.next, len(s)
+        if start >= n:
+            return
+        kinds = s.kind[start:n].tobytes()
+        self.events += kinds.count(EVENT)
+        spans = kinds.count(NOISE)
+        if spans:
+            self.noise_spans += spans
+            self.noise_bytes += sum(compress(s.length[start:n], kinds.translate(_IS_NOISE)))
+        classes = kinds
+        bad = flag_mask(s.flags, BAD_CHECK, start, n)
+        if 1 in bad:  # the flag bytes are 0 or 1: shifted by 3 bits, each stays in its byte
+            both = int.from_bytes(kinds, "big") | int.from_bytes(bad, "big") << 3
+            classes = both.to_bytes(len(kinds), "big")
+        units = s.unit[start:n].tobytes()
+        frames = classes.translate(_IS_FRAME)
+        framed = bytes(compress(units, frames))
+        if not framed:
+            self.next = n
+            return
+        for u in sorted(set(framed), key=framed.find):  # in order of first appearance
+            last = units.rfind(u)
+            while not frames[last]:  # a noise span or event with that unit byte
+                last = units.rfind(u, 0, last)
+            (self.units.get(u) or self.unit(u)).last_seen = s.t_end[start + last]
+        if 1 in bad:
+            for u, count in Counter(compress(units, classes.translate(_IS_BAD_FRAME))).items():
+                self.units[u].check_errors += count
+        self._requests(start, n, units, classes.translate(_IS_REQUEST))
+        self._answers(start, n, units, classes.translate(_IS_ANSWER))
+        self.next = n
+
+    def _requests(self, start: int, n: int, units: bytes, mask: bytes) -> None:
+        """Count the requests with a good check among rows `start`..`n` (`mask`)."""
+        s = self.store
+        asked = bytes(compress(units, mask))
+        if not asked:
+            return
+        stats = self.units
+        for u, count in Counter(asked).items():
+            stats[u].requests += count
+        append = {u: stats[u].request_times.append for u in set(asked)}
+        for u, t in zip(asked, compress(s.t[start:n], mask), strict=True):
+            append[u](t)
+        states = bytes(compress(s.status[start:n], mask))
+        if TIMEOUT in states:
+            for u, count in Counter(compress(asked, states.translate(_IS_TIMEOUT))).items():
+                stats[u].timeouts += count
+        if OPEN in states:
+            rows = compress(range(start, n), mask)
+            self._open.update(compress(rows, states.translate(_IS_OPEN)))
+
+    def _answers(self, start: int, n: int, units: bytes, mask: bytes) -> None:
+        """Count the answers with a good check among rows `start`..`n` (`mask`), their
+        exceptions and latencies."""
+        s = self.store
+        answering = bytes(compress(units, mask))
+        if not answering:
+            return
+        stats = self.units
+        for u, count in Counter(answering).items():
+            stats[u].responses += count
+        exceptions = bytes(compress(s.fc[start:n], mask)).translate(_HAS_EXCEPTION_BIT)
+        if 1 in exceptions:
+            for i in compress(compress(range(start, n), mask), exceptions):
+                stats[s.unit[i]].exceptions[_exception_code(s, i)] += 1
+        partners = list(compress(s.partner[start:n], mask))
+        times = list(compress(s.t[start:n], mask))
+        if NO_PARTNER in partners:
+            answered = list(map(ne, partners, repeat(NO_PARTNER)))
+            partners = list(compress(partners, answered))
+            times = list(compress(times, answered))
+            answering = bytes(compress(answering, answered))
+        # row i answers row j: t[i] - t_end[j], as pairing.latency; then sorted out as
+        # pairing.measure does: kept, below the resolution, or not measurable
+        raw = list(map(sub, times, map(s.t_end.__getitem__, partners)))
+        if s.stamps == Stamp.NONE:
+            kept = [False] * len(raw)
+        elif s.stamps == Stamp.EXACT:
+            kept = list(map(ge, raw, repeat(0.0)))  # NaN: not kept
+        else:
+            kept = list(map(not_, map(lt, raw, repeat(UNRESOLVED))))  # NaN: kept
+        below = s.stamps == Stamp.READ_END and s.resolution > 0
+        for u, count in Counter(compress(answering, map(not_, kept))).items():
+            if below:
+                stats[u].below_resolution += count
+            else:
+                stats[u].unmeasured += count
+        append = {u: stats[u].latencies.append for u in set(answering)}
+        for u, latency in zip(compress(answering, kept), compress(raw, kept), strict=True):
+            append[u](latency)
 
     def table(self, labels: dict[int, str] | None = None) -> str:
         """The per-unit table, as `modscope replay --stats` prints it."""
@@ -156,11 +228,11 @@ class Stats:
         for u in sorted(self.units):
             st = self.units[u]
             period = st.polling_period() if self.store.stamps != Stamp.NONE else None
+            least, median, p95, most = st.latencies_ms(0, 0.5, 0.95, 1)
             lines.append(
                 f"{u:>4}  {labels.get(u, '')[:16]:<16} {st.requests:>7} {st.responses:>7} "
                 f"{st.exception_count:>5} {st.timeouts:>5} {st.check_errors:>5} "
-                f"{ms(st.latency_ms(0)):>8} {ms(st.latency_ms(0.5)):>8} "
-                f"{ms(st.latency_ms(0.95)):>8} {ms(st.latency_ms(1)):>8} "
+                f"{ms(least):>8} {ms(median):>8} {ms(p95):>8} {ms(most):>8} "
                 f"{'-' if period is None else f'{period * 1000:.0f}ms':>8}"
             )
             if st.exceptions:
@@ -202,3 +274,15 @@ TIMING_WORDS = {
     Stamp.PRINT: "when each line was logged",
     Stamp.NONE: "synthetic",
 }
+
+
+_FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC
+
+
+def _exception_code(s: FrameStore, i: int) -> int:
+    """The exception code of answer row `i` (0 when the frame is too short for one): the
+    third byte of its body (`FrameView.body`), read in place for a plain RTU frame."""
+    if s.flags[i] & _FRAMED_APART:
+        body = s.view(i).body()
+        return body[2] if len(body) > 2 else 0
+    return s.streams[s.channel[i]][s.offset[i] + 2] if s.length[i] > 4 else 0

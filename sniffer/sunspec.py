@@ -19,7 +19,7 @@ with the scale factors in force when it was sent, whenever it is shown.
 from __future__ import annotations
 
 import bisect
-from collections.abc import Container, Sequence
+from collections.abc import Container, Iterable, Sequence
 from dataclasses import dataclass, field
 
 from dissectors.dictionary import RegisterValue
@@ -42,6 +42,7 @@ BASES = (40000, 50000, 0, 40001, 50001, 1)  # PDU addresses of the marker, likel
 _SORTED_BASES = tuple(sorted(BASES))
 MAX_MODELS = 64  # a longer chain is not believed
 READ_HOLDING = 3
+_CHECK_BAD, _ASCII = int(Flag.CHECK_BAD), int(Flag.ASCII)
 INSTALL_HINT = "install modscope[sunspec] (pysunspec2) to name its values"
 
 
@@ -118,40 +119,50 @@ class SunSpecTracker:
     # -- following the capture -------------------------------------------------------
 
     def follow(self, store: FrameStore, i: int) -> None:
-        """Take in row `i` if it answers a read of holding registers (FC 3). Cheap for
-        the reads of other units: the request's range is looked at first."""
-        if store.fc[i] != READ_HOLDING or store.flags[i] & Flag.CHECK_BAD:
-            return
-        req = store.partner[i]
-        if req == NO_PARTNER:
-            return
-        unit = store.unit[i]
-        if unit in self.skip:
-            return
-        request: bytes | bytearray
-        if store.flags[req] & Flag.ASCII:
-            request = _body(store, req)
-            if len(request) < 6:
-                return
-        elif store.length[req] < 8:
-            return
-        else:  # six bytes, not the whole frame: most answers on a bus are not SunSpec's
-            at = store.offset[req]
-            request = store.streams[store.channel[req]][at : at + 6]
-        start = (request[2] << 8) | request[3]
-        count = (request[4] << 8) | request[5]
-        if unit not in self.units:
-            k = bisect.bisect_left(_SORTED_BASES, start)
-            if k == len(_SORTED_BASES) or _SORTED_BASES[k] + 2 > start + count:
-                return  # no marker can be in this read
-        answer = _body(store, i)
-        if len(answer) < 3:
-            return
-        data = answer[3 : 3 + answer[2]]
-        if len(data) != 2 * count:
-            return
-        words = [int.from_bytes(data[k : k + 2], "big") for k in range(0, len(data), 2)]
-        self.take(unit, i, start, words)
+        """Take in row `i` if it answers a read of holding registers (FC 3)."""
+        self.follow_rows(store, (i,))
+
+    def follow_rows(self, store: FrameStore, rows: Iterable[int]) -> None:
+        """Take in those of `rows` (in order) that answer a read of holding registers
+        (FC 3). Cheap for the reads of other units: the request's range is looked at
+        first, in one loop over the rows with ints, not flags (1M frames, 212k answers
+        to FC 3 of units with no dictionary: about 0.1 s, against 0.4 s a call a row)."""
+        fc, flags, partner, unit_of = store.fc, store.flags, store.partner, store.unit
+        offset, length, channel, streams = store.offset, store.length, store.channel, store.streams
+        skip, units = self.skip, self.units
+        for i in rows:
+            if fc[i] != READ_HOLDING or flags[i] & _CHECK_BAD:
+                continue
+            req = partner[i]
+            if req == NO_PARTNER:
+                continue
+            unit = unit_of[i]
+            if unit in skip:
+                continue
+            request: bytes | bytearray
+            if flags[req] & _ASCII:
+                request = _body(store, req)
+                if len(request) < 6:
+                    continue
+            elif length[req] < 8:
+                continue
+            else:  # six bytes, not the whole frame: most answers on a bus are not SunSpec's
+                at = offset[req]
+                request = streams[channel[req]][at : at + 6]
+            start = (request[2] << 8) | request[3]
+            count = (request[4] << 8) | request[5]
+            if unit not in units:
+                k = bisect.bisect_left(_SORTED_BASES, start)
+                if k == len(_SORTED_BASES) or _SORTED_BASES[k] + 2 > start + count:
+                    continue  # no marker can be in this read
+            answer = _body(store, i)
+            if len(answer) < 3:
+                continue
+            data = answer[3 : 3 + answer[2]]
+            if len(data) != 2 * count:
+                continue
+            words = [int.from_bytes(data[k : k + 2], "big") for k in range(0, len(data), 2)]
+            self.take(unit, i, start, words)
 
     def take(self, unit: int, row: int, start: int, words: Sequence[int]) -> None:
         """Registers `start`.. of `unit` as row `row` read them."""

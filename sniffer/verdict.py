@@ -29,7 +29,8 @@ def read_verdict(capture: Capture, session: Session) -> Verdict:
     if capture.empty:
         return Verdict(NOTHING_USABLE, f"{path}: no serial data could be read from it")
     store = session.store
-    frames = len(store.kind) - store.kind.count(Kind.NOISE) - store.kind.count(Kind.EVENT)
+    kinds = store.kind.tobytes()  # counted as bytes: 1M rows in 4 ms, not 27 (array.count)
+    frames = len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
     if frames == 0 and capture.data_bytes:
         return Verdict(
             NOTHING_USABLE,

@@ -4,6 +4,7 @@ it cannot, and never drive the line."""
 
 from __future__ import annotations
 
+import random
 from pathlib import Path
 
 import pytest
@@ -28,7 +29,8 @@ from sniffer.scan import (
     score,
 )
 from sniffer.sources import ReadOptions, open_capture
-from sniffer.vocab import Flag, Kind
+from sniffer.store import FrameStore
+from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
 
 REQUEST = with_crc(bytes.fromhex("010300000004"))
@@ -319,6 +321,77 @@ def test_wrong_speed_is_said_and_scan_suggested() -> None:
     assert wrong_speed(good) is None
     warning = wrong_speed(bad)
     assert warning is not None and "wrong speed" in warning and "modscope scan" in warning
+
+
+def wrong_speed_row_by_row(store: FrameStore, min_bytes: int = 64) -> str | None:
+    """wrong_speed's definition: every row but events looked at in order, stopping at
+    the first frame with a good check."""
+    total = noise = errors = 0
+    for i in range(len(store)):
+        if store.kind[i] == Kind.EVENT:
+            continue
+        total += store.length[i]
+        if store.kind[i] == Kind.NOISE:
+            noise += store.length[i]
+        elif not store.flags[i] & BAD_CHECK:
+            return None
+        if store.flags[i] & Flag.LINE_ERROR:
+            errors += 1
+    if total < min_bytes or noise < total // 2:
+        return None
+    lead = f"{total} bytes and no valid Modbus frame"
+    if errors:
+        lead += f" ({errors} rows with framing or parity errors)"
+    return (
+        f"{lead}: were these bytes read at the wrong speed or format? "
+        "On the line itself, `modscope scan PORT` finds its settings"
+    )
+
+
+def noisy_store(rng: random.Random, rows: int, valid_at: int | None) -> FrameStore:
+    """Noise, events and frames with bad checks (some with line errors), and one valid
+    frame at row `valid_at`."""
+    store = FrameStore()
+    stream = store.stream(0)
+    frame = with_crc(bytes.fromhex("010300000001"))
+    for i in range(rows):
+        offset = len(stream)
+        roll = rng.random()
+        if i == valid_at:
+            stream += frame
+            store.add_row(0, offset, len(frame), i, i, int(Kind.REQUEST), 0)
+        elif roll < 0.05:
+            store.add_event(float(i), "gap")
+        elif roll < 0.85:
+            stream += rng.randbytes(rng.randrange(1, 6))
+            flags = int(Flag.LINE_ERROR) if rng.random() < 0.3 else 0
+            store.add_row(0, offset, len(stream) - offset, i, i, int(Kind.NOISE), flags)
+        else:
+            stream += frame
+            bad = rng.choice((Flag.CHECK_BAD, Flag.NON_HEX, Flag.ENVELOPE_BAD))
+            flags = int(bad | (Flag.LINE_ERROR if rng.random() < 0.3 else 0))
+            kind = rng.choice((Kind.REQUEST, Kind.RESPONSE, Kind.UNKNOWN))
+            store.add_row(0, offset, len(frame), i, i, int(kind), flags)
+    return store
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_wrong_speed_as_row_by_row_also_when_the_first_valid_frame_comes_late(seed: int) -> None:
+    rng = random.Random(seed)
+    rows = rng.choice((0, 3, 40, 900))
+    valid_at = rng.choice((None, None, rows - 1, rows // 2, 0)) if rows else None
+    store = noisy_store(rng, rows, valid_at)
+    for min_bytes in (0, 64, 10_000):
+        found = wrong_speed(store, min_bytes)
+        assert found == wrong_speed_row_by_row(store, min_bytes)
+        if valid_at is not None:
+            assert found is None  # one valid frame, however late, says the speed is right
+
+
+def test_wrong_speed_counts_rows_with_line_errors() -> None:
+    store = noisy_store(random.Random(1), 500, None)
+    warning = wrong_speed(store)
+    assert warning is not None and "rows with framing or parity errors" in warning
 
 
 # -- live --baud auto: the scan, then the capture at the winner ------------------------

@@ -26,11 +26,14 @@ from dissectors.dictionary.sunspec import (
     definitions_folder,
     parse_model,
 )
+from sniffer.annotate import Annotator
 from sniffer.cli import main
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import Session
 from sniffer.sources.pcapng_writer import PcapngWriter
+from sniffer.store import FrameStore
 from sniffer.sunspec import SunSpecTracker
+from sniffer.vocab import Flag, Kind
 
 UNIT = 7
 LINE = LineSettings(19200, 8, "E", 1)
@@ -332,6 +335,67 @@ def test_any_reads_never_break_the_tracker(reads: list[tuple[int, list[int]]]) -
             tracker.decode(su, row, start, words)
             assert all(m.start >= su.base + 2 for m in su.models)
             tracker.label(UNIT)
+
+
+def annotate_row_by_row(annotator: Annotator, store: FrameStore) -> None:
+    """Annotator.update's definition: every row looked at in order."""
+    for i in range(annotator.next, len(store)):
+        u = store.unit[i]
+        if u not in annotator.bindings:
+            if store.fc[i] == 3 and store.kind[i] == Kind.RESPONSE:
+                annotator.sunspec.follow(store, i)
+            continue
+        k = store.kind[i]
+        if k == Kind.REQUEST:
+            annotator._request(store, i, u)
+        elif k in (Kind.RESPONSE, Kind.EXCEPTION):
+            annotator._answer(store, i, u)
+    annotator.next = len(store)
+
+
+def test_rows_picked_from_the_columns_are_annotated_as_row_by_row() -> None:
+    """A SunSpec device, a unit read at address 0 with no marker and the demo's bound
+    devices (with their own timing rules and parameter windows), interleaved, fed in
+    pieces: the same SunSpec state, windows and flags as a walk over every row."""
+    from sniffer.annotate import load_bindings
+    from sniffer.session import DEMO_BUS, DEMO_CAPTURE, replay_file
+
+    bindings = load_bindings(DEMO_BUS)
+    demo = replay_file(DEMO_CAPTURE, bindings=bindings).store
+    reg = device_image()
+    sunspec = frames_of(reg, discovery(reg, 40000) + [(40070, 50)] * 5)
+    other = {k: k for k in range(10)}
+    others = [frame for k in range(6) for frame in read(other, 0, 4, unit=9)]
+    frames: list[tuple[float, bytes]] = []
+    for k in range(min(len(demo), 600)):
+        frames.append((demo.t_end[k] - demo.t_end[0], demo.raw(k)))
+    for n, (t, data) in enumerate(sunspec + [(k * 0.7, f) for k, f in enumerate(others)]):
+        frames.append((t + 0.001 * n, data))
+    frames.sort(key=lambda f: f[0])
+    session = Session(LINE, bindings=bindings)
+    for k, (t, data) in enumerate(frames):
+        session.feed(Chunk(data, 1_700_000_000 + t + 0.02 * k))
+        if k % 37 == 0:
+            session.refresh()
+    session.finish()
+    store = session.store
+    # the same rows, with the annotator's own flags taken off, annotated row by row
+    again = FrameStore(store.streams)
+    mine = int(Flag.QUIET_VIOLATED | Flag.DEVICE_SLOW)
+    for i in range(len(store)):
+        again.copy_row(store, i)
+        again.sync()
+        again.flags[i] &= ~mine
+        again.partner[i], again.status[i] = store.partner[i], store.status[i]
+    expected = Annotator(bindings)
+    annotate_row_by_row(expected, again)
+    got = session.annotator
+    assert got.sunspec.units == expected.sunspec.units
+    assert UNIT in got.sunspec.units and 9 not in got.sunspec.units
+    assert got.tracks == expected.tracks
+    assert got.last_write == expected.last_write
+    assert store.flags == again.flags
+    assert any(f & mine for f in store.flags)  # the bound devices' rules did flag rows
 
 
 # -- as the user sees it: replay with no dictionary ----------------------------------------

@@ -1,0 +1,49 @@
+"""Provides masks over a store's columns: one byte a row, 1 where a row is wanted, 0
+elsewhere, made and combined in C (`bytes.translate`, big-int bit operations) and used
+with `itertools.compress` to pick rows, or their values, out of a column.
+
+A million rows a time the statistics, the poll cycle, the baud check and the annotator
+look at: a mask costs about a millisecond, a Python loop over the rows a second.
+"""
+
+from __future__ import annotations
+
+import sys
+from array import array
+from collections.abc import Iterable
+
+
+def marking(on: Iterable[int]) -> bytes:
+    """A `bytes.translate` table that makes a mask: the byte values `on` to 1, every other
+    one to 0."""
+    wanted = set(on)
+    return bytes(int(b in wanted) for b in range(256))
+
+
+def both(a: bytes, b: bytes) -> bytes:
+    """1 where both masks are."""
+    return (int.from_bytes(a, "big") & int.from_bytes(b, "big")).to_bytes(len(a), "big")
+
+
+def but_not(a: bytes, b: bytes) -> bytes:
+    """1 where `a` is and `b` is not."""
+    return (int.from_bytes(a, "big") & ~int.from_bytes(b, "big")).to_bytes(len(a), "big")
+
+
+def flag_mask(flags: array[int], bits: int, start: int = 0, end: int | None = None) -> bytes:
+    """1 for each row of `flags[start:end]` with any of `bits` set.
+
+    Read from the column's bytes a byte position at a time (`bytes.translate` on every
+    fourth byte): 1M rows in 3 ms, against 30 ms for `map(and_, ...)` over the ints."""
+    end = len(flags) if end is None else end
+    raw = flags[start:end].tobytes()
+    size = flags.itemsize
+    found = 0
+    for k in range(size):
+        shift = 8 * (k if sys.byteorder == "little" else size - 1 - k)
+        part = (bits >> shift) & 0xFF
+        if part:
+            found |= int.from_bytes(
+                raw[k::size].translate(marking(b for b in range(256) if b & part)), "big"
+            )
+    return found.to_bytes(end - start, "big")
