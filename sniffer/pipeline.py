@@ -165,6 +165,8 @@ class Pipeline:
         if self._estimating:
             for t in reads.t_ends:
                 self._note_read(t)
+                if not self._estimating:
+                    break  # READ_GAPS reached here, as it would be read by read
         ch.fed += len(reads.data)
         ch.framer.feed_reads(reads)
         ch.last_t = reads.t_end

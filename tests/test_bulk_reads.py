@@ -12,7 +12,7 @@ import struct
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from sniffer.model import Chunk, LineSettings
@@ -303,6 +303,8 @@ COLUMNS = [
     lag=st.floats(0.0, 0.02),
     shape=st.sampled_from(SHAPES),
 )
+# more than READ_GAPS reads: the read resolution is estimated from the same first gaps
+@example(cuts=[2, 1], noise=[], lag=0.0, shape="pcapng 250")
 def test_batches_frame_pair_and_count_as_the_reads_one_by_one(
     tmp_path_factory: pytest.TempPathFactory,
     cuts: list[int],
