@@ -28,12 +28,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol, cast
 
-from sniffer.describe import Describer, FrameDetail
+from sniffer.describe import Describer, FrameDetail, Shared
 from sniffer.model import Chunk
 from sniffer.recorder import Recorder, RecordError
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
-from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.store import NO_PARTNER, FrameStore, FrameView
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
@@ -318,15 +318,31 @@ class _Column:
         return getattr(session.store, self.name)[i - session.base]
 
 
+class _PartnerColumn(_Column):
+    """The partner column, indexed and valued by row number in the capture."""
+
+    __slots__ = ()
+
+    def __getitem__(self, i: int) -> Any:
+        session = self.session
+        partner = session.store.partner[i - session.base]
+        return partner + session.base if partner != NO_PARTNER else NO_PARTNER
+
+
+# the store's per-row columns: a lister's fast path reads them by row number
+_COLUMNS = ("offset", "length", "t", "t_end", "kind", "unit", "fc", "flags", "channel", "status")
+
+
 class _GlobalStore:
     """What a lister or an exporter reads of the store, by row number in the capture
-    (row times and channels); anything else is the current store's."""
+    (every column; partners as row numbers in the capture); anything else is the
+    current store's."""
 
     def __init__(self, session: Session) -> None:
         self._session = session
-        self.t = _Column(session, "t")
-        self.t_end = _Column(session, "t_end")
-        self.channel = _Column(session, "channel")
+        for name in _COLUMNS:
+            setattr(self, name, _Column(session, name))
+        self.partner = _PartnerColumn(session, "partner")
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._session.store, name)
@@ -336,7 +352,8 @@ class GlobalRows(Describer):
     """The details of a windowed live session's rows by their number in the whole
     capture (`session.base` plus the row in the current store): index, partner and
     transaction ids as one store of every row would give them. For a `Lister` or a
-    `PcapExporter`; give it rows from `session.base` on."""
+    `PcapExporter`; give it rows from `session.base` on. What rows share by content
+    (`shared`) is the session describer's, asked with the row in the current store."""
 
     def __init__(self, session: Session) -> None:  # the session's describer does the work
         self.session = session
@@ -345,12 +362,27 @@ class GlobalRows(Describer):
     def forget(self, i: int) -> None:
         self.session.describer.forget(i - self.session.base)
 
+    def shared(self, i: int) -> Shared | None:
+        return self.session.describer.shared(i - self.session.base)
+
+    def view(self, i: int) -> FrameView:
+        session = self.session
+        return self._global(session.describer.view(i - session.base))
+
+    def complete(self, view: FrameView, shared: Shared) -> FrameDetail:
+        session = self.session
+        local = session.describer.view(view.index - session.base)
+        d = session.describer.complete(local, shared)
+        return replace(d, view=self._global(d.view))
+
     def detail(self, i: int) -> FrameDetail:
         session = self.session
-        base = session.base
-        d = session.describer.detail(i - base)
+        d = session.describer.detail(i - session.base)
+        return replace(d, view=self._global(d.view))
+
+    def _global(self, v: FrameView) -> FrameView:
+        base = self.session.base
         if not base:
-            return d
-        v = d.view
+            return v
         partner = v.partner + base if v.partner != NO_PARTNER else NO_PARTNER
-        return replace(d, view=replace(v, index=i, partner=partner))
+        return replace(v, index=v.index + base, partner=partner)
