@@ -472,18 +472,7 @@ def _bulk_pcap_records(
     def batch() -> Reads:
         nonlocal ends, t_starts, t_ends
         iface.last_end = t_ends[-1]
-        first = t_starts[0]
-        reads = Reads(
-            b"".join(parts),
-            t_ends[-1],
-            None if math.isnan(first) else first,
-            iface.channel,
-            direction,
-            ends=ends,
-            t_starts=t_starts,
-            t_ends=t_ends,
-        )
-        parts.clear()
+        reads = _batch_of(parts, ends, t_starts, t_ends, iface.channel, direction)
         ends, t_starts, t_ends = array("q"), array("d"), array("d")
         return reads
 
@@ -933,20 +922,8 @@ def _bulk_blocks(
     def batch() -> Reads:
         nonlocal ends, t_starts, t_ends, b_index
         assert b_iface is not None
-        data = b"".join(parts)
         b_iface.last_end = t_ends[-1]
-        first = t_starts[0]
-        reads = Reads(
-            data,
-            t_ends[-1],
-            None if math.isnan(first) else first,
-            b_iface.channel,
-            b_dir,
-            ends=ends,
-            t_starts=t_starts,
-            t_ends=t_ends,
-        )
-        parts.clear()
+        reads = _batch_of(parts, ends, t_starts, t_ends, b_iface.channel, b_dir)
         ends, t_starts, t_ends = array("q"), array("d"), array("d")
         b_index = -1
         return reads
@@ -1132,3 +1109,28 @@ def _packet_block(
         if iface.snaplen:
             length = min(length, iface.snaplen)
         yield from decoder.chunks(iface, None, body[4 : 4 + length], None, "", block.offset)
+
+
+def _batch_of(
+    parts: list[bytes],
+    ends: array[int],
+    t_starts: array[float],
+    t_ends: array[float],
+    channel: int,
+    direction: Direction,
+) -> Reads:
+    """The reads gathered in `parts` (emptied here) and the arrays as one batch; a NaN
+    start time stands for none."""
+    first = t_starts[0]
+    reads = Reads(
+        b"".join(parts),
+        t_ends[-1],
+        None if math.isnan(first) else first,
+        channel,
+        direction,
+        ends=ends,
+        t_starts=t_starts,
+        t_ends=t_ends,
+    )
+    parts.clear()
+    return reads
