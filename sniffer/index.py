@@ -369,12 +369,14 @@ def load(
                 continue
             if found is None:
                 continue
-            header, tail = found
+            header, counts = found
             filling = _Filling(session, capture, header, handle, progress, shown, who["size"])
             try:
                 if filling.run(should_stop):
-                    filling.finish(tail)
-                    return candidate
+                    tail = filling.tail(counts)
+                    if tail is not None:
+                        filling.finish(tail)
+                        return candidate
                 if filling.stopped:
                     return candidate
             except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
@@ -388,9 +390,10 @@ def load(
 
 def _header(
     handle: Any, key: str, who: dict[str, Any], file_size: int
-) -> tuple[dict[str, Any], list[array[float]]] | None:
-    """The header of a sidecar that fits the capture and `key`, and its statistics' arrays
-    (checked); None if it does not fit or its length is not what the header says."""
+) -> tuple[dict[str, Any], list[int]] | None:
+    """The header of a sidecar that fits the capture and `key`, and the lengths of its
+    statistics' arrays; None if it does not fit or its length is not what the header
+    says."""
     if handle.read(len(MAGIC)) != MAGIC:
         return None
     size, crc = _PREFIX.unpack(handle.read(_PREFIX.size))
@@ -424,20 +427,7 @@ def _header(
     start = len(MAGIC) + _PREFIX.size + size
     if start + body + 8 * sum(counts) != file_size:
         return None  # cut short, or more than the header says
-    # the statistics come last in the file; read (and checked) first, so that a damaged
-    # tail is found before any row is handed out
-    handle.seek(start + body)
-    tail = []
-    crc = 0
-    for count in counts:
-        col = array("d")
-        col.fromfile(handle, count) if count else None
-        crc = zlib.crc32(memoryview(col).cast("B"), crc)
-        tail.append(col)
-    if crc != header["tail_crc32"]:
-        return None
-    handle.seek(start)
-    return header, tail
+    return header, counts
 
 
 class _Filling:
@@ -528,6 +518,18 @@ class _Filling:
         if self.shown:
             self.session.annotator.update(store)  # before the rows are handed out
         return True
+
+    def tail(self, counts: list[int]) -> list[array[float]] | None:
+        """The per-unit latencies and request times, after the last block (None: damaged;
+        last, not first: they grow with the capture, and the first rows should not wait)."""
+        tail = []
+        crc = 0
+        for count in counts:
+            col = array("d")
+            col.fromfile(self.handle, count) if count else None
+            crc = zlib.crc32(memoryview(col).cast("B"), crc)
+            tail.append(col)
+        return tail if crc == self.header["tail_crc32"] else None
 
     def finish(self, tail: list[array[float]]) -> None:
         """What needs every row: pairing's and the annotator's state, the statistics, the
