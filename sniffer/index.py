@@ -493,13 +493,12 @@ class _Filling:
         if len(data) != size or zlib.crc32(data) != crc:
             return False  # damaged on the way
         view = memoryview(data)
-        columns: dict[str, array[Any]] = {}
+        columns: dict[str, memoryview] = {}  # checked where they are, then copied once
         at = 0
         for name in COLUMNS:
-            col = array(getattr(store, name).typecode)
-            col.frombytes(view[at : at + count * col.itemsize])
+            col = getattr(store, name)
+            columns[name] = view[at : at + count * col.itemsize].cast(col.typecode)
             at += count * col.itemsize
-            columns[name] = col
         added: list[tuple[int, memoryview]] = []
         for ch, piece in pieces:
             ch, piece = int(ch), int(piece)
@@ -514,7 +513,7 @@ class _Filling:
         for ch, piece_bytes in added:
             store.streams[ch] += piece_bytes
         for name in COLUMNS:
-            getattr(store, name).frombytes(memoryview(columns[name]).cast("B"))
+            getattr(store, name).frombytes(columns[name].cast("B"))
         if self.shown:
             self.session.annotator.update(store)  # before the rows are handed out
         return True
@@ -565,7 +564,9 @@ class _Filling:
         store.stamps, store.resolution, store.fill_channel = self.before
 
 
-def _consistent(columns: Mapping[str, array[Any]], streams: Mapping[int, int], n: int) -> bool:
+def _consistent(
+    columns: Mapping[str, array[Any] | memoryview], streams: Mapping[int, int], n: int
+) -> bool:
     """Rows that point inside their bytes (`streams`: the length of each channel's bytes)
     and at rows that exist (C-speed scans)."""
     channels = set(columns["channel"].tobytes())
