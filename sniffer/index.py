@@ -14,8 +14,13 @@ A sidecar is used only when all of this still holds, else the capture is indexed
   response timeout, the function codes of the bound devices, the bindings (the
   annotator's flags are in the rows), and a fingerprint of modscope's own code.
 
-A sidecar is data, never code (a header of JSON and raw columns): one that is damaged or
-does not fit its capture is ignored. `MODSCOPE_NO_INDEX=1` (or `open_session(...,
+The file: a header of JSON (with its CRC-32), then the rows in blocks of `BLOCK` rows,
+each its columns and the bytes its rows point at, each with its own CRC-32, then the
+per-unit latencies and request times. It is read a block at a time (`load`): the TUI
+shows the first rows after the first block while the rest is read.
+
+A sidecar is data, never code: one that is damaged or does not fit its capture is
+ignored. `MODSCOPE_NO_INDEX=1` (or `open_session(...,
 index=False)`) neither reads nor writes one.
 """
 
@@ -32,26 +37,32 @@ import sys
 import tempfile
 import zlib
 from array import array
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from functools import cache
+from itertools import compress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sniffer import __version__
+from sniffer.columns import marking
 from sniffer.model import Stamp
 
 if TYPE_CHECKING:
     from sniffer.session import Session
     from sniffer.sources import Capture
+    from sniffer.store import FrameStore
 
 MAGIC = b"MODSCOPE-INDEX\n\0"
-FORMAT = 1
+FORMAT = 2  # 1: one CRC over the whole file, read whole (now stale: indexed again)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
 COLUMNS: tuple[str, ...] = ("offset", "length", "t", "t_end", "kind", "unit", "fc", "flags")
 COLUMNS += ("channel", "partner", "status")
-_LENGTH = struct.Struct("<Q")
+_PREFIX = struct.Struct("<QI")  # the header's length and CRC-32
+# rows a block: 65,536 rows are about 4 MB, read and checked in about 10 ms, so the TUI
+# has its first screen after one block whatever the size of the capture
+BLOCK = 1 << 16
 
 
 def enabled() -> bool:
@@ -148,6 +159,58 @@ def settings_key(session: Session, options: Any, timeout: float | None) -> str:
 # -------------------------------------------------------------------------- writing
 
 
+def _row_bytes() -> int:
+    from sniffer.store import FrameStore
+
+    model = FrameStore()
+    return sum(getattr(model, name).itemsize for name in COLUMNS)
+
+
+def _blocks(store: FrameStore, n: int) -> list[tuple[int, int, list[list[int]]]] | None:
+    """The blocks of rows: (first row, end, [[channel, bytes], ...]) where a block carries
+    the bytes of each channel from where the one before stopped to the end of the last
+    byte its rows point at (the last block: to the end of the stream). None: a row of a
+    channel with no bytes (not written)."""
+    ends = dict.fromkeys(store.streams, 0)
+    out: list[tuple[int, int, list[list[int]]]] = []
+    for a in range(0, max(n, 1), BLOCK):
+        b = min(n, a + BLOCK)
+        if b >= n:
+            reach = {ch: len(data) for ch, data in store.streams.items()}
+        else:
+            reach = dict(ends)
+            channels = store.channel[a:b].tobytes()
+            present = set(channels)
+            if not present <= set(reach):
+                return None
+            offset, length = store.offset[a:b], store.length[a:b]
+            for ch in present:
+                if len(present) == 1:
+                    far = max(map(operator.add, offset, length))
+                else:
+                    mask = channels.translate(marking((ch,)))
+                    far = max(compress(map(operator.add, offset, length), mask))
+                reach[ch] = max(reach[ch], min(far, len(store.streams[ch])))
+        out.append((a, b, [[ch, reach[ch] - ends[ch]] for ch in store.streams]))
+        ends = reach
+    return out
+
+
+def _block_parts(
+    store: FrameStore, a: int, b: int, pieces: list[list[int]], starts: dict[int, int]
+) -> list[memoryview]:
+    """The bytes of one block: its rows' columns, then its share of each stream."""
+    parts = []
+    for name in COLUMNS:
+        col = getattr(store, name)
+        parts.append(memoryview(col).cast("B")[a * col.itemsize : b * col.itemsize])
+    for ch, size in pieces:
+        at = starts[ch]
+        parts.append(memoryview(store.streams[ch])[at : at + size])
+        starts[ch] = at + size
+    return parts
+
+
 def save(session: Session, capture: Capture, path: Path, key: str) -> Path | None:
     """Write the sidecar of `path`; its location, or None when nowhere could take it."""
     who = identity(path)
@@ -156,15 +219,31 @@ def save(session: Session, capture: Capture, path: Path, key: str) -> Path | Non
     store = session.store
     store.sync()
     n = len(store)
-    columns = {name: getattr(store, name) for name in COLUMNS}
-    streams = {str(ch): len(data) for ch, data in store.streams.items()}
+    blocks = _blocks(store, n)
+    if blocks is None:
+        return None
+    table = []
+    starts = dict.fromkeys(store.streams, 0)
+    for a, b, pieces in blocks:
+        crc = 0
+        for part in _block_parts(store, a, b, pieces, starts):
+            crc = zlib.crc32(part, crc)
+        table.append([b - a, pieces, crc])
+    tail: list[Any] = []
+    for unit in session.stats.units.values():
+        tail += [unit.latencies, unit.request_times]
+    crc = 0
+    for part in tail:
+        crc = zlib.crc32(memoryview(part).cast("B"), crc)
     header = {
         "format": FORMAT,
         "key": key,
         "capture": who,
         "rows": n,
-        "columns": {name: col.typecode for name, col in columns.items()},
-        "streams": streams,
+        "columns": {name: getattr(store, name).typecode for name in COLUMNS},
+        "streams": [[ch, len(data)] for ch, data in store.streams.items()],
+        "blocks": table,
+        "tail_crc32": crc,
         "notes": {str(i): text for i, text in store.notes.items()},
         "stamps": store.stamps.name,
         "resolution": store.resolution,
@@ -178,14 +257,6 @@ def save(session: Session, capture: Capture, path: Path, key: str) -> Path | Non
         "channels": {str(ch): label for ch, label in capture.info.channels.items()},
         "stats": _stats_header(session),
     }
-    parts: list[Any] = [columns[name] for name in COLUMNS]
-    parts += list(store.streams.values())
-    for unit in session.stats.units.values():
-        parts += [unit.latencies, unit.request_times]
-    crc = 0
-    for part in parts:
-        crc = zlib.crc32(memoryview(part).cast("B"), crc)
-    header["crc32"] = crc  # of everything after the header (about 1 GB/s)
     blob = json.dumps(header).encode()
     for target in sidecars(path):
         try:
@@ -196,9 +267,13 @@ def save(session: Session, capture: Capture, path: Path, key: str) -> Path | Non
         try:
             with os.fdopen(fd, "wb") as out:
                 out.write(MAGIC)
-                out.write(_LENGTH.pack(len(blob)))
+                out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
                 out.write(blob)
-                for part in parts:
+                starts = dict.fromkeys(store.streams, 0)
+                for a, b, pieces in blocks:
+                    for part in _block_parts(store, a, b, pieces, starts):
+                        out.write(part)
+                for part in tail:
                     out.write(memoryview(part).cast("B"))
             umask = os.umask(0)
             os.umask(umask)
@@ -242,138 +317,281 @@ def _stats_header(session: Session) -> dict[str, Any]:
 # -------------------------------------------------------------------------- reading
 
 
-def load(session: Session, capture: Capture, path: Path, key: str) -> Path | None:
+class DamagedError(Exception):
+    """A block of a sidecar failed its checks after rows before it were handed out (to
+    `progress` with `shown`): they stay, so the capture cannot be indexed again in the
+    same session. The sidecar is not read again by this process."""
+
+
+_refused: set[tuple[str, int, int]] = set()  # damaged sidecars: path, size, mtime
+
+
+def _stamp(handle: Any, candidate: Path) -> tuple[str, int, int]:
+    st = os.fstat(handle.fileno())
+    return (str(candidate), st.st_size, st.st_mtime_ns)
+
+
+Progress = Callable[[int, int], None]
+
+
+def load(
+    session: Session,
+    capture: Capture,
+    path: Path,
+    key: str,
+    progress: Progress | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    shown: bool = False,
+) -> Path | None:
     """Fill `session` and `capture` from a sidecar of `path` that still fits; its path,
-    or None (nothing was changed) when there is none."""
+    or None (nothing was changed) when there is none.
+
+    The rows come block by block, each checked (CRC-32, rows inside their bytes) before
+    it joins the store, and `progress(bytes, rows)` is called after each block, the
+    first one included: rows below `rows` are complete (the annotator has seen them with
+    `shown`). The statistics, warnings and notes come after the last block. A damaged
+    block takes back the rows before it, unless `shown` (another thread may be showing
+    them): then `DamagedError` is raised. `should_stop()` true between blocks: return with
+    the rows read so far."""
     who = identity(path)
     if who is None:
         return None
     for candidate in sidecars(path):
         try:
-            with candidate.open("rb") as handle:
-                found = _read(handle, key, who)
-        except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+            handle = candidate.open("rb")
+        except OSError:
             continue
-        if found is not None:
-            _restore(session, capture, *found)
-            return candidate
+        with handle:
+            try:
+                stamp = _stamp(handle, candidate)
+                found = None if stamp in _refused else _header(handle, key, who, stamp[1])
+            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+                continue
+            if found is None:
+                continue
+            header, counts = found
+            filling = _Filling(session, capture, header, handle, progress, shown, who["size"])
+            try:
+                if filling.run(should_stop):
+                    tail = filling.tail(counts)
+                    if tail is not None:
+                        filling.finish(tail)
+                        return candidate
+                if filling.stopped:
+                    return candidate
+            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+                pass
+            _refused.add(stamp)
+            if filling.handed_out:
+                raise DamagedError(f"{candidate}: damaged after {len(session.store):,} rows")
+            filling.undo()
     return None
 
 
-def _read(
-    handle: Any, key: str, who: dict[str, Any]
-) -> tuple[dict[str, Any], dict[str, array[Any]], dict[int, bytearray]] | None:
+def _header(
+    handle: Any, key: str, who: dict[str, Any], file_size: int
+) -> tuple[dict[str, Any], list[int]] | None:
+    """The header of a sidecar that fits the capture and `key`, and the lengths of its
+    statistics' arrays; None if it does not fit or its length is not what the header
+    says."""
     if handle.read(len(MAGIC)) != MAGIC:
         return None
-    (size,) = _LENGTH.unpack(handle.read(_LENGTH.size))
+    size, crc = _PREFIX.unpack(handle.read(_PREFIX.size))
     if size > 1 << 30:
         return None
-    header = json.loads(handle.read(size))
+    blob = handle.read(size)
+    if len(blob) != size or zlib.crc32(blob) != crc:
+        return None
+    header = json.loads(blob)
     if header.get("format") != FORMAT or header.get("key") != key:
         return None
     if header.get("capture") != who:
         return None  # stale: the capture changed since it was indexed
     from sniffer.store import FrameStore
 
-    n = int(header["rows"])
     model = FrameStore()
-    columns: dict[str, array[Any]] = {}
     for name in COLUMNS:
-        typecode = getattr(model, name).typecode
-        if header["columns"].get(name) != typecode:
+        if header["columns"].get(name) != getattr(model, name).typecode:
             return None
-        col = array(typecode)
-        col.fromfile(handle, n) if n else None
-        columns[name] = col
-    streams: dict[int, bytearray] = {}
-    for ch, length in header["streams"].items():
-        data = bytearray(handle.read(int(length)))
-        if len(data) != int(length):
-            return None
-        streams[int(ch)] = data
-    for unit in header["stats"]["units"]:
-        for name in ("latencies", "request_times"):
-            col = array("d")
-            count = int(unit[name])
-            col.fromfile(handle, count) if count else None
-            unit[name] = col
-    if handle.read(1):
-        return None  # more than the header says: not ours
-    crc = 0
-    for col in columns.values():
-        crc = zlib.crc32(memoryview(col).cast("B"), crc)
-    for data in streams.values():
-        crc = zlib.crc32(data, crc)
-    for unit in header["stats"]["units"]:
-        for name in ("latencies", "request_times"):
-            crc = zlib.crc32(memoryview(unit[name]).cast("B"), crc)
-    if crc != header.get("crc32"):
-        return None  # damaged on the way
-    if n and not _consistent(columns, streams, n):
+    row_bytes = _row_bytes()
+    body = 0
+    rows = 0
+    for count, pieces, _crc in header["blocks"]:
+        rows += int(count)
+        body += int(count) * row_bytes + sum(int(size) for _ch, size in pieces)
+    if rows != int(header["rows"]) or any(int(s) < 0 for _ch, s in header["streams"]):
         return None
-    return header, columns, streams
+    counts = [
+        int(u[name]) for u in header["stats"]["units"] for name in ("latencies", "request_times")
+    ]
+    start = len(MAGIC) + _PREFIX.size + size
+    if start + body + 8 * sum(counts) != file_size:
+        return None  # cut short, or more than the header says
+    return header, counts
 
 
-def _consistent(columns: dict[str, array[Any]], streams: dict[int, bytearray], n: int) -> bool:
-    """Rows that point inside their bytes and at rows that exist (C-speed scans)."""
+class _Filling:
+    """Rows going from a sidecar into a session, a block at a time."""
+
+    def __init__(
+        self,
+        session: Session,
+        capture: Capture,
+        header: dict[str, Any],
+        handle: Any,
+        progress: Progress | None,
+        shown: bool,
+        capture_size: int,
+    ) -> None:
+        self.session, self.capture, self.header, self.handle = session, capture, header, handle
+        self.progress, self.shown = progress, shown
+        self.handed_out = False
+        self.stopped = False
+        store = session.store
+        self.before = (store.stamps, store.resolution, store.fill_channel)
+        self.streams_before = {ch: len(data) for ch, data in store.streams.items()}
+        self.rows = int(header["rows"])
+        self.row_bytes = _row_bytes()
+        self.file_size = os.fstat(handle.fileno()).st_size
+        self.capture_size = capture_size
+
+    def run(self, should_stop: Callable[[], bool] | None) -> bool:
+        """Read every block; False if one is damaged or `should_stop` said so."""
+        header, store = self.header, self.session.store
+        # what the rows need to be shown: their notes, times and bytes' channels
+        store.notes.update({int(i): str(text) for i, text in header["notes"].items()})
+        store.stamps = Stamp[header["stamps"]]
+        store.resolution = float(header["resolution"])
+        store.fill_channel = int(header["fill_channel"])
+        streams = {int(ch): int(size) for ch, size in header["streams"]}
+        for ch in streams:
+            store.stream(ch)
+        reach = {ch: len(store.streams[ch]) for ch in streams}
+        for count, pieces, crc in header["blocks"]:
+            if not self._block(int(count), pieces, int(crc), streams, reach):
+                return False
+            if self.progress is not None:
+                done = self.capture_size * self.handle.tell() // max(1, self.file_size)
+                self.progress(done, len(store))
+                self.handed_out = self.handed_out or bool(len(store))
+            if should_stop is not None and should_stop():
+                self.stopped = True
+                return False
+        return all(len(store.streams[ch]) == size for ch, size in streams.items())
+
+    def _block(
+        self,
+        count: int,
+        pieces: list[list[int]],
+        crc: int,
+        streams: dict[int, int],
+        reach: dict[int, int],
+    ) -> bool:
+        store = self.session.store
+        size = count * self.row_bytes + sum(int(s) for _ch, s in pieces)
+        data = self.handle.read(size)
+        if len(data) != size or zlib.crc32(data) != crc:
+            return False  # damaged on the way
+        view = memoryview(data)
+        columns: dict[str, memoryview] = {}  # checked where they are, then copied once
+        at = 0
+        for name in COLUMNS:
+            col = getattr(store, name)
+            columns[name] = view[at : at + count * col.itemsize].cast(col.typecode)
+            at += count * col.itemsize
+        added: list[tuple[int, memoryview]] = []
+        for ch, piece in pieces:
+            ch, piece = int(ch), int(piece)
+            if ch not in streams or reach[ch] + piece > streams[ch]:
+                return False
+            added.append((ch, view[at : at + piece]))
+            reach[ch] += piece
+            at += piece
+        if count and not _consistent(columns, reach, self.rows):
+            return False
+        # into the store's own objects: views (the TUI's reader) hold on to its columns
+        for ch, piece_bytes in added:
+            store.streams[ch] += piece_bytes
+        for name in COLUMNS:
+            getattr(store, name).frombytes(columns[name].cast("B"))
+        if self.shown:
+            self.session.annotator.update(store)  # before the rows are handed out
+        return True
+
+    def tail(self, counts: list[int]) -> list[array[float]] | None:
+        """The per-unit latencies and request times, after the last block (None: damaged;
+        last, not first: they grow with the capture, and the first rows should not wait)."""
+        tail = []
+        crc = 0
+        for count in counts:
+            col = array("d")
+            col.fromfile(self.handle, count) if count else None
+            crc = zlib.crc32(memoryview(col).cast("B"), crc)
+            tail.append(col)
+        return tail if crc == self.header["tail_crc32"] else None
+
+    def finish(self, tail: list[array[float]]) -> None:
+        """What needs every row: pairing's and the annotator's state, the statistics, the
+        warnings."""
+        session, capture, header = self.session, self.capture, self.header
+        n = len(session.store)
+        pipeline = session.pipeline
+        pipeline.mode = header["mode"]
+        pipeline.pairer.next = n
+        pipeline._hint_checked = n
+        session.warnings[:] = [str(w) for w in header["session_warnings"]]
+        session.notes[:] = [str(w) for w in header["session_notes"]]
+        session.chunks = int(header["chunks"])
+        capture.warnings[:] = [str(w) for w in header["capture_warnings"]]
+        capture.data_bytes = int(header["data_bytes"])
+        capture.finished = True
+        for ch, label in header["channels"].items():
+            capture.info.channels.setdefault(int(ch), str(label))
+        session.annotator.update(session.store)  # all rows, or those after the last block
+        _restore_stats(session, header["stats"], tail, n)
+
+    def undo(self) -> None:
+        """Take back the rows (and the little before them) of a damaged sidecar."""
+        store = self.session.store
+        for name in COLUMNS:
+            del getattr(store, name)[:]
+        for ch in list(store.streams):
+            if ch in self.streams_before:
+                del store.streams[ch][self.streams_before[ch] :]
+            else:
+                del store.streams[ch]
+        store.notes.clear()
+        store.stamps, store.resolution, store.fill_channel = self.before
+
+
+def _consistent(
+    columns: Mapping[str, array[Any] | memoryview], streams: Mapping[int, int], n: int
+) -> bool:
+    """Rows that point inside their bytes (`streams`: the length of each channel's bytes)
+    and at rows that exist (C-speed scans)."""
     channels = set(columns["channel"].tobytes())
     if not channels <= set(streams):
         return False
     offset, length, channel = columns["offset"], columns["length"], columns["channel"]
     if len(channels) == 1:
-        if max(map(operator.add, offset, length)) > len(streams[channel[0]]):
+        if max(map(operator.add, offset, length)) > streams[channel[0]]:
             return False
-    elif any(offset[i] + length[i] > len(streams[channel[i]]) for i in range(n)):
-        return False
+    else:
+        ends = map(operator.add, offset, length)
+        if any(end > streams[ch] for end, ch in zip(ends, channel, strict=True)):
+            return False
     partner = columns["partner"]
     return bool(min(partner) >= -1 and max(partner) < n and max(columns["kind"]) < 8)
 
 
-def _restore(
-    session: Session,
-    capture: Capture,
-    header: dict[str, Any],
-    columns: dict[str, array[Any]],
-    streams: dict[int, bytearray],
+def _restore_stats(
+    session: Session, saved: dict[str, Any], tail: list[array[float]], n: int
 ) -> None:
-    # into the store's own objects: views (the TUI's reader) hold on to its columns
-    store = session.store
-    store.streams.clear()
-    store.streams.update(streams)
-    for name, col in columns.items():
-        target = getattr(store, name)
-        del target[:]
-        target.frombytes(memoryview(col).cast("B"))
-        del col
-    columns.clear()
-    store.notes.clear()
-    store.notes.update({int(i): str(text) for i, text in header["notes"].items()})
-    store.stamps = Stamp[header["stamps"]]
-    store.resolution = float(header["resolution"])
-    store.fill_channel = int(header["fill_channel"])
-    n = len(store)
-    pipeline = session.pipeline
-    pipeline.mode = header["mode"]
-    pipeline.pairer.next = n
-    pipeline._hint_checked = n
-    session.warnings[:] = [str(w) for w in header["session_warnings"]]
-    session.notes[:] = [str(w) for w in header["session_notes"]]
-    session.chunks = int(header["chunks"])
-    capture.warnings[:] = [str(w) for w in header["capture_warnings"]]
-    capture.data_bytes = int(header["data_bytes"])
-    capture.finished = True
-    for ch, label in header["channels"].items():
-        capture.info.channels.setdefault(int(ch), str(label))
-    session.annotator.next = 0
-    session.annotator.update(store)
-    _restore_stats(session, header["stats"], n)
-
-
-def _restore_stats(session: Session, saved: dict[str, Any], n: int) -> None:
     from sniffer.stats import UnitStats
 
     stats = session.stats
-    stats.units.clear()
+    units = {}
+    arrays = iter(tail)
     for u in saved["units"]:
         unit = UnitStats(int(u["unit"]))
         unit.requests, unit.responses = int(u["requests"]), int(u["responses"])
@@ -381,8 +599,10 @@ def _restore_stats(session: Session, saved: dict[str, Any], n: int) -> None:
         unit.timeouts, unit.check_errors = int(u["timeouts"]), int(u["check_errors"])
         unit.last_seen = float(u["last_seen"])
         unit.below_resolution, unit.unmeasured = int(u["below_resolution"]), int(u["unmeasured"])
-        unit.latencies, unit.request_times = u["latencies"], u["request_times"]
-        stats.units[unit.unit] = unit
+        unit.latencies, unit.request_times = next(arrays), next(arrays)
+        units[unit.unit] = unit
+    stats.units.clear()
+    stats.units.update(units)
     stats.noise_bytes, stats.noise_spans = int(saved["noise_bytes"]), int(saved["noise_spans"])
     stats.events = int(saved["events"])
     stats._open = {int(i) for i in saved["open"] if 0 <= int(i) < n}

@@ -177,18 +177,29 @@ class Session:
         progress: Progress | None = None,
         every: float = 0.25,
         should_stop: Callable[[], bool] | None = None,
+        *,
+        shown: bool = False,
+        index: bool = True,
     ) -> None:
-        """Feed all `chunks`, refreshing and reporting progress every `every` seconds."""
+        """Feed all `chunks`, refreshing and reporting progress every `every` seconds.
+
+        Where a sidecar index fits (see `open_session`), its rows are read instead, a
+        block at a time, with progress after each block. `shown`: another thread shows
+        the rows reported to `progress`, so they are never taken back: a sidecar found
+        damaged after some raises `sniffer.index.DamagedError` (else the capture is indexed
+        again). `index` False: the sidecar is neither read nor written."""
+        if not index:
+            self._sidecar = None
         if self._sidecar is not None and self.indexed_from is None and not len(self.store):
             # read back from the sidecar index where one fits: every row is there already
             # (here rather than in open_session: the TUI draws while this thread reads)
-            from sniffer import index
+            from sniffer import index as sidecar
 
             path, capture, key = self._sidecar
-            self.indexed_from = index.load(self, capture, path, key)
+            self.indexed_from = sidecar.load(
+                self, capture, path, key, progress, should_stop, shown=shown
+            )
         if self.indexed_from is not None:
-            if progress is not None:
-                progress(self._sidecar_bytes(), len(self.store))
             return
         last = time.monotonic()
         done = 0
@@ -208,17 +219,14 @@ class Session:
                         return
         self.finish()
         if self._sidecar is not None:
-            from sniffer import index
+            from sniffer import index as sidecar
 
             path, capture, key = self._sidecar
             if capture.finished:  # read to its end
-                index.save(self, capture, path, key)
+                sidecar.save(self, capture, path, key)
                 self._sidecar = None
         if progress is not None:
             progress(done, len(self.store))
-
-    def _sidecar_bytes(self) -> int:
-        return sum(len(s) for s in self.store.streams.values())
 
 
 def open_session(

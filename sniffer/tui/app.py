@@ -220,6 +220,10 @@ class ModscopeApp(App[int]):
         if message.generation != self.generation or not self.main.alive:
             return
         p = message.progress
+        if p.reopen:  # the rows start over: as a restart, from the capture this time
+            self.say(f"{p.error}: indexing the capture again", severity="warning")
+            self._restart(self.pacing.speed)
+            return
         self._bytes_done = p.bytes_done
         self.model.publish(p.rows)
         if p.done:

@@ -83,6 +83,9 @@ class FeedProgress:
     bytes_done: int
     done: bool = False
     error: str = ""
+    # the sidecar index whose rows were being shown is damaged: open the capture again
+    # (its rows start over from none; the sidecar is not read again)
+    reopen: bool = False
 
 
 Publish = Callable[[FeedProgress], None]
@@ -168,8 +171,20 @@ def feed_capture(
             publish(FeedProgress(rows, done))
             time.sleep(breather)
 
+    from sniffer.index import DamagedError
+
     try:
-        session.ingest(pacing.pace(chunks), progress, every=first, should_stop=pacing.stopped)
+        session.ingest(
+            pacing.pace(chunks),
+            progress,
+            every=first,
+            should_stop=pacing.stopped,
+            shown=True,
+            index=pacing.speed is None,  # a replay at the original speed reads the capture
+        )
+    except DamagedError as exc:
+        publish(FeedProgress(good_rows, bytes_done, True, str(exc), reopen=True))
+        return
     except Exception as exc:  # a reader bug must not kill the UI: keep what was indexed
         error = f"{type(exc).__name__}: {exc}"
         publish(FeedProgress(good_rows, bytes_done, True, error))
