@@ -8,8 +8,10 @@ the session is fed by whoever calls `pump()`: the command line's loop, or the TU
 Headless (a listing, a recording with --mqtt), the capture is given a `window`: once the
 session's store holds that many rows, the next `pump()` at a settled moment (see
 `Session.new_segment`) forgets them and goes on in an empty store, rows numbered on from
-`session.base`. Memory then stays bounded however long the capture runs; the rows live
-on in the recording (-w) if one is made. `GlobalRows` shows a windowed session's rows to
+`session.base`. Its statistics are kept bounded too (`Stats.bound`: the latencies and
+poll gaps counted per figure the table prints). Memory then stays bounded however long
+the capture runs; the rows live on in the recording (-w) if one is made. `GlobalRows`
+shows a windowed session's rows to
 a lister or exporter with their numbers in the whole capture.
 
 For the TUI: `run_tui(session, None, live=capture)` gets a started `LiveCapture`. Call
@@ -126,6 +128,9 @@ class LiveCapture:
         self.shown = 0  # rows of the session's store handed out by pump()
         self.window = window
         self.segments = 0  # new segments started
+        if window is not None and session is not None:
+            # the statistics too: counted per printed figure, not kept value by value
+            session.stats.bound()
         self.feed: ChunkFeed | None = None
         if session is not None:
             self.feed = reader.subscribe(queue_size)
@@ -341,6 +346,10 @@ class GlobalRows(Describer):
     def __init__(self, session: Session) -> None:  # the session's describer does the work
         self.session = session
         self.store = cast(FrameStore, _GlobalStore(session))
+        # no contents shared among rows (`Describer.shared`): the lister's shared path
+        # reads the store's columns by row number, which here only `detail` translates
+        self.shared_size = 0
+        self._fresh = None
 
     def forget(self, i: int) -> None:
         self.session.describer.forget(i - self.session.base)
