@@ -45,11 +45,19 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from sniffer.model import LineSettings
 from sniffer.synth import polling_frames
 
-MODSCOPE = str(Path(sys.executable).with_name("modscope"))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# modscope from this tree (not whatever the venv's `modscope` script imports)
+MODSCOPE = [sys.executable, "-m", "sniffer.cli"]
 TICK = os.sysconf("SC_CLK_TCK")
 
 
 CYCLE_SECONDS = 120.0  # the writer's cycle of frames, played again and again
+
+
+def child_env() -> dict[str, str]:
+    """The environment modscope runs in: this tree first on its path."""
+    paths = (ROOT, os.environ.get("PYTHONPATH", ""))
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
 
 
 def rss_mb(pid: int) -> float:
@@ -165,10 +173,10 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
     rec = tmp / f"{mode}.pcapng"
     line_args = ["--baud", str(line.baud), "--parity", "N", "--stopbits", "1", "--mode", "rtu"]
     if mode == "record":
-        cmd = [MODSCOPE, "record", port, *line_args, "-w", str(rec)]
+        cmd = [*MODSCOPE, "record", port, *line_args, "-w", str(rec)]
     else:
-        cmd = [MODSCOPE, "live", port, *line_args, "--format", "jsonl", "-w", str(rec)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        cmd = [*MODSCOPE, "live", port, *line_args, "--format", "jsonl", "-w", str(rec)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=child_env())
     assert proc.stderr is not None and proc.stdout is not None
     while True:
         text = proc.stderr.readline().decode()
@@ -295,7 +303,14 @@ def main() -> None:
     line = LineSettings(baud=args.baud, bytesize=8, parity="N", stopbits=1, mode="rtu")
     style = "one write per frame" if args.per_frame else "1 ms delivery"
     style += ", polling gaps" if args.polling_gaps else ", back to back"
-    print(f"{line.describe()}, {style}, {os.cpu_count()} CPUs")
+    print(f"{line.describe()}, {style}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}")
+    where = subprocess.run(
+        [sys.executable, "-c", "import sniffer; print(sniffer.__file__)"],
+        env=child_env(),
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    print(f"modscope from {os.path.dirname(where)}")
     with tempfile.TemporaryDirectory() as tmp:
         for mode in ("record", "live"):
             if args.only in (None, mode):
