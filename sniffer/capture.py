@@ -30,12 +30,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol, cast
 
-from sniffer.describe import Describer, FrameDetail
+from sniffer.describe import Describer, FrameDetail, Shared
 from sniffer.model import Chunk
 from sniffer.recorder import Recorder, RecordError
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
-from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.store import NO_PARTNER, FrameStore, FrameView
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
@@ -323,33 +323,111 @@ class _Column:
         return getattr(session.store, self.name)[i - session.base]
 
 
+class _Partners(_Column):
+    """The partner column, rows and partners numbered in the capture."""
+
+    __slots__ = ()
+
+    def __getitem__(self, i: int) -> int:
+        session = self.session
+        base = session.base
+        j: int = session.store.partner[i - base]
+        return j if j == NO_PARTNER else j + base
+
+
+class _Keyed(_Column):
+    """A per-row dict of the current store (notes, links), keyed by row in the capture."""
+
+    __slots__ = ()
+
+    def _rows(self) -> dict[int, Any]:
+        found: dict[int, Any] = getattr(self.session.store, self.name)
+        return found
+
+    def __contains__(self, i: int) -> bool:
+        return i - self.session.base in self._rows()
+
+    def __getitem__(self, i: int) -> Any:
+        return self._rows()[i - self.session.base]
+
+    def get(self, i: int, default: Any = None) -> Any:
+        return self._rows().get(i - self.session.base, default)
+
+    def __bool__(self) -> bool:
+        return bool(self._rows())
+
+
+_ROW_COLUMNS = (
+    "offset",
+    "length",
+    "t",
+    "t_end",
+    "kind",
+    "unit",
+    "fc",
+    "flags",
+    "channel",
+    "status",
+)
+
+
 class _GlobalStore:
-    """What a lister or an exporter reads of the store, by row number in the capture
-    (row times and channels); anything else is the current store's."""
+    """What a lister or an exporter reads of the store, by row number in the capture:
+    every per-row column (partners numbered in the capture too), the notes and links,
+    and views; anything else (streams, stamps, peers) is the current store's."""
 
     def __init__(self, session: Session) -> None:
         self._session = session
-        self.t = _Column(session, "t")
-        self.t_end = _Column(session, "t_end")
-        self.channel = _Column(session, "channel")
+        for name in _ROW_COLUMNS:
+            setattr(self, name, _Column(session, name))
+        self.partner = _Partners(session, "partner")
+        self.notes = _Keyed(session, "notes")
+        self.links = _Keyed(session, "links")
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._session.store, name)
+
+    def __len__(self) -> int:
+        return self._session.base + len(self._session.store)
+
+    def view(self, i: int) -> FrameView:
+        session = self._session
+        return _shifted(session.store.view(i - session.base), session.base)
+
+
+def _shifted(v: FrameView, by: int) -> FrameView:
+    """View `v` with its row and partner numbered `by` rows on."""
+    if not by:
+        return v
+    partner = v.partner + by if v.partner != NO_PARTNER else NO_PARTNER
+    return replace(v, index=v.index + by, partner=partner)
 
 
 class GlobalRows(Describer):
     """The details of a windowed live session's rows by their number in the whole
     capture (`session.base` plus the row in the current store): index, partner and
     transaction ids as one store of every row would give them. For a `Lister` or a
-    `PcapExporter`; give it rows from `session.base` on."""
+    `PcapExporter`; give it rows from `session.base` on. Contents shared among rows
+    (`Describer.shared`) are the session's describer's: they hold no row numbers."""
 
     def __init__(self, session: Session) -> None:  # the session's describer does the work
         self.session = session
         self.store = cast(FrameStore, _GlobalStore(session))
-        # no contents shared among rows (`Describer.shared`): the lister's shared path
-        # reads the store's columns by row number, which here only `detail` translates
-        self.shared_size = 0
-        self._fresh = None
+        self.shared_size = session.describer.shared_size
+
+    def shared(self, i: int) -> Shared | None:
+        session = self.session
+        return session.describer.shared(i - session.base)
+
+    def view(self, i: int) -> FrameView:
+        session = self.session
+        return _shifted(session.describer.view(i - session.base), session.base)
+
+    def complete(self, view: FrameView, content: Shared) -> FrameDetail:
+        session = self.session
+        base = session.base
+        d = session.describer.complete(_shifted(view, -base), content)
+        return replace(d, view=view) if base else d
 
     def forget(self, i: int) -> None:
         self.session.describer.forget(i - self.session.base)
@@ -358,8 +436,4 @@ class GlobalRows(Describer):
         session = self.session
         base = session.base
         d = session.describer.detail(i - base)
-        if not base:
-            return d
-        v = d.view
-        partner = v.partner + base if v.partner != NO_PARTNER else NO_PARTNER
-        return replace(d, view=replace(v, index=i, partner=partner))
+        return replace(d, view=_shifted(d.view, base)) if base else d

