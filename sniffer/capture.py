@@ -40,10 +40,11 @@ from sniffer.store import NO_PARTNER, FrameStore, FrameView
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
 # a headless pump woken by a read or two lets more gather this long before it frames
-# them: a pump costs the same for one read as for five (live JSONL at 921600 baud, reads
-# every ms, in-process: 75 us a frame with a pump per read, 49 with five); the listing
-# is that much later, well within its 50 ms
-PUMP_GATHER = 0.005
+# them: a pump costs about the same for one read as for ten (live JSONL at 921600 baud,
+# reads every ms, in-process: 75 us a frame with a pump per read, 49 with five, 45 with
+# ten; bench_live.py, 25 s: 25.0% of a core with 5 ms, 23.0% with 10 ms, median latency
+# 5.1 and 9.2 ms); the listing is that much later, well within its 50 ms
+PUMP_GATHER = 0.010
 GATHER_READS = 4  # ... unless this many reads were waiting already
 RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
 # rows a headless live session keeps before it starts a new segment: about 7 MB of store
