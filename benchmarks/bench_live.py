@@ -37,7 +37,7 @@ import threading
 import time
 import tty
 from array import array
-from collections import defaultdict, deque
+from collections import deque
 from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -45,11 +45,19 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from sniffer.model import LineSettings
 from sniffer.synth import polling_frames
 
-MODSCOPE = str(Path(sys.executable).with_name("modscope"))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# modscope from this tree (not whatever the venv's `modscope` script imports)
+MODSCOPE = [sys.executable, "-m", "sniffer.cli"]
 TICK = os.sysconf("SC_CLK_TCK")
 
 
 CYCLE_SECONDS = 120.0  # the writer's cycle of frames, played again and again
+
+
+def child_env() -> dict[str, str]:
+    """The environment modscope runs in: this tree first on its path."""
+    paths = (ROOT, os.environ.get("PYTHONPATH", ""))
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
 
 
 def rss_mb(pid: int) -> float:
@@ -93,7 +101,8 @@ class Writer(threading.Thread):
             self.ends = [f.t + len(f.raw) * char for f in self.frames]
             self.period = self.ends[-1] + 3.5 * char
         self.seconds = seconds
-        self.sent: dict[bytes, deque[float]] = defaultdict(deque)
+        # every frame written, in order, with when: the listing comes in the same order
+        self.sent: deque[tuple[bytes, float]] = deque()
         self.count = 0
         self.bytes = 0
         self.stop = threading.Event()
@@ -122,7 +131,7 @@ class Writer(threading.Thread):
             data = b"".join(f.raw for f in frames[k:due])
             written = time.monotonic()  # noted before writing: modscope may list it at once
             for f in frames[k:due]:
-                self.sent[f.raw].append(written)
+                self.sent.append((f.raw, written))
             view = memoryview(data)
             while view:
                 view = view[os.write(self.fd, view) :]
@@ -132,6 +141,22 @@ class Writer(threading.Thread):
             if k == count:  # the cycle again, after it
                 k = 0
                 base += self.period
+
+
+LOOK_AHEAD = 64  # frames written the listing may have skipped (framed as noise)
+
+
+def _match(sent: deque[tuple[bytes, float]], raw: bytes) -> float | None:
+    """When the frame listed as `raw` was written: the next frame written if it is that,
+    else one of the few after it (those before it were not listed as frames: dropped).
+    Matched in order, not by content alone: a bus repeats its frames, and one frame
+    missed would otherwise pair every later copy of it with the copy before."""
+    for k in range(min(LOOK_AHEAD, len(sent))):
+        if sent[k][0] == raw:
+            for _ in range(k):
+                sent.popleft()
+            return sent.popleft()[1]
+    return None
 
 
 class Sampler(threading.Thread):
@@ -165,10 +190,10 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
     rec = tmp / f"{mode}.pcapng"
     line_args = ["--baud", str(line.baud), "--parity", "N", "--stopbits", "1", "--mode", "rtu"]
     if mode == "record":
-        cmd = [MODSCOPE, "record", port, *line_args, "-w", str(rec)]
+        cmd = [*MODSCOPE, "record", port, *line_args, "-w", str(rec)]
     else:
-        cmd = [MODSCOPE, "live", port, *line_args, "--format", "jsonl", "-w", str(rec)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        cmd = [*MODSCOPE, "live", port, *line_args, "--format", "jsonl", "-w", str(rec)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=child_env())
     assert proc.stderr is not None and proc.stdout is not None
     while True:
         text = proc.stderr.readline().decode()
@@ -183,6 +208,7 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
     gc.freeze()
     latencies = array("d")
     listed = [0]  # frames listed (each frame is listed once; updates are not counted)
+    unmatched = [0]  # frames listed that match none of the next frames written
     noise = 0
     updates = 0
     bad: list[bytes] = []
@@ -205,9 +231,11 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
             if rec_["kind"] in ("noise", "event"):
                 continue
             listed[0] += 1
-            times = writer.sent.get(bytes.fromhex(rec_["raw"]))
-            if times:
-                latencies.append(arrived - times.popleft())
+            written = _match(writer.sent, bytes.fromhex(rec_["raw"]))
+            if written is None:
+                unmatched[0] += 1
+            else:
+                latencies.append(arrived - written)
 
     reader = threading.Thread(target=read_listing, daemon=True)
     reader.start()
@@ -250,13 +278,19 @@ def run(mode: str, args: argparse.Namespace, line: LineSettings, tmp: Path) -> N
             f"        RSS {warm[1]:.1f} MiB at {warm[0]:.0f} s (warm), {last[1]:.1f} MiB at "
             f"{last[0]:.0f} s (end), peak {peak:.1f} MiB: {grown:+.1f} MiB{per}"
         )
+        half = sampler.at(last[0] / 2)
+        if half is not None and last[2] > half[2] and mode == "live":
+            print(
+                f"        second half: {half[1]:.1f} -> {last[1]:.1f} MiB, "
+                f"{(last[1] - half[1]) * 2**20 / (last[2] - half[2]):+.1f} B per frame listed"
+            )
         if args.rss_log:
             with open(f"{args.rss_log}.{mode}", "w") as log:
                 log.writelines(f"{t:.0f} {mb:.1f} {n}\n" for t, mb, n in samples)
     if mode == "live":
         print(
             f"        frames listed {listed[0]:,} of {writer.count:,} written, noise {noise}, "
-            f"updates {updates:,}"
+            f"updates {updates:,}, unmatched {unmatched[0]:,}"
         )
         if bad:
             print(f"        {len(bad)} lines not JSON, the first: {bad[0][:300]!r}")
@@ -295,7 +329,14 @@ def main() -> None:
     line = LineSettings(baud=args.baud, bytesize=8, parity="N", stopbits=1, mode="rtu")
     style = "one write per frame" if args.per_frame else "1 ms delivery"
     style += ", polling gaps" if args.polling_gaps else ", back to back"
-    print(f"{line.describe()}, {style}, {os.cpu_count()} CPUs")
+    print(f"{line.describe()}, {style}, {os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}")
+    where = subprocess.run(
+        [sys.executable, "-c", "import sniffer; print(sniffer.__file__)"],
+        env=child_env(),
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    print(f"modscope from {os.path.dirname(where)}")
     with tempfile.TemporaryDirectory() as tmp:
         for mode in ("record", "live"):
             if args.only in (None, mode):

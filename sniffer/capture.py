@@ -8,8 +8,10 @@ the session is fed by whoever calls `pump()`: the command line's loop, or the TU
 Headless (a listing, a recording with --mqtt), the capture is given a `window`: once the
 session's store holds that many rows, the next `pump()` at a settled moment (see
 `Session.new_segment`) forgets them and goes on in an empty store, rows numbered on from
-`session.base`. Memory then stays bounded however long the capture runs; the rows live
-on in the recording (-w) if one is made. `GlobalRows` shows a windowed session's rows to
+`session.base`. Its statistics are kept bounded too (`Stats.bound`: the latencies and
+poll gaps counted per figure the table prints). Memory then stays bounded however long
+the capture runs; the rows live on in the recording (-w) if one is made. `GlobalRows`
+shows a windowed session's rows to
 a lister or exporter with their numbers in the whole capture.
 
 For the TUI: `run_tui(session, None, live=capture)` gets a started `LiveCapture`. Call
@@ -37,6 +39,13 @@ from sniffer.store import NO_PARTNER, FrameStore, FrameView
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
+# a headless pump woken by a read or two lets more gather this long before it frames
+# them: a pump costs about the same for one read as for ten (live JSONL at 921600 baud,
+# reads every ms, in-process: 75 us a frame with a pump per read, 49 with five, 45 with
+# ten; bench_live.py, 25 s: 25.0% of a core with 5 ms, 23.0% with 10 ms, median latency
+# 5.1 and 9.2 ms); the listing is that much later, well within its 50 ms
+PUMP_GATHER = 0.010
+GATHER_READS = 4  # ... unless this many reads were waiting already
 RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
 # rows a headless live session keeps before it starts a new segment: about 7 MB of store
 # (65 bytes a row) and some 30 s of a 921600 baud line
@@ -106,10 +115,12 @@ class LiveCapture:
         quiet: float | None = None,
         publisher: Publisher | None = None,
         window: int | None = None,
+        gather: float = 0.0,
     ) -> None:
         """`window`: rows the session keeps in memory before a new segment starts (see
         the module's docstring); None keeps every row (the TUI scrolls back through
-        them)."""
+        them). `gather`: seconds a pump woken by fewer than GATHER_READS reads waits for
+        more before it frames them (PUMP_GATHER headless; 0 for none)."""
         if publisher is not None and session is None:
             raise ValueError("a publisher is fed from the session: give the capture one")
         self.reader = reader
@@ -125,7 +136,11 @@ class LiveCapture:
         self.failure: str | None = None
         self.shown = 0  # rows of the session's store handed out by pump()
         self.window = window
+        self.gather = gather
         self.segments = 0  # new segments started
+        if window is not None and session is not None:
+            # the statistics too: counted per printed figure, not kept value by value
+            session.stats.bound()
         self.feed: ChunkFeed | None = None
         if session is not None:
             self.feed = reader.subscribe(queue_size)
@@ -233,7 +248,11 @@ class LiveCapture:
                 # every row so far was handed out last time and has been listed: the
                 # store may start afresh if the line is at a settled moment
                 self._cut()
-            self._take(self.feed.get(timeout))
+            chunks = self.feed.get(timeout)
+            if chunks and self.gather > 0 and len(chunks) < GATHER_READS:
+                time.sleep(self.gather)
+                chunks += self.feed.get(0)
+            self._take(chunks)
             if time.monotonic() - self._last_data >= self.quiet:
                 self.session.idle(self.reader.clock.now())
             else:
@@ -318,71 +337,117 @@ class _Column:
         return getattr(session.store, self.name)[i - session.base]
 
 
-class _PartnerColumn(_Column):
-    """The partner column, indexed and valued by row number in the capture."""
+class _Partners(_Column):
+    """The partner column, rows and partners numbered in the capture."""
 
     __slots__ = ()
 
-    def __getitem__(self, i: int) -> Any:
+    def __getitem__(self, i: int) -> int:
         session = self.session
-        partner = session.store.partner[i - session.base]
-        return partner + session.base if partner != NO_PARTNER else NO_PARTNER
+        base = session.base
+        j: int = session.store.partner[i - base]
+        return j if j == NO_PARTNER else j + base
 
 
-# the store's per-row columns: a lister's fast path reads them by row number
-_COLUMNS = ("offset", "length", "t", "t_end", "kind", "unit", "fc", "flags", "channel", "status")
+class _Keyed(_Column):
+    """A per-row dict of the current store (notes, links), keyed by row in the capture."""
+
+    __slots__ = ()
+
+    def _rows(self) -> dict[int, Any]:
+        found: dict[int, Any] = getattr(self.session.store, self.name)
+        return found
+
+    def __contains__(self, i: int) -> bool:
+        return i - self.session.base in self._rows()
+
+    def __getitem__(self, i: int) -> Any:
+        return self._rows()[i - self.session.base]
+
+    def get(self, i: int, default: Any = None) -> Any:
+        return self._rows().get(i - self.session.base, default)
+
+    def __bool__(self) -> bool:
+        return bool(self._rows())
+
+
+_ROW_COLUMNS = (
+    "offset",
+    "length",
+    "t",
+    "t_end",
+    "kind",
+    "unit",
+    "fc",
+    "flags",
+    "channel",
+    "status",
+)
 
 
 class _GlobalStore:
-    """What a lister or an exporter reads of the store, by row number in the capture
-    (every column; partners as row numbers in the capture); anything else is the
-    current store's."""
+    """What a lister or an exporter reads of the store, by row number in the capture:
+    every per-row column (partners numbered in the capture too), the notes and links,
+    and views; anything else (streams, stamps, peers) is the current store's."""
 
     def __init__(self, session: Session) -> None:
         self._session = session
-        for name in _COLUMNS:
+        for name in _ROW_COLUMNS:
             setattr(self, name, _Column(session, name))
-        self.partner = _PartnerColumn(session, "partner")
+        self.partner = _Partners(session, "partner")
+        self.notes = _Keyed(session, "notes")
+        self.links = _Keyed(session, "links")
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._session.store, name)
+
+    def __len__(self) -> int:
+        return self._session.base + len(self._session.store)
+
+    def view(self, i: int) -> FrameView:
+        session = self._session
+        return _shifted(session.store.view(i - session.base), session.base)
+
+
+def _shifted(v: FrameView, by: int) -> FrameView:
+    """View `v` with its row and partner numbered `by` rows on."""
+    if not by:
+        return v
+    partner = v.partner + by if v.partner != NO_PARTNER else NO_PARTNER
+    return replace(v, index=v.index + by, partner=partner)
 
 
 class GlobalRows(Describer):
     """The details of a windowed live session's rows by their number in the whole
     capture (`session.base` plus the row in the current store): index, partner and
     transaction ids as one store of every row would give them. For a `Lister` or a
-    `PcapExporter`; give it rows from `session.base` on. What rows share by content
-    (`shared`) is the session describer's, asked with the row in the current store."""
+    `PcapExporter`; give it rows from `session.base` on. Contents shared among rows
+    (`Describer.shared`) are the session's describer's: they hold no row numbers."""
 
     def __init__(self, session: Session) -> None:  # the session's describer does the work
         self.session = session
         self.store = cast(FrameStore, _GlobalStore(session))
+        self.shared_size = session.describer.shared_size
+
+    def shared(self, i: int) -> Shared | None:
+        session = self.session
+        return session.describer.shared(i - session.base)
+
+    def view(self, i: int) -> FrameView:
+        session = self.session
+        return _shifted(session.describer.view(i - session.base), session.base)
+
+    def complete(self, view: FrameView, content: Shared) -> FrameDetail:
+        session = self.session
+        base = session.base
+        d = session.describer.complete(_shifted(view, -base), content)
+        return replace(d, view=view) if base else d
 
     def forget(self, i: int) -> None:
         self.session.describer.forget(i - self.session.base)
 
-    def shared(self, i: int) -> Shared | None:
-        return self.session.describer.shared(i - self.session.base)
-
-    def view(self, i: int) -> FrameView:
-        session = self.session
-        return self._global(session.describer.view(i - session.base))
-
-    def complete(self, view: FrameView, shared: Shared) -> FrameDetail:
-        session = self.session
-        local = session.describer.view(view.index - session.base)
-        d = session.describer.complete(local, shared)
-        return replace(d, view=self._global(d.view))
-
     def detail(self, i: int) -> FrameDetail:
         session = self.session
-        d = session.describer.detail(i - session.base)
-        return replace(d, view=self._global(d.view))
-
-    def _global(self, v: FrameView) -> FrameView:
-        base = self.session.base
-        if not base:
-            return v
-        partner = v.partner + base if v.partner != NO_PARTNER else NO_PARTNER
-        return replace(v, index=v.index + base, partner=partner)
+        base = session.base
+        d = session.describer.detail(i - base)
+        return replace(d, view=_shifted(d.view, base)) if base else d

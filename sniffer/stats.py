@@ -3,17 +3,90 @@
 from __future__ import annotations
 
 from array import array
-from collections import Counter
-from collections.abc import Sequence
+from collections import Counter, deque
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from itertools import compress, islice, repeat
+from math import isnan
 from operator import ge, lt, ne, not_, sub
+from typing import Any
 
 from sniffer.columns import flag_mask, marking
 from sniffer.model import Stamp
 from sniffer.pairing import UNRESOLVED
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
+
+RECENT = 1024  # newest latencies and request times a bounded unit keeps (the MQTT status)
+
+
+class Tallies:
+    """A unit's latencies and request times in a bounded form, for a live capture that
+    runs for days (`Stats.bound`): the printed figures, counted, instead of every value.
+
+    The table prints latencies in ms to 0.1 and the poll period in ms to 1, both as the
+    nearest-rank quantile of the values. Rounding is monotonic, so the value at a rank,
+    rounded, is the rounded value at that rank: counting how many values round to each
+    printed figure (`latency_ms`: `round(ms, 1)`, `gap_ms`: `round(gap * 1000)`, exactly
+    what `{:.1f}` and `{:.0f}` print) gives the very figures the whole arrays give, in
+    memory that grows with the number of distinct figures, not of frames. The newest
+    RECENT values of each are kept as they are, for the MQTT unit status (its own
+    window of exact values). Latencies are never NaN live (stamps from the clock); one
+    that were would be left out."""
+
+    __slots__ = (
+        "gap_ms",
+        "last_request",
+        "latencies",
+        "latency_ms",
+        "recent_latencies",
+        "recent_requests",
+        "requests",
+    )
+
+    def __init__(self) -> None:
+        self.latency_ms: Counter[float] = Counter()  # round(ms, 1) -> how many
+        self.gap_ms: Counter[int] = Counter()  # round(gap s * 1000) -> how many
+        self.latencies = 0  # latencies counted
+        self.requests = 0  # request times seen
+        self.last_request: float | None = None
+        self.recent_latencies: deque[float] = deque(maxlen=RECENT)
+        self.recent_requests: deque[float] = deque(maxlen=RECENT)
+
+    def add_latencies(self, values: Sequence[float]) -> None:
+        """Count latencies (seconds)."""
+        values = [x for x in values if not isnan(x)]
+        self.latencies += len(values)
+        self.recent_latencies.extend(values)
+        self.latency_ms.update(round(x * 1000, 1) for x in values)
+
+    def add_requests(self, times: Sequence[float]) -> None:
+        """Count request times (seconds, in the order they came): their gaps."""
+        if not times:
+            return
+        self.requests += len(times)
+        self.recent_requests.extend(times)
+        last = self.last_request
+        start = 0
+        if last is None:
+            last, start = times[0], 1
+        gaps = self.gap_ms
+        for t in islice(times, start, None):
+            gaps[round((t - last) * 1000)] += 1  # as median_gap: b - a
+            last = t
+        self.last_request = last
+
+
+def _tally_ranked(tally: Counter[Any], q: float) -> Any:
+    """The q-quantile (0..1) of a tally's values (at least one), nearest rank."""
+    n = tally.total()
+    rank = min(n - 1, max(0, round(q * (n - 1))))
+    seen = 0
+    for key in sorted(tally):
+        seen += tally[key]
+        if seen > rank:
+            return key
+    raise AssertionError("a rank within the tally")
 
 
 @dataclass
@@ -29,24 +102,75 @@ class UnitStats:
     last_seen: float = 0.0
     below_resolution: int = 0  # answers faster than the timing resolves
     unmeasured: int = 0  # answers whose latency the timing cannot give at all
+    # bounded (a long live capture, `Stats.bound`): the latencies and request times
+    # are counted here, and the two arrays above stay empty
+    tallies: Tallies | None = None
 
     @property
     def exception_count(self) -> int:
         return sum(self.exceptions.values())
 
     def latency_ms(self, q: float) -> float | None:
-        """The q-quantile (0..1) of answer latency in ms, nearest rank."""
-        found = nearest_rank(self.latencies, q)
-        return None if found is None else found * 1000
+        """The q-quantile (0..1) of answer latency in ms, nearest rank (bounded: to the
+        0.1 ms the table prints)."""
+        return self.latencies_ms(q)[0]
 
     def latencies_ms(self, *qs: float) -> list[float | None]:
         """`latency_ms` of each of `qs`, the latencies sorted once."""
+        tallies = self.tallies
+        if tallies is not None:
+            tally = tallies.latency_ms
+            return [_tally_ranked(tally, q) if tally else None for q in qs]
         ordered = sorted(self.latencies)
         return [None if not ordered else _ranked(ordered, q) * 1000 for q in qs]
 
     def polling_period(self) -> float | None:
-        """Median seconds between two requests to this unit."""
+        """Median seconds between two requests to this unit (bounded: to the 1 ms the
+        table prints)."""
+        tallies = self.tallies
+        if tallies is not None:
+            gaps = tallies.gap_ms
+            return _tally_ranked(gaps, 0.5) / 1000 if gaps else None
         return median_gap(self.request_times)
+
+    @property
+    def latency_count(self) -> int:
+        """Latencies measured so far."""
+        return len(self.latencies) if self.tallies is None else self.tallies.latencies
+
+    @property
+    def request_count(self) -> int:
+        """Request times seen so far (the requests with a good check)."""
+        return len(self.request_times) if self.tallies is None else self.tallies.requests
+
+    def newest_latencies(self, k: int) -> list[float]:
+        """The newest `k` latencies (fewer if there are not as many; bounded, at most
+        RECENT)."""
+        return _newest(self.latencies if self.tallies is None else self.tallies.recent_latencies, k)
+
+    def newest_requests(self, k: int) -> list[float]:
+        """The newest `k` request times (as `newest_latencies`)."""
+        return _newest(
+            self.request_times if self.tallies is None else self.tallies.recent_requests, k
+        )
+
+    def bound(self) -> None:
+        """Count latencies and request times in `Tallies` from now on (those so far
+        included) instead of keeping them all."""
+        if self.tallies is not None:
+            return
+        self.tallies = Tallies()
+        self.tallies.add_latencies(self.latencies)
+        self.tallies.add_requests(self.request_times)
+        self.latencies, self.request_times = array("d"), array("d")
+
+
+def _newest(values: Iterable[float], k: int) -> list[float]:
+    if k <= 0:
+        return []
+    if isinstance(values, array):
+        return list(values[-k:])
+    return list(values)[-k:]
 
 
 def nearest_rank(values: Sequence[float], q: float) -> float | None:
@@ -99,11 +223,22 @@ class Stats:
         self.events = 0
         self._timed_out: set[int] = set()
         self._open: set[int] = set()
+        self.bounded = False  # see `bound`
+
+    def bound(self) -> None:
+        """Keep each unit's latencies and request times in the bounded form (`Tallies`)
+        from now on: what a headless live capture does, so that its statistics do not
+        grow with every frame. The table prints the same; the arrays stay empty."""
+        self.bounded = True
+        for unit in self.units.values():
+            unit.bound()
 
     def unit(self, u: int) -> UnitStats:
         found = self.units.get(u)
         if found is None:
             found = self.units[u] = UnitStats(u)
+            if self.bounded:
+                found.bound()
         return found
 
     def update(self) -> None:
@@ -162,9 +297,12 @@ class Stats:
         stats = self.units
         for u, count in Counter(asked).items():
             stats[u].requests += count
-        append = {u: stats[u].request_times.append for u in set(asked)}
-        for u, t in zip(asked, compress(s.t[start:n], mask), strict=True):
-            append[u](t)
+        if self.bounded:
+            _hand_out(stats, asked, compress(s.t[start:n], mask), Tallies.add_requests)
+        else:
+            append = {u: stats[u].request_times.append for u in set(asked)}
+            for u, t in zip(asked, compress(s.t[start:n], mask), strict=True):
+                append[u](t)
         states = bytes(compress(s.status[start:n], mask))
         if TIMEOUT in states:
             for u, count in Counter(compress(asked, states.translate(_IS_TIMEOUT))).items():
@@ -209,6 +347,9 @@ class Stats:
                 stats[u].below_resolution += count
             else:
                 stats[u].unmeasured += count
+        if self.bounded:
+            _hand_out(stats, compress(answering, kept), compress(raw, kept), Tallies.add_latencies)
+            return
         append = {u: stats[u].latencies.append for u in set(answering)}
         for u, latency in zip(compress(answering, kept), compress(raw, kept), strict=True):
             append[u](latency)
@@ -264,6 +405,25 @@ class Stats:
         if below or unmeasured:
             text += ", left out of the latency columns"
         return text
+
+
+def _hand_out(
+    stats: dict[int, UnitStats],
+    units: Iterable[int],
+    values: Iterable[float],
+    add: Callable[[Tallies, Sequence[float]], None],
+) -> None:
+    """Each value to its unit's tallies (bounded statistics), in order, with `add`."""
+    per: dict[int, list[float]] = {}
+    for u, x in zip(units, values, strict=True):
+        got = per.get(u)
+        if got is None:
+            got = per[u] = []
+        got.append(x)
+    for u, xs in per.items():
+        tallies = stats[u].tallies
+        assert tallies is not None
+        add(tallies, xs)
 
 
 TIMING_WORDS = {

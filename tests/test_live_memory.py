@@ -23,6 +23,7 @@ from sniffer.capture import GlobalRows, LiveCapture
 from sniffer.cli.backlog import Backlog
 from sniffer.cli.filtering import Selection
 from sniffer.cli.live import stream
+from sniffer.export import PcapExporter
 from sniffer.listing import Lister
 from sniffer.model import Chunk, LineSettings
 from sniffer.pipeline import LIVE_MERGE_SLACK
@@ -99,6 +100,8 @@ class Run:
         batches: Sequence[list[Chunk]],
         window: int | None,
         timeout: float | None = None,
+        fmt: str = "jsonl",
+        pcap: bool = False,
     ) -> None:
         session = Session(line, timeout=timeout, source="played", merge_slack=LIVE_MERGE_SLACK)
         # quiet=inf: never idle by the wall clock, so both runs pump alike
@@ -113,8 +116,10 @@ class Run:
 
         capture.pump = counted  # type: ignore[method-assign]
         out = io.StringIO()
-        lister = Lister(io.StringIO(), "jsonl", GlobalRows(session))
-        stream(capture, lister, None, None, Backlog(out), None, Selection(session, None, None))
+        lister = Lister(io.StringIO(), fmt, GlobalRows(session))
+        self.pcap = io.BytesIO()
+        exporter = PcapExporter(self.pcap, GlobalRows(session), line) if pcap else None
+        stream(capture, lister, exporter, None, Backlog(out), None, Selection(session, None, None))
         self.lines = out.getvalue().splitlines()
         self.session = session
         self.capture = capture
@@ -205,6 +210,27 @@ def test_a_long_stream_is_listed_alike_in_a_bounded_store(tmp_path: Path) -> Non
     for x, y in zip(live, replay, strict=True):
         a, b = json.loads(x), json.loads(y)
         assert abs(a["t"] - b["t"]) < 1.5e-6 and abs(a["t_end"] - b["t_end"]) < 1.5e-6
+
+
+@pytest.mark.parametrize("fmt", ["text", "csv"])
+def test_text_csv_and_pcap_are_alike_in_a_bounded_store(fmt: str) -> None:
+    """The other listings and the Wireshark stream through the same rows: contents
+    shared among rows (the lister's and exporter's fast path) read by row number in the
+    whole capture, byte for byte what one store gives."""
+    char = FAST.char_time
+    frames: list[tuple[bytes, float]] = []
+    t = 0.0
+    for f in polling_frames(6_000, line=FAST):
+        frames.append((f.raw, t))
+        t += (len(f.raw) + 3.5) * char
+    chunks = reads(frames, 0.001)
+    batches = [chunks[k : k + 3] for k in range(0, len(chunks), 3)]
+    whole = Run(FAST, batches, None, fmt=fmt, pcap=True)
+    windowed = Run(FAST, batches, 400, fmt=fmt, pcap=True)
+    assert windowed.capture.segments >= 10
+    assert len(windowed.lines) > 6_000
+    assert windowed.lines == whole.lines
+    assert windowed.pcap.getvalue() == whole.pcap.getvalue()
 
 
 def _frame(hex_: str) -> bytes:

@@ -28,6 +28,7 @@ from sniffer.mqtt.payload import chunk_from_raw, raw_payload, read_raw
 from sniffer.mqtt.publish import PublisherOptions, UnitWindow, open_publisher, publish_replay
 from sniffer.session import DEMO_BUS, Session, open_session
 from sniffer.sources import open_capture
+from sniffer.stats import UnitStats
 from tests.test_mqtt_broker import Broker
 from tests.virtual_bus import VirtualBus, wait_ready
 
@@ -43,19 +44,39 @@ def _nearest_rank(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
 
 
+def _unit(latencies: list[float], requests: list[float], bounded: bool) -> UnitStats:
+    """A unit's statistics holding these values, as a replay keeps them or, bounded, as
+    a headless live capture does (fed in two parts, as its updates would)."""
+    unit = UnitStats(1)
+    half_l, half_r = len(latencies) // 2, len(requests) // 2
+    unit.latencies.extend(latencies[:half_l])
+    unit.request_times.extend(requests[:half_r])
+    if bounded:
+        unit.bound()
+        assert unit.tallies is not None
+        unit.tallies.add_latencies(latencies[half_l:])
+        unit.tallies.add_requests(requests[half_r:])
+    else:
+        unit.latencies.extend(latencies[half_l:])
+        unit.request_times.extend(requests[half_r:])
+    return unit
+
+
 @given(
     st.lists(st.floats(0, 10, allow_nan=False), min_size=1, max_size=300),
     st.integers(1, 50),
     st.integers(1, 40),
+    st.booleans(),
 )
 def test_status_window_is_the_quantile_of_the_latest_answers(
-    latencies: list[float], size: int, step: int
+    latencies: list[float], size: int, step: int, bounded: bool
 ) -> None:
     """Fed in steps, as statuses are published, the window holds exactly the latest
-    `size` latencies, whatever came before."""
+    `size` latencies, whatever came before; from statistics that keep every latency or
+    (live, bounded) only the newest."""
     window = UnitWindow(size)
     for end in range(step, len(latencies) + step, step):
-        window.update(latencies[:end], [])
+        window.update(_unit(latencies[:end], [], bounded))
     latest = latencies[-size:]
     assert list(window.latencies) == latest
     for q in (0.5, 0.95):
@@ -63,11 +84,14 @@ def test_status_window_is_the_quantile_of_the_latest_answers(
         assert got is not None and got == _nearest_rank(latest, q) * 1000
 
 
-def test_status_window_poll_period_is_the_median_gap_of_the_latest_requests() -> None:
+@pytest.mark.parametrize("bounded", [False, True])
+def test_status_window_poll_period_is_the_median_gap_of_the_latest_requests(
+    bounded: bool,
+) -> None:
     window = UnitWindow(4)
-    window.update([], [0.0, 1.0, 2.0, 3.0])
+    window.update(_unit([], [0.0, 1.0, 2.0, 3.0], bounded))
     assert window.polling_period() == 1.0
-    window.update([], [0.0, 1.0, 2.0, 3.0, 3.5, 4.0, 4.5])  # only 3.0 .. 4.5 remain
+    window.update(_unit([], [0.0, 1.0, 2.0, 3.0, 3.5, 4.0, 4.5], bounded))
     assert list(window.requests) == [3.0, 3.5, 4.0, 4.5]
     assert window.polling_period() == 0.5
 

@@ -13,7 +13,15 @@ import time
 from collections.abc import Callable
 from typing import TextIO
 
-from sniffer.capture import PUMP_SECONDS, WINDOW_ROWS, GlobalRows, LiveCapture, Notify, Reader
+from sniffer.capture import (
+    PUMP_GATHER,
+    PUMP_SECONDS,
+    WINDOW_ROWS,
+    GlobalRows,
+    LiveCapture,
+    Notify,
+    Reader,
+)
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
@@ -122,6 +130,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         publisher=publisher,
         # headless, rows listed and settled are let go (the TUI scrolls back through all)
         window=None if use_tui else WINDOW_ROWS,
+        gather=0.0 if use_tui else PUMP_GATHER,
     )
     exporter: PcapExporter | None = None
     pcap_file = None

@@ -24,7 +24,7 @@ import json
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -40,7 +40,7 @@ from sniffer.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_p
 from sniffer.mqtt.target import MqttTarget
 from sniffer.session import Session
 from sniffer.sources.linktypes import describe_interface
-from sniffer.stats import median_gap, nearest_rank
+from sniffer.stats import RECENT, UnitStats, median_gap, nearest_rank
 from sniffer.store import NO_PARTNER
 from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 
@@ -48,13 +48,15 @@ DEFAULT_EVERY = 60.0  # seconds between two publications of an unchanged value
 STATUS_EVERY = 5.0  # seconds between two unit status messages
 SILENT_AFTER = 3.0  # polling periods without an answer after which a unit is silent
 SILENT_MIN = 2.0  # ... but never fewer seconds than this
-WINDOW = 1024  # answers (and requests) a unit's latency quantiles and poll period are over
+WINDOW = RECENT  # answers (and requests) a unit's latency quantiles and poll period are over
 
 
 class UnitWindow:
     """A unit's latest latencies and request times, bounded: a status message costs
-    the same on the millionth answer as on the tenth (the session's statistics keep
-    everything; reading their new entries is all this does)."""
+    the same on the millionth answer as on the tenth. It reads the newest entries of the
+    session's statistics for the unit (`UnitStats.newest_latencies`), whether they keep
+    everything or, live, only their newest (`sniffer.stats.RECENT`, as many as this
+    window holds)."""
 
     def __init__(self, size: int = WINDOW) -> None:
         self.latencies: deque[float] = deque(maxlen=size)
@@ -62,14 +64,14 @@ class UnitWindow:
         self._seen_latencies = 0
         self._seen_requests = 0
 
-    def update(self, latencies: Sequence[float], request_times: Sequence[float]) -> None:
+    def update(self, unit: UnitStats) -> None:
         size = self.latencies.maxlen or WINDOW
-        start = max(self._seen_latencies, len(latencies) - size)
-        self.latencies.extend(latencies[start:])
-        self._seen_latencies = len(latencies)
-        start = max(self._seen_requests, len(request_times) - size)
-        self.requests.extend(request_times[start:])
-        self._seen_requests = len(request_times)
+        count = unit.latency_count
+        self.latencies.extend(unit.newest_latencies(min(size, count - self._seen_latencies)))
+        self._seen_latencies = count
+        count = unit.request_count
+        self.requests.extend(unit.newest_requests(min(size, count - self._seen_requests)))
+        self._seen_requests = count
 
     def latency_ms(self, q: float) -> float | None:
         """The q-quantile (nearest rank) of the window's latencies, in ms."""
@@ -397,7 +399,7 @@ class BusPublisher:
         now = self._last_t
         for u, st in sorted(self.session.stats.units.items()):
             window = self._windows.setdefault(u, UnitWindow())
-            window.update(st.latencies, st.request_times)
+            window.update(st)
             period = window.polling_period()
             answered = self._answered.get(u)
             limit = max(SILENT_MIN, SILENT_AFTER * (period or 0.0))
