@@ -119,6 +119,7 @@ class _Worker:
         self.output: BinaryIO = tempfile.TemporaryFile()  # noqa: SIM115 (closed in close())
         self.report: BinaryIO = tempfile.TemporaryFile()  # noqa: SIM115
         self.pid = 0
+        self.reaped = False
 
     def start(self, write: Callable[[BinaryIO, Sequence[int]], int]) -> None:
         pid = os.fork()
@@ -143,12 +144,12 @@ class _Worker:
 
     def what(self) -> str:
         rows = f"rows {self.part[0]}-{self.part[-1]}" if self.part else "no rows"
-        return f"worker {self.number} of {self.of} (pid {self.pid}, {rows})"
+        return f"the worker writing range {self.number} of {self.of} (pid {self.pid}, {rows})"
 
     def finish(self) -> int:
         """Wait for the worker; its count of records, or WorkerError."""
         _, status = os.waitpid(self.pid, 0)
-        self.pid = 0
+        self.reaped = True
         code = os.waitstatus_to_exitcode(status)
         self.report.seek(0)
         said = self.report.read().decode("utf-8", "replace")
@@ -160,13 +161,13 @@ class _Worker:
         raise WorkerError(f"{self.what()} {how}; the output is incomplete{detail}")
 
     def close(self) -> None:
-        if self.pid:
+        if self.pid and not self.reaped:
             try:
                 os.kill(self.pid, signal.SIGKILL)
                 os.waitpid(self.pid, 0)
             except (ProcessLookupError, ChildProcessError):
                 pass
-            self.pid = 0
+            self.reaped = True
         self.output.close()
         self.report.close()
 
@@ -182,7 +183,7 @@ def write_ranges(
     by `worker` (range, temporary file) in a forked process, and `append`ed (the file,
     at its start) in order after the first. Returns the sum of the counts."""
     parts = split(rows, jobs)
-    workers = [_Worker(k + 1, jobs, part) for k, part in enumerate(parts[1:], 1)]
+    workers = [_Worker(k + 1, jobs, part) for k, part in enumerate(parts) if k]
     sys.stdout.flush()
     sys.stderr.flush()
     try:
