@@ -230,6 +230,7 @@ class PcapExporter:
         *,
         name: str = "modscope",
         style: str = "modbus-tcp",
+        header: bool = True,
     ) -> None:
         if style not in PCAP_STYLES:
             raise ValueError(f"style must be one of {', '.join(PCAP_STYLES)}, not {style!r}")
@@ -244,6 +245,8 @@ class PcapExporter:
         self.interface = self.writer.add_interface(
             LINKTYPE_WIRESHARK_UPPER_PDU, name=name, description=describe_interface(line)
         )
+        if not header:  # a parallel worker's range: its packets only
+            self._blocks.parts.clear()
         self._pass_on()
         self.packets = 0
 
@@ -423,13 +426,16 @@ def write_table(
     records: Iterable[dict[str, Any]],
     *,
     raw_csv: bool = False,
+    header: bool = True,
 ) -> int:
-    """Records as JSONL or CSV (with a header row). Returns the number written. CSV cells
-    go through `sniffer.text.csv_cell` (formula guard unless `raw_csv`)."""
+    """Records as JSONL or CSV (with a header row unless not `header`). Returns the
+    number written. CSV cells go through `sniffer.text.csv_cell` (formula guard unless
+    `raw_csv`)."""
     n = 0
     if fmt == "csv":
         writer = csv.writer(out)
-        writer.writerow(columns)
+        if header:
+            writer.writerow(columns)
         for rec in records:
             writer.writerow(csv_row((_cell(rec.get(c)) for c in columns), raw=raw_csv))
             n += 1

@@ -376,6 +376,7 @@ class Lister:
         *,
         absolute: bool = False,
         raw_csv: bool = False,
+        header: bool = True,
     ) -> None:
         if fmt not in FORMATS:
             raise ValueError(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
@@ -388,7 +389,7 @@ class Lister:
         self._csv = csv.writer(out) if fmt == "csv" else None
         self._stamps: Stamp | None = None
         self._timing = ""  # the JSONL `timing` item for `_stamps`
-        if self._csv is not None:
+        if self._csv is not None and header:  # a parallel worker's range goes without
             self._csv.writerow(CSV_COLUMNS)
 
     def write(self, rows: Iterable[int], flush: bool = True) -> int:

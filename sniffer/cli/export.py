@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
@@ -14,6 +15,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_index_option,
+    add_jobs_option,
     add_line_options,
     add_network_options,
     add_raw_csv_option,
@@ -37,6 +39,7 @@ from sniffer.export import (
     write_table,
 )
 from sniffer.listing import Lister
+from sniffer.parallel import workers_for, write_binary, write_text
 from sniffer.text import plain
 
 EXPORT_EXAMPLES = """\
@@ -96,7 +99,6 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write(f"modscope: warning: {plain(w)}\n")
     chosen = Selection(session, query, args.count).take(len(session.store), final=True)
     status = finish_read(capture, session, err)
-    rows = progress.rows(chosen, len(chosen))
     describer = session.describer
     if fmt == "parquet":
         from sniffer.parquet import ParquetError, write_parquet
@@ -104,18 +106,27 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         if args.output == "-":
             raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")
         try:
-            n = write_parquet(args.output, what, describer, rows)
+            n = write_parquet(args.output, what, describer, progress.rows(chosen, len(chosen)))
         except ParquetError as exc:
             raise UsageError(str(exc)) from None
         err.write(f"{args.output}: {n} {what} (parquet)\n")
         return 0
+
+    def shown(part: Sequence[int], first: bool) -> Iterable[int]:
+        # the parent's own range runs alongside the workers': its share is the whole's
+        return progress.rows(part, len(part)) if first else part
+
     if fmt == "pcapng":
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
-        try:
+
+        def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
             exporter = PcapExporter(
-                binary, describer, session.line, name=source.name, style=args.style
+                stream, describer, session.line, name=source.name, style=args.style, header=first
             )
-            n = exporter.write(rows)
+            return exporter.write(shown(part, first))
+
+        try:
+            n = write_binary(binary, chosen, workers_for(args.jobs, len(chosen), binary), packets)
         finally:
             if args.output != "-":
                 binary.close()
@@ -128,17 +139,27 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         return status
     text = out if args.output == "-" else _open_text(args.output)
     raw = bool(args.raw_csv)
-    try:
+    origin = session.store.t[0] if len(session.store) else None
+
+    def table(stream: TextIO, part: Sequence[int], first: bool) -> int:
+        rows = shown(part, first)
         if what == "frames":
-            lister = Lister(text, fmt, describer, absolute=args.time == "abs", raw_csv=raw)
-            lister.origin = session.store.t[0] if len(session.store) else None
-            n = lister.write(rows, flush=False)
-        elif what == "transactions":
+            lister = Lister(
+                stream, fmt, describer, absolute=args.time == "abs", raw_csv=raw, header=first
+            )
+            lister.origin = origin
+            return lister.write(rows, flush=False)
+        columns: tuple[str, ...]
+        if what == "transactions":
             records = transaction_records(describer, rows)
-            n = write_table(text, fmt, TRANSACTION_COLUMNS, records, raw_csv=raw)
+            columns = TRANSACTION_COLUMNS
         else:
             records = register_records(describer, rows)
-            n = write_table(text, fmt, REGISTER_COLUMNS, records, raw_csv=raw)
+            columns = REGISTER_COLUMNS
+        return write_table(stream, fmt, columns, records, raw_csv=raw, header=first)
+
+    try:
+        n = write_text(text, chosen, workers_for(args.jobs, len(chosen), text), table)
         text.flush()
     finally:
         if text is not out:
@@ -203,6 +224,7 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument("--time", choices=("rel", "abs"), default="rel", help="text time column")
     add_raw_csv_option(p)
+    add_jobs_option(p)
     add_line_options(p)
     add_network_options(p)
     add_index_option(p)

@@ -12,6 +12,7 @@ from sniffer.annotate import Binding, load_bindings
 from sniffer.errors import UsageError
 from sniffer.listing import FORMATS
 from sniffer.model import LineSettings
+from sniffer.parallel import MAX_AUTO, MIN_ROWS, parse_jobs
 from sniffer.sources import ReadOptions
 
 if TYPE_CHECKING:
@@ -102,6 +103,20 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument("--time", choices=("rel", "abs"), default="rel", help="time column style")
     add_raw_csv_option(g)
+
+
+def add_jobs_option(p: argparse._ActionsContainer) -> None:
+    """`--jobs`: processes writing a listing or an export (see `sniffer.parallel`)."""
+    p.add_argument(
+        "--jobs",
+        type=parse_jobs,
+        default=None,
+        metavar="N|auto",
+        help="write the rows with N processes, each over a range of rows, joined into the "
+        "same bytes in the same order (Linux; elsewhere one process). 1: one process. "
+        f"Default auto: the CPUs this process may use, at most {MAX_AUTO}, for "
+        f"{MIN_ROWS:,} rows or more, and one process when writing to a terminal",
+    )
 
 
 def add_raw_csv_option(g: argparse._ActionsContainer) -> None:

@@ -7,7 +7,7 @@ import argparse
 import shutil
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
@@ -18,6 +18,7 @@ from sniffer.cli.options import (
     SubParsers,
     add_device_options,
     add_index_option,
+    add_jobs_option,
     add_line_options,
     add_network_options,
     add_output_options,
@@ -29,6 +30,7 @@ from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.listing import Lister
+from sniffer.parallel import workers_for, write_text
 from sniffer.query import Query
 from sniffer.session import Session
 from sniffer.sources import Capture
@@ -130,17 +132,27 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 def write_listing(
     out: TextIO, args: argparse.Namespace, session: Session, query: Query | None
 ) -> None:
-    """The rows a filter and -c let through, in the format asked for (text by default)."""
-    lister = Lister(
-        out,
-        args.format or "text",
-        session.describer,
-        absolute=args.time == "abs",
-        raw_csv=args.raw_csv,
-    )
+    """The rows a filter and -c let through, in the format asked for (text by default),
+    by `--jobs` processes over ranges of rows when that pays (see `sniffer.parallel`)."""
+    fmt = args.format or "text"
     selection = Selection(session, query, args.count)
-    lister.origin = selection.origin()
-    lister.write(selection.take(len(session.store), final=True), flush=False)
+    origin = selection.origin()  # what relative times count from, in every range
+    rows = selection.take(len(session.store), final=True)
+
+    def write(stream: TextIO, part: Sequence[int], first: bool) -> int:
+        lister = Lister(
+            stream,
+            fmt,
+            session.describer,
+            absolute=args.time == "abs",
+            raw_csv=args.raw_csv,
+            header=first,
+        )
+        lister.origin = origin
+        return lister.write(part, flush=False)
+
+    jobs = workers_for(getattr(args, "jobs", 1), len(rows), out)
+    write_text(out, rows, jobs, write)
     out.flush()
 
 
@@ -191,6 +203,7 @@ def register(sub: SubParsers) -> None:
     g.add_argument("--invert", action="store_true", help="idle-low levels (RS-232 side)")
     add_device_options(p)
     add_output_options(p)
+    add_jobs_option(p)
     add_filter_options(p)
     p.add_argument(
         "--stats", action="store_true", help="print the per-unit statistics and poll cycle"
