@@ -299,11 +299,19 @@ def main() -> None:
 
     lreads, lone = make_files(args.dir, ln)
     print(f"listings and export: {ln:,} frames, median of {runs}")
+    # listings and the export use --jobs auto: one worker a CPU (here 2) from 20k rows
     jsonl = measure(
         "modscope replay --format jsonl",
         ln,
         modscope("replay", str(lreads), "--format", "jsonl"),
         modscope("replay", str(reads10), "--format", "jsonl"),
+        runs,
+    )
+    measure(
+        "modscope replay --format jsonl --jobs 1",
+        ln,
+        modscope("replay", str(lreads), "--format", "jsonl", "--jobs", "1"),
+        modscope("replay", str(reads10), "--format", "jsonl", "--jobs", "1"),
         runs,
     )
     text = measure(
