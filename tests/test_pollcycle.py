@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from sniffer import pollcycle
 from sniffer.model import Chunk, LineSettings
 from sniffer.pipeline import frame_capture
 from sniffer.pollcycle import (
@@ -126,6 +127,18 @@ def test_random_requests_make_the_cycle_of_the_definition(seed: int) -> None:
     rng = random.Random(seed)
     store = random_store(rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1)
     assert poll_cycles(store) == cycles_row_by_row(store)
+
+
+@pytest.mark.parametrize("block", [1, 7, 64])
+def test_rows_looked_at_in_blocks_make_the_same_cycle(
+    block: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rng = random.Random(block)
+    store = random_store(rng, 1500, channels=1 + block % 3, odd_framing=True)
+    monkeypatch.setattr(pollcycle, "BLOCK", block)
+    assert poll_cycles(store) == cycles_row_by_row(store)
+    demo = replay_file(DEMO_CAPTURE).store
+    assert poll_cycles(demo) == cycles_row_by_row(demo)
 
 
 def test_repeated_and_differing_requests_on_the_demo() -> None:
