@@ -35,7 +35,7 @@ from sniffer.model import Chunk
 from sniffer.recorder import Recorder, RecordError
 from sniffer.serial_source import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
-from sniffer.store import NO_PARTNER, FrameStore, FrameView
+from sniffer.store import COLUMNS, NO_PARTNER, FrameStore, FrameView
 
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
@@ -371,18 +371,8 @@ class _Keyed(_Column):
         return bool(self._rows())
 
 
-_ROW_COLUMNS = (
-    "offset",
-    "length",
-    "t",
-    "t_end",
-    "kind",
-    "unit",
-    "fc",
-    "flags",
-    "channel",
-    "status",
-)
+# every column but the partner, which _Partners gives by capture row number
+_ROW_COLUMNS = tuple(name for name in COLUMNS if name != "partner")
 
 
 class _GlobalStore:

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any
 from sniffer import __version__
 from sniffer.columns import marking
 from sniffer.model import Stamp
+from sniffer.store import COLUMNS
 
 if TYPE_CHECKING:
     from sniffer.session import Session
@@ -57,8 +58,7 @@ FORMAT = 2  # 1: one CRC over the whole file, read whole (now stale: indexed aga
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
-COLUMNS: tuple[str, ...] = ("offset", "length", "t", "t_end", "kind", "unit", "fc", "flags")
-COLUMNS += ("channel", "partner", "status")
+# a block keeps its rows' columns in the order of sniffer.store.COLUMNS
 _PREFIX = struct.Struct("<QI")  # the header's length and CRC-32
 # rows a block: 65,536 rows are about 4 MB, read and checked in about 10 ms, so the TUI
 # has its first screen after one block whatever the size of the capture

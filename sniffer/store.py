@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from array import array
 from dataclasses import dataclass
+from typing import Any
 
 from dissectors import mbap
 from dissectors.envelope import ascii_body
@@ -215,9 +216,13 @@ class FrameStore:
 
     def memory_bytes(self) -> int:
         """Bytes held by the streams and the columns (what a capture costs in memory)."""
-        cols = (self.offset, self.length, self.t, self.t_end, self.kind, self.unit, self.fc)
-        more = (self.flags, self.channel, self.partner, self.status)
-        return self.bytes_total + sum(c.itemsize * len(c) for c in (*cols, *more))
+        cols: list[array[Any]] = [getattr(self, name) for name in COLUMNS]
+        return self.bytes_total + sum(c.itemsize * len(c) for c in cols)
 
+
+# the per-row columns of a FrameStore, in the order the sidecar index keeps them
+COLUMNS: tuple[str, ...] = (
+    "offset", "length", "t", "t_end", "kind", "unit", "fc", "flags", "channel", "partner", "status",
+)  # fmt: skip
 
 _MINUS_ONES = array("i", [-1] * 4096)

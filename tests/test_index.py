@@ -20,11 +20,11 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     rtac_record,
 )
+from sniffer.store import COLUMNS
 from sniffer.synth import polling_frames
 
 LINE = LineSettings(baud=115200, bytesize=8, parity="N", stopbits=1, mode="rtu")
 T0 = 1_714_564_800.0
-COLUMNS = index.COLUMNS
 
 
 @pytest.fixture

@@ -11,13 +11,12 @@ import pytest
 
 from sniffer import index
 from sniffer.session import Session, open_session
+from sniffer.store import COLUMNS
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture
 from tests import test_index
 from tests.test_index import _ingested, _same
 
 capture = test_index.capture  # the fixture: 3000 frames, blocks of 500 rows
-
-COLUMNS = index.COLUMNS
 
 
 def _block_start(side: Path, k: int) -> int:
