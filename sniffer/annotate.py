@@ -213,6 +213,22 @@ class Annotator:
             data.table, data.address, [bool(v) for v in data.values], write=data.write
         )
 
+    def windows_read(self, unit: int, dissection: Dissection | None) -> tuple[int, ...]:
+        """The parameter windows of `unit` whose value register the dissection's register
+        data covers: their selection when the row was sent names what it carries (see
+        `_decode`)."""
+        b = self.bindings.get(unit)
+        if dissection is None or b is None or not b.dictionary.windows:
+            return ()
+        found: list[int] = []
+        for data in dissection.data:
+            if data.address is None or not data.values or data.table not in REGISTER_TABLES:
+                continue
+            for n, window in enumerate(b.dictionary.windows):
+                if _covers(data.address, len(data.values), window.value) and n not in found:
+                    found.append(n)
+        return tuple(found)
+
     def exception_meaning(self, unit: int, code: int) -> str:
         b = self.bindings.get(unit)
         return b.dictionary.exceptions.get(code, "") if b is not None else ""

@@ -19,7 +19,7 @@ from dissectors.dictionary import RegisterValue, Timing
 from dissectors.dissect import dissect
 from dissectors.functions import function_name
 from dissectors.values import Dissection, Field, Problem, Role
-from sniffer.annotate import REGISTER_TABLES, Annotator
+from sniffer.annotate import Annotator
 from sniffer.pairing import latency, measure
 from sniffer.problems import frame_problems
 from sniffer.store import NO_PARTNER, FrameStore, FrameView
@@ -262,7 +262,7 @@ class Describer:
             if len(found.by_selection) < 64:
                 found.by_selection[selection] = made
         else:
-            windows = _window_inputs(annotator, unit, made.dissection)
+            windows = annotator.windows_read(unit, made.dissection)
             if windows:
                 selection = tuple(annotator.selected(unit, n, i) for n in windows)
                 self._keep(key, _Windowed(windows, {selection: made}))
@@ -389,20 +389,3 @@ class Describer:
 def _plain_problem(p: Problem) -> Problem:
     text = plain(p.text)
     return p if text is p.text else Problem(p.kind, p.severity, text, p.span)
-
-
-def _window_inputs(annotator: Annotator, unit: int, d: Dissection | None) -> tuple[int, ...]:
-    """The parameter windows of `unit` whose value register `d`'s register data covers:
-    their selection when the row was sent names what it carries (as
-    `Annotator.registers` decodes it)."""
-    binding = annotator.bindings.get(unit)
-    if d is None or binding is None or not binding.dictionary.windows:
-        return ()
-    found: list[int] = []
-    for data in d.data:
-        if data.address is None or not data.values or data.table not in REGISTER_TABLES:
-            continue
-        for n, window in enumerate(binding.dictionary.windows):
-            if data.address <= window.value < data.address + len(data.values) and n not in found:
-                found.append(n)
-    return tuple(found)
