@@ -250,7 +250,12 @@ class LiveCapture:
                 self._cut()
             chunks = self.feed.get(timeout)
             if chunks and self.gather > 0 and len(chunks) < GATHER_READS:
-                time.sleep(self.gather)
+                # gather until the oldest read is `gather` old, not `gather` from now: a
+                # pump that woke late (a loaded machine) frames at once rather than adding
+                # its wait to a delay the reads already had
+                rest = self.gather - (self.reader.clock.now() - chunks[0].t_end)
+                if rest > 0:
+                    time.sleep(min(rest, self.gather))
                 chunks += self.feed.get(0)
             self._take(chunks)
             if time.monotonic() - self._last_data >= self.quiet:
