@@ -4,6 +4,7 @@ flushed per row, optionally recording (-w) and streaming to Wireshark (--pcap)."
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import importlib.util
 import io
@@ -152,6 +153,12 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             capture.messages.extend(f"warning: {w}" for w in reader.warnings)
             run_tui: Callable[..., int] = importlib.import_module("sniffer.tui.app").run_tui
             return run_tui(session, None, live=capture)
+        # what start-up built (modules, schemas, dictionaries) lives as long as the
+        # capture: frozen, the collector's full passes walk only what the capture made
+        # since, which keeps their pauses out of the listing's latency (see
+        # docs/performance.md, "Live")
+        gc.collect()
+        gc.freeze()
         announce(err, "listening on", specs, recorder)
         lister = None
         if args.pcap != "-":
