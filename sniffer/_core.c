@@ -618,11 +618,523 @@ done:
     return result;
 }
 
+/* ---- the store's columns, for the passes over rows ------------------------------------ */
+
+/* The numbers these passes store or test, as sniffer/vocab.py defines them (the module's
+ * VOCAB says them back; tests/test_core_rows.py holds them to vocab's). */
+#define K_NOISE 0
+#define K_REQUEST 1
+#define K_RESPONSE 2
+#define K_EXCEPTION 3
+#define K_UNKNOWN 4
+#define K_EVENT 5
+#define S_OK 1
+#define S_EXCEPTION 2
+#define S_TIMEOUT 3
+#define S_ORPHAN 4
+#define S_BROADCAST 5
+#define S_OPEN 6
+#define S_BAD_ANSWER 7
+#define F_CHECK_BAD (1u << 0)
+#define F_NON_HEX (1u << 4)
+#define F_ENVELOPE_BAD (1u << 17)
+#define F_ASCII (1u << 24)
+#define BAD_CHECK_BITS (F_CHECK_BAD | F_NON_HEX | F_ENVELOPE_BAD)
+#define F_RETRY (1u << 11)
+#define F_LATE (1u << 12)
+#define F_ANSWERED_BROADCAST (1u << 13)
+
+/* One column of a FrameStore (an array.array attribute) as a buffer of the type code
+ * `code`, writable if asked. 0 on success; -1 with an exception set. */
+static int column(PyObject *store, const char *name, char code, int writable, Py_buffer *v) {
+    PyObject *o = PyObject_GetAttrString(store, name);
+    if (o == NULL) return -1;
+    int r = PyObject_GetBuffer(o, v, PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0));
+    Py_DECREF(o);
+    if (r < 0) return -1;
+    if (v->format == NULL || v->format[0] != code || v->format[1] != '\0') {
+        PyErr_Format(PyExc_TypeError, "store.%s: an array of type '%c' expected", name, code);
+        PyBuffer_Release(v);
+        return -1;
+    }
+    return 0;
+}
+
+typedef struct {
+    const char *name;
+    char code;
+    int writable;
+} ColSpec;
+
+/* Several columns at once: all or none (released again on failure). */
+static int columns(PyObject *store, const ColSpec *specs, int count, Py_buffer *views) {
+    for (int i = 0; i < count; i++) {
+        if (column(store, specs[i].name, specs[i].code, specs[i].writable, &views[i]) < 0) {
+            for (int j = 0; j < i; j++) PyBuffer_Release(&views[j]);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static void release_all(Py_buffer *views, int count) {
+    for (int i = 0; i < count; i++) PyBuffer_Release(&views[i]);
+}
+
+/* The bytes of row i, as FrameStore.raw slices them out of its channel's stream (a
+ * slice past the end is cut short). 0 on success; -1 with an exception set. */
+static int row_bytes(PyObject *streams, const unsigned char *channel, const uint64_t *offset,
+                     const uint16_t *length, Py_ssize_t i, const char **p, Py_ssize_t *n) {
+    PyObject *key = PyLong_FromLong(channel[i]);
+    if (key == NULL) return -1;
+    PyObject *stream = PyDict_GetItemWithError(streams, key); /* borrowed */
+    Py_DECREF(key);
+    if (stream == NULL) {
+        if (!PyErr_Occurred()) PyErr_Format(PyExc_KeyError, "no stream for channel %d", channel[i]);
+        return -1;
+    }
+    if (!PyByteArray_Check(stream)) {
+        PyErr_SetString(PyExc_TypeError, "a store's streams are bytearrays");
+        return -1;
+    }
+    Py_ssize_t size = PyByteArray_GET_SIZE(stream);
+    uint64_t start = offset[i], stop = start + length[i];
+    if (start > (uint64_t)size) start = (uint64_t)size;
+    if (stop > (uint64_t)size) stop = (uint64_t)size;
+    *p = PyByteArray_AS_STRING(stream) + start;
+    *n = (Py_ssize_t)(stop - start);
+    return 0;
+}
+
+/* pair_rows(partner, status, fc, pairs): FrameStore.pair_rows over `pairs` (int64,
+ * flat: request row, answer row, ...). */
+static PyObject *py_pair_rows(PyObject *self, PyObject *args) {
+    Py_buffer pv, sv, fv, qv;
+    if (!PyArg_ParseTuple(args, "w*w*y*y*", &pv, &sv, &fv, &qv)) return NULL;
+    PyObject *result = NULL;
+    int32_t *partner = (int32_t *)pv.buf;
+    unsigned char *status = (unsigned char *)sv.buf;
+    const unsigned char *fc = (const unsigned char *)fv.buf;
+    const int64_t *pairs = (const int64_t *)qv.buf;
+    Py_ssize_t rows = sv.len, count = qv.len / 8;
+    if (pv.len != 4 * rows || fv.len < rows || qv.len % 16) {
+        PyErr_SetString(PyExc_ValueError, "pair_rows: columns of different lengths");
+        goto done;
+    }
+    for (Py_ssize_t k = 0; k < count; k += 2) { /* checked first: nothing half done */
+        if (pairs[k] < 0 || pairs[k] >= rows || pairs[k + 1] < 0 || pairs[k + 1] >= rows) {
+            PyErr_SetString(PyExc_IndexError, "pair_rows: a row out of range");
+            goto done;
+        }
+    }
+    for (Py_ssize_t k = 0; k < count; k += 2) {
+        Py_ssize_t req = (Py_ssize_t)pairs[k], resp = (Py_ssize_t)pairs[k + 1];
+        partner[req] = (int32_t)resp;
+        partner[resp] = (int32_t)req;
+        status[req] = status[resp] = (fc[resp] & 0x80) ? S_EXCEPTION : S_OK;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyBuffer_Release(&pv);
+    PyBuffer_Release(&sv);
+    PyBuffer_Release(&fv);
+    PyBuffer_Release(&qv);
+    return result;
+}
+
+/* pair_update(store, start, open, timeout, broadcasts, last) -> (open, last)
+ * Pairer.update's loop over rows start..len(store) (sniffer/pairing.py), with its
+ * helpers _request, _pair, _time_out and _check_retry. `open` is the open request's row
+ * or -1; `broadcasts` 256 bytes, 1 for the function codes whose broadcasts are answered;
+ * `last` the raw bytes of the last request that timed out (Pairer.last_timed_out). The
+ * `last` returned says what Pairer.last_timed_out becomes: -2 as it was, -1 empty, a row
+ * number: that row's bytes. */
+static PyObject *py_pair_update(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_ssize_t start, open;
+    double timeout;
+    Py_buffer bv, lv;
+    if (!PyArg_ParseTuple(args, "Onndy*y*", &store, &start, &open, &timeout, &bv, &lv))
+        return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0},    {"unit", 'B', 0},    {"fc", 'B', 0},      {"partner", 'i', 1},
+        {"flags", 'I', 1},   {"status", 'B', 1},  {"t", 'd', 0},       {"t_end", 'd', 0},
+        {"offset", 'Q', 0},  {"length", 'H', 0},  {"channel", 'B', 0},
+    };
+    Py_buffer c[11];
+    PyObject *result = NULL, *streams = NULL;
+    if (bv.len != 256) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: broadcasts must be 256 bytes");
+        goto early;
+    }
+    if (columns(store, specs, 11, c) < 0) goto early;
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto done;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "store.streams must be a dict");
+        goto done;
+    }
+    const unsigned char *kind = c[0].buf, *unit = c[1].buf, *fc = c[2].buf;
+    int32_t *partner = c[3].buf;
+    uint32_t *flags = c[4].buf;
+    unsigned char *status = c[5].buf;
+    const double *t = c[6].buf, *t_end = c[7].buf;
+    const uint64_t *offset = c[8].buf;
+    const uint16_t *length = c[9].buf;
+    const unsigned char *channel = c[10].buf;
+    const unsigned char *answered = bv.buf;
+    Py_ssize_t n = c[6].len / 8;
+    if (c[0].len != n || c[1].len != n || c[2].len != n || c[3].len != 4 * n ||
+        c[4].len != 4 * n || c[5].len != n || c[7].len != 8 * n || c[8].len != 8 * n ||
+        c[9].len != 2 * n || c[10].len != n) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: columns of different lengths (sync)");
+        goto done;
+    }
+    if (start < 0 || open < -1 || open >= n) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: start or open out of range");
+        goto done;
+    }
+    for (Py_ssize_t i = start; i < n; i++) { /* every partner a row or -1 */
+        if (partner[i] < -1 || partner[i] >= n) {
+            PyErr_SetString(PyExc_ValueError, "pair_update: a partner out of range");
+            goto done;
+        }
+    }
+    /* the last timed-out request: `last_row` -2: the bytes given, -1: none, else a row */
+    Py_ssize_t last_row = lv.len ? -2 : -1, last_code = -2;
+    const char *last_p = lv.buf;
+    Py_ssize_t last_n = lv.len;
+
+/* _time_out(req): sets open to -1; unless answered after all, a timeout whose bytes
+ * are kept for the retry check */
+#define TIME_OUT(req)                                                                 \
+    do {                                                                              \
+        Py_ssize_t r_ = (req);                                                        \
+        open = -1;                                                                    \
+        if (partner[r_] == -1) {                                                      \
+            status[r_] = S_TIMEOUT;                                                   \
+            if (row_bytes(streams, channel, offset, length, r_, &last_p, &last_n) < 0) \
+                goto done;                                                            \
+            last_row = last_n ? r_ : -1;                                              \
+            last_code = last_row;                                                     \
+        }                                                                             \
+    } while (0)
+
+/* _check_retry(i), where the bytes kept are not empty */
+#define CHECK_RETRY(i)                                                                      \
+    do {                                                                                    \
+        const char *p_;                                                                     \
+        Py_ssize_t n_;                                                                      \
+        if (row_bytes(streams, channel, offset, length, (i), &p_, &n_) < 0) goto done;      \
+        if (n_ == last_n && memcmp(p_, last_p, (size_t)n_) == 0) flags[i] |= F_RETRY;       \
+        last_row = -1;                                                                      \
+        last_code = -1;                                                                     \
+    } while (0)
+
+    for (Py_ssize_t i = start; i < n; i++) {
+        int k = kind[i];
+        if (k == K_NOISE || k == K_EVENT) continue;
+        Py_ssize_t op = open;
+        if (op >= 0 && t[i] - t_end[op] > timeout) {
+            TIME_OUT(op);
+            op = -1;
+        }
+        Py_ssize_t j = partner[i];
+        if (j >= 0) { /* paired as it was framed */
+            if (j < i) { /* the answer */
+                if (op == j) open = -1;
+                if (t[i] - t_end[j] > timeout) flags[i] |= F_LATE;
+            } else { /* the request */
+                if (op >= 0) TIME_OUT(op);
+                if (last_row != -1) CHECK_RETRY(i);
+            }
+            continue;
+        }
+        if (k == K_REQUEST) { /* _request */
+            if (open >= 0) TIME_OUT(open);
+            if (unit[i] == 0 && !answered[fc[i]]) {
+                status[i] = S_BROADCAST;
+                open = -1;
+            } else {
+                status[i] = S_OPEN;
+                open = i;
+            }
+            if (last_row != -1) CHECK_RETRY(i);
+            continue;
+        }
+        int u = unit[i];
+        if (op >= 0 && (unit[op] == u || unit[op] == 0) && fc[op] == (fc[i] & 0x7F)) {
+            /* _pair(op, i) */
+            unsigned char st = (flags[i] & BAD_CHECK_BITS)   ? S_BAD_ANSWER
+                               : (fc[i] & 0x80) ? S_EXCEPTION
+                                                : S_OK;
+            partner[op] = (int32_t)i;
+            partner[i] = (int32_t)op;
+            status[op] = status[i] = st;
+            if (t[i] - t_end[op] > timeout) flags[i] |= F_LATE;
+            open = -1;
+        } else if (k != K_UNKNOWN) {
+            status[i] = S_ORPHAN;
+            if (u == 0) flags[i] |= F_ANSWERED_BROADCAST;
+        }
+    }
+#undef TIME_OUT
+#undef CHECK_RETRY
+    result = Py_BuildValue("(nn)", open, last_code);
+done:
+    Py_XDECREF(streams);
+    release_all(c, 11);
+early:
+    PyBuffer_Release(&bv);
+    PyBuffer_Release(&lv);
+    return result;
+}
+
+/* stats_scan(store, start, n, mode, unresolved)
+ *   -> (noise spans, noise bytes, events, units, exception rows, open rows)
+ * Stats.update's count of rows start..n (sniffer/stats.py: update, _requests, _answers)
+ * but the exception codes and the open requests already remembered: `units` lists, in
+ * the order each unit's first frame comes, (unit, last_seen, check errors, requests,
+ * timeouts, responses, latencies left out, request times, latencies), the times and
+ * latencies as float64 bytes in row order; the answers with the exception bit and the
+ * requests still open come back as int64 rows for Python to finish. `mode` says which
+ * latencies are kept, as pairing.measure: 0 none (no stamps), 1 those >= 0 (exact
+ * stamps), 2 those not below `unresolved`. */
+typedef struct {
+    int seen;
+    double last_seen;
+    Py_ssize_t check_errors, requests, timeouts, responses, left_out;
+    Buf times, latencies;
+} UnitTally;
+
+static PyObject *py_stats_scan(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_ssize_t start, n;
+    int mode;
+    double unresolved;
+    if (!PyArg_ParseTuple(args, "Onnid", &store, &start, &n, &mode, &unresolved)) return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0}, {"unit", 'B', 0},    {"fc", 'B', 0}, {"partner", 'i', 0},
+        {"flags", 'I', 0}, {"status", 'B', 0}, {"t", 'd', 0},  {"t_end", 'd', 0},
+        {"length", 'H', 0},
+    };
+    Py_buffer c[9];
+    if (columns(store, specs, 9, c) < 0) return NULL;
+    PyObject *result = NULL, *list = NULL;
+    UnitTally *tally = PyMem_Calloc(256, sizeof(UnitTally));
+    Buf exceptions = {0}, open_rows = {0};
+    unsigned char order[256];
+    int n_units = 0;
+    if (tally == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const unsigned char *kind = c[0].buf, *unit = c[1].buf, *fc = c[2].buf, *status = c[5].buf;
+    const int32_t *partner = c[3].buf;
+    const uint32_t *flags = c[4].buf;
+    const double *t = c[6].buf, *t_end = c[7].buf;
+    const uint16_t *length = c[8].buf;
+    Py_ssize_t rows = c[6].len / 8;
+    if (c[0].len != rows || c[1].len != rows || c[2].len != rows || c[3].len != 4 * rows ||
+        c[4].len != 4 * rows || c[5].len != rows || c[7].len != 8 * rows ||
+        c[8].len != 2 * rows) {
+        PyErr_SetString(PyExc_ValueError, "stats_scan: columns of different lengths (sync)");
+        goto done;
+    }
+    if (start < 0 || n > rows || start > n) {
+        PyErr_SetString(PyExc_ValueError, "stats_scan: rows out of range");
+        goto done;
+    }
+    Py_ssize_t spans = 0, noise_bytes = 0, events = 0;
+    for (Py_ssize_t i = start; i < n; i++) {
+        int k = kind[i];
+        if (k == K_NOISE) {
+            spans += 1;
+            noise_bytes += length[i];
+            continue;
+        }
+        if (k == K_EVENT) {
+            events += 1;
+            continue;
+        }
+        int u = unit[i];
+        UnitTally *ut = &tally[u];
+        if (!ut->seen) {
+            ut->seen = 1;
+            order[n_units++] = (unsigned char)u;
+        }
+        ut->last_seen = t_end[i];
+        if (flags[i] & BAD_CHECK_BITS) {
+            ut->check_errors += 1;
+            continue;
+        }
+        if (k == K_REQUEST) {
+            ut->requests += 1;
+            if (buf_put(&ut->times, &t[i], 8) < 0) goto done;
+            if (status[i] == S_TIMEOUT) {
+                ut->timeouts += 1;
+            } else if (status[i] == S_OPEN) {
+                int64_t row = i;
+                if (buf_put(&open_rows, &row, 8) < 0) goto done;
+            }
+        } else if (k == K_RESPONSE || k == K_EXCEPTION) {
+            ut->responses += 1;
+            if (fc[i] & 0x80) {
+                int64_t row = i;
+                if (buf_put(&exceptions, &row, 8) < 0) goto done;
+            }
+            Py_ssize_t p = partner[i];
+            if (p == -1) continue;
+            if (p < 0) p += rows; /* as Python indexes */
+            if (p < 0 || p >= rows) {
+                PyErr_SetString(PyExc_IndexError, "stats_scan: a partner out of range");
+                goto done;
+            }
+            double raw = t[i] - t_end[p];
+            int kept = mode == 0 ? 0 : mode == 1 ? raw >= 0.0 : !(raw < unresolved);
+            if (kept) {
+                if (buf_put(&ut->latencies, &raw, 8) < 0) goto done;
+            } else {
+                ut->left_out += 1;
+            }
+        }
+    }
+    list = PyList_New(n_units);
+    if (list == NULL) goto done;
+    for (int j = 0; j < n_units; j++) {
+        UnitTally *ut = &tally[order[j]];
+        PyObject *times = buf_bytes(&ut->times), *lat = buf_bytes(&ut->latencies), *item = NULL;
+        if (times && lat)
+            item = Py_BuildValue("(idnnnnnOO)", (int)order[j], ut->last_seen, ut->check_errors,
+                                 ut->requests, ut->timeouts, ut->responses, ut->left_out, times,
+                                 lat);
+        Py_XDECREF(times);
+        Py_XDECREF(lat);
+        if (item == NULL) goto done;
+        PyList_SET_ITEM(list, j, item);
+    }
+    {
+        PyObject *e = buf_bytes(&exceptions), *o = buf_bytes(&open_rows);
+        if (e && o) result = Py_BuildValue("(nnnOOO)", spans, noise_bytes, events, list, e, o);
+        Py_XDECREF(e);
+        Py_XDECREF(o);
+    }
+done:
+    Py_XDECREF(list);
+    if (tally != NULL) {
+        for (int u = 0; u < 256; u++) {
+            buf_free(&tally[u].times);
+            buf_free(&tally[u].latencies);
+        }
+        PyMem_Free(tally);
+    }
+    buf_free(&exceptions);
+    buf_free(&open_rows);
+    release_all(c, 9);
+    return result;
+}
+
+/* sunspec_rows(store, rows, at, known, skip, bases) -> positions
+ * The cheap half of SunSpecTracker.follow_rows (sniffer/sunspec.py): of rows[at:]
+ * (int64), the positions (int64) of those it may take: answers to FC 3 with a good check,
+ * paired, of a unit not in `skip`, whose request either is an ASCII frame (Python reads
+ * it) or is at least 8 bytes and of a unit in `known` or reads a range that holds one of
+ * `bases` and the register after it. `known` and `skip` are 256 bytes, 1 for a unit;
+ * `bases` int64, sorted. Rows this cannot read (a partner or stream out of range) are
+ * kept, for Python to decide as it always did. */
+static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_buffer rv, kv, sv, bv;
+    Py_ssize_t at;
+    if (!PyArg_ParseTuple(args, "Oy*ny*y*y*", &store, &rv, &at, &kv, &sv, &bv)) return NULL;
+    static const ColSpec specs[] = {
+        {"fc", 'B', 0},     {"flags", 'I', 0},  {"partner", 'i', 0}, {"unit", 'B', 0},
+        {"offset", 'Q', 0}, {"length", 'H', 0}, {"channel", 'B', 0},
+    };
+    Py_buffer c[7];
+    PyObject *result = NULL, *streams = NULL;
+    Buf out = {0};
+    if (kv.len != 256 || sv.len != 256 || rv.len % 8 || bv.len % 8) {
+        PyErr_SetString(PyExc_ValueError, "sunspec_rows: bad masks or arrays");
+        goto early;
+    }
+    if (columns(store, specs, 7, c) < 0) goto early;
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto done;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "store.streams must be a dict");
+        goto done;
+    }
+    const unsigned char *fc = c[0].buf, *unit = c[3].buf, *channel = c[6].buf;
+    const uint32_t *flags = c[1].buf;
+    const int32_t *partner = c[2].buf;
+    const uint64_t *offset = c[4].buf;
+    const uint16_t *length = c[5].buf;
+    const unsigned char *known = kv.buf, *skip = sv.buf;
+    const int64_t *rows = rv.buf, *bases = bv.buf;
+    Py_ssize_t count = rv.len / 8, n_bases = bv.len / 8, n = c[0].len;
+    if (c[1].len != 4 * n || c[2].len != 4 * n || c[3].len != n || c[4].len != 8 * n ||
+        c[5].len != 2 * n || c[6].len != n) {
+        PyErr_SetString(PyExc_ValueError, "sunspec_rows: columns of different lengths (sync)");
+        goto done;
+    }
+    for (Py_ssize_t k = at < 0 ? 0 : at; k < count; k++) {
+        int64_t i = rows[k];
+        int keep = 1;
+        if (i >= 0 && i < n) {
+            int64_t req = partner[i];
+            if (fc[i] != 3 || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
+                keep = 0;
+            } else if (req >= 0 && req < n && !(flags[req] & F_ASCII)) {
+                if (length[req] < 8) {
+                    keep = 0;
+                } else if (!known[unit[i]]) {
+                    const char *p;
+                    Py_ssize_t got;
+                    if (row_bytes(streams, channel, offset, length, (Py_ssize_t)req, &p, &got) < 0)
+                        goto done;
+                    if (got >= 6) {
+                        const unsigned char *q = (const unsigned char *)p;
+                        int64_t first = q[2] << 8 | q[3], regs = q[4] << 8 | q[5];
+                        keep = 0; /* the smallest base at or after `first` must fit */
+                        for (Py_ssize_t b = 0; b < n_bases; b++) {
+                            if (bases[b] >= first) {
+                                keep = bases[b] + 2 <= first + regs;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if (keep) {
+            int64_t position = k;
+            if (buf_put(&out, &position, 8) < 0) goto done;
+        }
+    }
+    result = buf_bytes(&out);
+done:
+    Py_XDECREF(streams);
+    release_all(c, 7);
+early:
+    buf_free(&out);
+    PyBuffer_Release(&rv);
+    PyBuffer_Release(&kv);
+    PyBuffer_Release(&sv);
+    PyBuffer_Release(&bv);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
     {"bulk_pcap", py_bulk_pcap, METH_VARARGS, "Classic pcap data packets of one batch."},
     {"rtu_scan", py_rtu_scan, METH_VARARGS, "The RTU framer's fast paths over reads."},
+    {"pair_rows", py_pair_rows, METH_VARARGS, "FrameStore.pair_rows over int64 pairs."},
+    {"pair_update", py_pair_update, METH_VARARGS, "Pairer.update's loop over new rows."},
+    {"stats_scan", py_stats_scan, METH_VARARGS, "Stats.update's counts over new rows."},
+    {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -633,5 +1145,20 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__core(void) {
     crc_init();
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL) return NULL;
+    /* the vocabulary the passes over rows were built with (see sniffer/vocab.py) */
+    PyObject *vocab = Py_BuildValue(
+        "{sisisisisisisisisisisisisisIsIsIsIsIsI}", "NOISE", K_NOISE, "REQUEST", K_REQUEST,
+        "RESPONSE", K_RESPONSE, "EXCEPTION", K_EXCEPTION, "UNKNOWN", K_UNKNOWN, "EVENT", K_EVENT,
+        "S_OK", S_OK, "S_EXCEPTION", S_EXCEPTION, "S_TIMEOUT", S_TIMEOUT, "S_ORPHAN", S_ORPHAN,
+        "S_BROADCAST", S_BROADCAST, "S_OPEN", S_OPEN, "S_BAD_ANSWER", S_BAD_ANSWER,
+        "CHECK_BAD", F_CHECK_BAD, "BAD_CHECK", BAD_CHECK_BITS, "RETRY", F_RETRY, "LATE", F_LATE,
+        "ANSWERED_BROADCAST", F_ANSWERED_BROADCAST, "ASCII", F_ASCII);
+    if (vocab == NULL || PyModule_AddObject(m, "VOCAB", vocab) < 0) {
+        Py_XDECREF(vocab);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
 }
