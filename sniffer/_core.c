@@ -1135,6 +1135,71 @@ early:
     return result;
 }
 
+/* join_reads(batches) -> (data, ends, t_starts, t_ends)
+ * Consecutive batches of reads (sniffer/sources/reads.py: Reads) as one: their bytes
+ * joined, each read's end offset moved by the bytes of the batches before it (int64),
+ * the times (float64) one after the other (sniffer/pipeline.py: _joined). */
+static PyObject *py_join_reads(PyObject *self, PyObject *arg) {
+    if (!PyList_Check(arg)) {
+        PyErr_SetString(PyExc_TypeError, "join_reads: a list of batches");
+        return NULL;
+    }
+    Buf data = {0}, ends = {0}, starts = {0}, tends = {0};
+    PyObject *result = NULL;
+    int64_t before = 0;
+    for (Py_ssize_t b = 0; b < PyList_GET_SIZE(arg); b++) {
+        PyObject *batch = PyList_GET_ITEM(arg, b);
+        static const char *names[4] = {"data", "ends", "t_starts", "t_ends"};
+        static const char codes[4] = {0, 'q', 'd', 'd'};
+        Py_buffer v[4];
+        int got = 0;
+        for (; got < 4; got++) {
+            PyObject *o = PyObject_GetAttrString(batch, names[got]);
+            if (o == NULL) break;
+            int r = PyObject_GetBuffer(o, &v[got], codes[got] ? PyBUF_FORMAT : PyBUF_SIMPLE);
+            Py_DECREF(o);
+            if (r < 0) break;
+            if (codes[got] && (v[got].format == NULL || v[got].format[0] != codes[got] ||
+                               v[got].format[1] != '\0')) {
+                PyErr_Format(PyExc_TypeError, "join_reads: %s of type '%c' expected", names[got],
+                             codes[got]);
+                PyBuffer_Release(&v[got]);
+                break;
+            }
+        }
+        int ok = got == 4 && v[1].len == v[2].len && v[1].len == v[3].len;
+        if (got == 4 && !ok) PyErr_SetString(PyExc_ValueError, "join_reads: arrays of different lengths");
+        if (ok) {
+            const int64_t *e = v[1].buf;
+            Py_ssize_t count = v[1].len / 8;
+            ok = buf_put(&data, v[0].buf, v[0].len) == 0 && buf_put(&starts, v[2].buf, v[2].len) == 0 &&
+                 buf_put(&tends, v[3].buf, v[3].len) == 0;
+            for (Py_ssize_t k = 0; ok && k < count; k++) {
+                int64_t moved = e[k] + before;
+                ok = buf_put(&ends, &moved, 8) == 0;
+            }
+            before += v[0].len;
+        }
+        for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+        if (!ok) goto done;
+    }
+    {
+        PyObject *d = buf_bytes(&data), *e = buf_bytes(&ends), *s = buf_bytes(&starts),
+                 *te = buf_bytes(&tends);
+        if (d && e && s && te) result = PyTuple_Pack(4, d, e, s, te);
+        Py_XDECREF(d);
+        Py_XDECREF(e);
+        Py_XDECREF(s);
+        Py_XDECREF(te);
+    }
+done:
+    buf_free(&data);
+    buf_free(&ends);
+    buf_free(&starts);
+    buf_free(&tends);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
@@ -1144,6 +1209,7 @@ static PyMethodDef methods[] = {
     {"pair_update", py_pair_update, METH_VARARGS, "Pairer.update's loop over new rows."},
     {"stats_scan", py_stats_scan, METH_VARARGS, "Stats.update's counts over new rows."},
     {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
+    {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -27,6 +27,7 @@ from itertools import repeat
 from operator import add
 
 from dissectors.functions import FUNCTIONS, Registry
+from sniffer import core
 from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.pairing import Pairer, default_timeout
@@ -472,14 +473,22 @@ def _joined(batches: list[Reads]) -> Reads:
     ends: array[int] = array("q")
     t_starts: array[float] = array("d")
     t_ends: array[float] = array("d")
-    before = 0
-    for b in batches:
-        ends.extend(map(add, b.ends, repeat(before)) if before else b.ends)
-        t_starts.extend(b.t_starts)
-        t_ends.extend(b.t_ends)
-        before += len(b.data)
+    fast = core.FAST
+    if fast is not None:  # the compiled copy of the loop below: 3 C calls a batch less
+        data, moved, starts, times = fast.join_reads(batches)
+        ends.frombytes(moved)
+        t_starts.frombytes(starts)
+        t_ends.frombytes(times)
+    else:
+        before = 0
+        for b in batches:
+            ends.extend(map(add, b.ends, repeat(before)) if before else b.ends)
+            t_starts.extend(b.t_starts)
+            t_ends.extend(b.t_ends)
+            before += len(b.data)
+        data = b"".join([b.data for b in batches])
     return Reads(
-        b"".join([b.data for b in batches]),
+        data,
         last.t_end,
         first.t_start,
         first.channel,

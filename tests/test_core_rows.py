@@ -27,9 +27,11 @@ from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
 from dissectors.dictionary.sunspec import MARKER
-from sniffer import core
-from sniffer.model import Stamp
+from sniffer import core, pipeline
+from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.pairing import Pairer
+from sniffer.pipeline import Pipeline, _joined
+from sniffer.sources.reads import Reads
 from sniffer.stats import Stats
 from sniffer.store import COLUMNS, FrameStore
 from sniffer.sunspec import BASES, SunSpecTracker
@@ -37,6 +39,7 @@ from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 from tests.test_core import _compiled
 
 TIMEOUT = 0.05
+LINE = LineSettings(baud=115200, parity="N", mode="rtu")
 ANSWERED_BROADCASTS = frozenset({0x41})
 
 
@@ -423,3 +426,90 @@ def test_a_unit_found_in_the_middle_of_a_batch_has_all_its_later_reads_taken() -
             assert tracker.units[4].complete
             assert tracker.units[4].image[40009] == 0
     assert states[0] == states[1]
+
+
+# -- batches of reads held by the pipeline -----------------------------------------------
+
+
+def _batch(reads: list[tuple[bytes, float, float]], channel: int) -> Reads:
+    ends: array[int] = array("q")
+    at = 0
+    for data, _, _ in reads:
+        at += len(data)
+        ends.append(at)
+    return Reads(
+        b"".join(r[0] for r in reads),
+        reads[-1][2],
+        None,
+        channel,
+        Direction.UNKNOWN,
+        ends=ends,
+        t_starts=array("d", [r[1] for r in reads]),
+        t_ends=array("d", [r[2] for r in reads]),
+    )
+
+
+read = st.tuples(
+    st.binary(min_size=1, max_size=20),
+    st.one_of(st.just(math.nan), st.floats(0, 1e10)),
+    st.floats(0, 1e10),
+)
+
+
+@settings(max_examples=100, deadline=None)
+@given(batches=st.lists(st.lists(read, min_size=1, max_size=8), min_size=1, max_size=8))
+def test_batches_held_by_the_pipeline_join_the_same_with_either_core(
+    batches: list[list[tuple[bytes, float, float]]],
+) -> None:
+    fast = _compiled()
+    given_batches = [_batch(b, 3) for b in batches]
+    joined = []
+    for module in (fast, None):
+        with running(module):
+            joined.append(_joined(given_batches))
+    assert repr(joined[0]) == repr(joined[1])
+    whole = joined[1]
+    assert whole.data == b"".join(b.data for b in given_batches)
+    assert list(whole.ends) == list(_batch([r for b in batches for r in b], 3).ends)
+    assert (whole.t_start, whole.t_end, whole.channel) == (None, batches[-1][-1][2], 3)
+
+
+def test_reads_held_by_the_pipeline_frame_as_the_reads_one_by_one() -> None:
+    """Batches of reads are held (`HOLD_BYTES`) and framed together: the rows, pairs and
+    statistics are those of the same reads fed one by one, with either core, whatever
+    is held (nothing, a little, everything)."""
+    fast = _compiled()
+    rng = random.Random(4)
+    stream = b"".join(
+        with_crc(bytes([1, 3, 0, 0, 0, 2])) + with_crc(bytes([1, 3, 4, 0, 1, 0, 2]))
+        if rng.random() < 0.9
+        else bytes(rng.getrandbits(8) for _ in range(3))
+        for _ in range(3000)
+    )
+    reads: list[tuple[bytes, float, float]] = []
+    pos, t = 0, 1_700_000_000.0
+    while pos < len(stream):
+        n = rng.randrange(1, 200)
+        t += n * LINE.char_time + rng.choice((0.0, 0.0, 0.016, 0.3))
+        reads.append((stream[pos : pos + n], math.nan, t))
+        pos += n
+    one_by_one = Pipeline(LINE)
+    for data, _, t_end in reads:
+        one_by_one.feed(Chunk(data, t_end))
+    one_by_one.finish()
+    want = _state(one_by_one.store)
+    saved = pipeline.HOLD_BYTES
+    try:
+        for module in (fast, None):
+            for hold in (0, 1000, 1 << 19):
+                pipeline.HOLD_BYTES = hold
+                with running(module):
+                    held = Pipeline(LINE)
+                    for k in range(0, len(reads), 7):
+                        held.feed(_batch(reads[k : k + 7], 0))
+                        if k % 70 == 0:
+                            held.sync()
+                    held.finish()
+                assert _state(held.store) == want, (module, hold)
+    finally:
+        pipeline.HOLD_BYTES = saved
