@@ -1200,6 +1200,97 @@ done:
     return result;
 }
 
+/* ranked(values, ranks, gaps) -> the values at those ranks of the sorted values, or None
+ * sniffer/stats.py's nearest-rank quantiles (sorted(values)[rank]) without sorting: each
+ * rank found by selection. `values` is float64 (an array 'd'); with `gaps`, the values
+ * are the differences of consecutive ones, b - a (median_gap). None when a NaN or a
+ * negative zero is among them: sorted() puts a NaN where the order of the values leaves
+ * it, and -0.0 where it came among equal zeros, so only a sort says; Python sorts then.
+ * Without either the values are in a total order and the value at each rank is the one
+ * sorted() puts there. `ranks` ascending, each < the number of values. */
+static void swap_d(double *a, double *b) {
+    double t = *a;
+    *a = *b;
+    *b = t;
+}
+
+/* leaves the k-th smallest of v[lo..hi] at v[k], smaller ones before, larger after */
+static void select_kth(double *v, Py_ssize_t lo, Py_ssize_t hi, Py_ssize_t k) {
+    while (hi > lo) {
+        Py_ssize_t mid = lo + (hi - lo) / 2; /* median of three as the pivot */
+        if (v[mid] < v[lo]) swap_d(&v[mid], &v[lo]);
+        if (v[hi] < v[lo]) swap_d(&v[hi], &v[lo]);
+        if (v[hi] < v[mid]) swap_d(&v[hi], &v[mid]);
+        double pivot = v[mid];
+        Py_ssize_t i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (pivot < v[j]) j--;
+            if (i <= j) {
+                swap_d(&v[i], &v[j]);
+                i++;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else return; /* between: equal to the pivot */
+    }
+}
+
+static PyObject *py_ranked(PyObject *self, PyObject *args) {
+    Py_buffer vv;
+    PyObject *ranks;
+    int gaps;
+    if (!PyArg_ParseTuple(args, "y*O!p", &vv, &PyTuple_Type, &ranks, &gaps)) return NULL;
+    PyObject *result = NULL;
+    double *v = NULL;
+    Py_ssize_t n = vv.len / 8;
+    const double *src = vv.buf;
+    if (vv.len % 8) {
+        PyErr_SetString(PyExc_TypeError, "ranked: float64 values");
+        goto done;
+    }
+    if (gaps) n = n > 0 ? n - 1 : 0;
+    v = PyMem_Malloc(sizeof(double) * (size_t)(n ? n : 1));
+    if (v == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double x = gaps ? src[i + 1] - src[i] : src[i];
+        if (isnan(x) || (x == 0.0 && signbit(x))) {
+            result = Py_None; /* only a sort says */
+            Py_INCREF(result);
+            goto done;
+        }
+        v[i] = x;
+    }
+    Py_ssize_t count = PyTuple_GET_SIZE(ranks), lo = 0;
+    result = PyTuple_New(count);
+    if (result == NULL) goto done;
+    for (Py_ssize_t j = 0; j < count; j++) {
+        Py_ssize_t k = PyLong_AsSsize_t(PyTuple_GET_ITEM(ranks, j));
+        if (k == -1 && PyErr_Occurred()) goto fail;
+        if (k < lo || k >= n) {
+            PyErr_SetString(PyExc_ValueError, "ranked: ranks ascending and within the values");
+            goto fail;
+        }
+        select_kth(v, lo, n - 1, k);
+        PyObject *x = PyFloat_FromDouble(v[k]);
+        if (x == NULL) goto fail;
+        PyTuple_SET_ITEM(result, j, x);
+        lo = k; /* the next rank lies at or after this one */
+    }
+    goto done;
+fail:
+    Py_CLEAR(result);
+done:
+    PyMem_Free(v);
+    PyBuffer_Release(&vv);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
@@ -1210,6 +1301,7 @@ static PyMethodDef methods[] = {
     {"stats_scan", py_stats_scan, METH_VARARGS, "Stats.update's counts over new rows."},
     {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
     {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
+    {"ranked", py_ranked, METH_VARARGS, "Values at ranks of the sorted values, by selection."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -122,8 +122,14 @@ class UnitStats:
         if tallies is not None:
             tally = tallies.latency_ms
             return [_tally_ranked(tally, q) if tally else None for q in qs]
-        ordered = sorted(self.latencies)
-        return [None if not ordered else _ranked(ordered, q) * 1000 for q in qs]
+        values = self.latencies
+        if not values:
+            return [None for _ in qs]
+        picked = _select(values, qs)
+        if picked is None:
+            ordered = sorted(values)
+            picked = [_ranked(ordered, q) for q in qs]
+        return [x * 1000 for x in picked]
 
     def polling_period(self) -> float | None:
         """Median seconds between two requests to this unit (bounded: to the 1 ms the
@@ -179,7 +185,8 @@ def nearest_rank(values: Sequence[float], q: float) -> float | None:
     the MQTT unit status all report); None for no values."""
     if not values:
         return None
-    return _ranked(sorted(values), q)
+    picked = _select(values, (q,))
+    return _ranked(sorted(values), q) if picked is None else picked[0]
 
 
 def _ranked(ordered: Sequence[float], q: float) -> float:
@@ -192,7 +199,32 @@ def median_gap(times: Sequence[float]) -> float | None:
     than two."""
     if len(times) < 2:
         return None
+    picked = _select(times, (0.5,), gaps=True)
+    if picked is not None:
+        return picked[0]
     return nearest_rank(list(map(sub, islice(times, 1, None), times)), 0.5)  # b - a
+
+
+def _select(values: Sequence[float], qs: Sequence[float], gaps: bool = False) -> list[float] | None:
+    """The nearest-rank q-quantiles of `values` (at least one; with `gaps`, of the
+    differences of consecutive values, b - a, at least two values) from the compiled
+    core, by selection instead of a sort: the values sorted() would put at those ranks
+    (sniffer/_core.c: ranked). None where it cannot say (no compiled core, values not
+    an array of floats, a NaN or a negative zero among them): then sort. The --stats
+    table of 1M frames, 16 units: 0.07 s -> 0.01 s."""
+    fast = core.FAST
+    if fast is None or not isinstance(values, array) or values.typecode != "d":
+        return None
+    n = len(values) - 1 if gaps else len(values)
+    ranks = [min(n - 1, max(0, round(q * (n - 1)))) for q in qs]
+    order = sorted(range(len(ranks)), key=ranks.__getitem__)
+    found = fast.ranked(values, tuple(ranks[k] for k in order), gaps)
+    if found is None:
+        return None
+    picked = [0.0] * len(ranks)
+    for k, x in zip(order, found, strict=True):
+        picked[k] = x
+    return picked
 
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)

@@ -18,7 +18,7 @@ import random
 from array import array
 from collections.abc import Iterator
 from contextlib import contextmanager
-from itertools import compress
+from itertools import compress, pairwise
 from types import ModuleType
 from typing import Any
 
@@ -32,7 +32,7 @@ from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.pairing import Pairer
 from sniffer.pipeline import Pipeline, _joined
 from sniffer.sources.reads import Reads
-from sniffer.stats import Stats
+from sniffer.stats import Stats, UnitStats, median_gap, nearest_rank
 from sniffer.store import COLUMNS, FrameStore
 from sniffer.sunspec import BASES, SunSpecTracker
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
@@ -513,3 +513,60 @@ def test_reads_held_by_the_pipeline_frame_as_the_reads_one_by_one() -> None:
                 assert _state(held.store) == want, (module, hold)
     finally:
         pipeline.HOLD_BYTES = saved
+
+
+# -- nearest-rank quantiles by selection -------------------------------------------------
+
+value = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=True),
+    st.sampled_from((0.0, 0.0, 1.0, 1.0, 2.5, 0.016, 0.001, 1e-7)),
+    st.sampled_from((math.nan, -0.0)),  # where only a sort says
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    values=st.lists(value, min_size=0, max_size=300),
+    qs=st.lists(st.floats(0, 1), min_size=1, max_size=5),
+)
+def test_quantiles_are_those_of_the_sorted_values_with_either_core(
+    values: list[float], qs: list[float]
+) -> None:
+    fast = _compiled()
+    times = array("d", values)
+    unit = UnitStats(1)
+    unit.latencies.extend(values)
+    unit.request_times.extend(values)
+    got = []
+    for module in (fast, None):
+        with running(module):
+            got.append(
+                repr(
+                    (
+                        [nearest_rank(times, q) for q in qs],
+                        median_gap(times),
+                        unit.latencies_ms(*qs),
+                        unit.polling_period(),
+                    )
+                )
+            )
+    assert got[0] == got[1]
+    if values and not any(math.isnan(x) for x in values):
+        ordered = sorted(values)
+        for q in qs:  # by selection or by a sort, the value sorted() puts at the rank
+            at = ordered[min(len(values) - 1, max(0, round(q * (len(values) - 1))))]
+            assert repr(nearest_rank(times, q)) == repr(at)
+
+
+def test_the_selection_picks_each_rank_of_large_arrays_of_repeated_values() -> None:
+    fast = _compiled()
+    rng = random.Random(8)
+    for n in (1, 2, 3, 10, 1000, 50_001):
+        values = array("d", (rng.choice((0.001, 0.002, 0.016, rng.random())) for _ in range(n)))
+        ordered = sorted(values)
+        ranks = tuple(sorted({0, n // 3, n // 2, n // 2, (19 * n) // 20, n - 1}))
+        assert fast.ranked(values, ranks, False) == tuple(ordered[k] for k in ranks)
+        if n > 1:
+            gaps = sorted(b - a for a, b in pairwise(values))
+            ranks = tuple(sorted({0, (n - 1) // 2, n - 2}))
+            assert fast.ranked(values, ranks, True) == tuple(gaps[k] for k in ranks)
