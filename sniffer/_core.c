@@ -1,13 +1,19 @@
-/* modscope's optional compiled core: the two loops that run once a byte or a packet.
+/* modscope's optional compiled core: the loops that run once a byte, a packet or a row.
  *
  *  - bulk_epbs: walks the blocks of a piece of a pcapng file while they are data packets
  *    (link type 250 data records, link type 147 packets) of one batch
  *    (sniffer/sources/pcap.py: _bulk_blocks);
  *  - bulk_pcap: the same over the records of a classic pcap file (_bulk_pcap_records);
  *  - rtu_scan: the RTU framer's fast paths 1 and 2 with the read-by-read timeline step
- *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read).
+ *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read);
+ *  - pair_rows, pair_update: pairing (sniffer/store.py: FrameStore.pair_rows,
+ *    sniffer/pairing.py: Pairer.update);
+ *  - stats_scan, ranked: the per-unit statistics and their nearest-rank quantiles
+ *    (sniffer/stats.py: Stats.update, nearest_rank, median_gap);
+ *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/sunspec.py);
+ *  - join_reads: batches of reads held by the pipeline, as one (sniffer/pipeline.py).
  *
- * Both are copies of the Python code named, which stays the reference and the fallback:
+ * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
  * Python code takes over from exactly there. Float results are computed with the same
  * operations in the same order (the build turns off fused multiply-add) so they are

@@ -46,7 +46,7 @@ class Pairer:
         fast = core.FAST
         if fast is not None and self.next < n:
             # the compiled copy of the loop below (sniffer/_core.c: pair_update); 1M
-            # frames of 16 ms reads: 0.02 s instead of 0.25 s
+            # frames of 16 ms reads: 0.006 s instead of 0.11 s (CPU, in-process)
             self.open, last = fast.pair_update(
                 s, self.next, self.open, self.timeout, self._answered, self.last_timed_out
             )

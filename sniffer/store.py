@@ -135,7 +135,7 @@ class FrameStore:
         """Record answered requests: `pairs` (int64) is flat, request row then answer row."""
         partner, status, fc = self.partner, self.status, self.fc
         fast = core.FAST
-        if fast is not None:  # the compiled copy of the loop below; 1M frames: 0.17 s -> 4 ms
+        if fast is not None:  # the compiled copy of the loop below; 1M frames: 0.14 s -> 4 ms
             fast.pair_rows(partner, status, fc, pairs)
             return
         for k in range(0, len(pairs), 2):

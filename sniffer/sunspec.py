@@ -141,7 +141,7 @@ class SunSpecTracker:
         """`follow_rows` with its first tests in the compiled core (sniffer/_core.c:
         sunspec_rows), which hands on only the rows the loop of `_follow` may take; a
         unit found on the way (its marker read) makes the rest be picked again, now with
-        all its reads. 1M frames, 212k rows to look at: 0.03 s instead of 0.22 s."""
+        all its reads. 1M frames, 212k rows to look at: 0.03 s instead of 0.12 s."""
         todo = array("q", rows)
         skip = bytes(u in self.skip for u in range(256))
         at = 0
