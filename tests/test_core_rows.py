@@ -570,3 +570,26 @@ def test_the_selection_picks_each_rank_of_large_arrays_of_repeated_values() -> N
             gaps = sorted(b - a for a, b in pairwise(values))
             ranks = tuple(sorted({0, (n - 1) // 2, n - 2}))
             assert fast.ranked(values, ranks, True) == tuple(gaps[k] for k in ranks)
+
+
+def test_a_pairer_whose_answered_broadcasts_are_replaced_pairs_alike_with_either_core() -> None:
+    fast = _compiled()
+    rows = [
+        (with_crc(bytes([0, 0x41, 1])), int(Kind.REQUEST), 0, 1.0, 1.001),
+        (with_crc(bytes([0, 0x41, 2])), int(Kind.RESPONSE), 0, 1.01, 1.011),
+    ]
+    states = []
+    for module in (fast, None):
+        with running(module):
+            store = FrameStore()
+            _grow(store, rows, [], 1)
+            pairer = Pairer(store, TIMEOUT)
+            pairer.update()
+            pairer.answered_broadcasts = ANSWERED_BROADCASTS  # a vendor code learnt late
+            _grow(store, rows, [], 2)
+            pairer.update()
+            _grow(store, rows + rows, [], 4)
+            pairer.finish()
+            states.append(_state(store))
+    assert states[0] == states[1]
+    assert "array('B', [5, 4, 1, 1])" in states[1]  # broadcast, orphan; then answered
