@@ -13,6 +13,12 @@ framing and pairing it, with the compiled core (`sniffer.core`) and with the pur
 one, on three file shapes of the same N frames: `modscope record`'s 16 ms reads and one
 frame per packet (link type 250, written by bench_scale into DIR and kept), and one frame
 per packet of link type 147 (as bench_tui writes).
+
+passes: CPU time per frame in this process of the session's passes over the indexed rows,
+with the compiled core and the pure-Python one, on the 16 ms reads and the one-frame-per-
+packet files: the whole `Session.ingest` (reading, framing, pairing, annotation with
+SunSpec's tracker, statistics) and the `--stats` table (its quantiles). The poll cycle,
+also part of `replay --stats`, is not counted here.
 """
 
 from __future__ import annotations
@@ -99,6 +105,41 @@ def _indexing(path: Path) -> tuple[float, int]:
     return time.process_time() - t, len(session.store)
 
 
+def _session_passes(path: Path) -> tuple[float, float, int]:
+    session, capture = open_session(path, index=False)
+    t = time.process_time()
+    session.ingest(capture.chunks())
+    ingest = time.process_time() - t
+    t = time.process_time()
+    session.stats.table()
+    return ingest, time.process_time() - t, len(session.store)
+
+
+def compare_passes(folder: Path, n: int, runs: int) -> None:
+    """The session's passes over the rows, per frame: compiled and pure."""
+    files = shapes(folder, n)
+    compiled = core.FAST
+    print(f"\npasses: CPU time per frame in this process, median of {runs} ({core.describe()})")
+    if compiled is None:
+        print("  the compiled core is not built here: nothing to compare")
+        return
+    print(f"  {'file':<28} {'core':<10} {'whole ingest':>14} {'stats table':>13}")
+    for name, path in list(files.items())[:2]:
+        for label, module in (("pure", None), ("compiled", compiled)):
+            core.FAST = module
+            try:
+                measured = [_session_passes(path) for _ in range(runs)]
+            finally:
+                core.FAST = compiled
+            rows = measured[0][2]
+            ingest = statistics.median(m[0] for m in measured)
+            table = statistics.median(m[1] for m in measured)
+            print(
+                f"  {name:<28} {label:<10} {ingest / rows * 1e6:11.2f} us "
+                f"{table / rows * 1e6:10.3f} us"
+            )
+
+
 def compare_cores(folder: Path, n: int, runs: int) -> None:
     """Reading, and reading with framing and pairing, per frame: compiled and pure."""
     files = shapes(folder, n)
@@ -156,16 +197,20 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--frames", type=int, default=1_000_000, help="frames in the stream")
-    parser.add_argument("--only", choices=("pymodbus", "cores"), help="run one comparison")
+    parser.add_argument(
+        "--only", choices=("pymodbus", "cores", "passes"), help="run one comparison"
+    )
     parser.add_argument(
         "--dir", type=Path, default=Path("/tmp/modscope-bench"), help="capture files (kept)"
     )
     parser.add_argument("--runs", type=int, default=3, help="runs of each core (median)")
     args = parser.parse_args()
-    if args.only != "cores":
+    if args.only in (None, "pymodbus"):
         pymodbus_comparison(args.frames)
-    if args.only != "pymodbus":
+    if args.only in (None, "cores"):
         compare_cores(args.dir, args.frames, args.runs)
+    if args.only in (None, "passes"):
+        compare_passes(args.dir, args.frames, args.runs)
 
 
 if __name__ == "__main__":

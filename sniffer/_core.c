@@ -1,13 +1,19 @@
-/* modscope's optional compiled core: the two loops that run once a byte or a packet.
+/* modscope's optional compiled core: the loops that run once a byte, a packet or a row.
  *
  *  - bulk_epbs: walks the blocks of a piece of a pcapng file while they are data packets
  *    (link type 250 data records, link type 147 packets) of one batch
  *    (sniffer/sources/pcap.py: _bulk_blocks);
  *  - bulk_pcap: the same over the records of a classic pcap file (_bulk_pcap_records);
  *  - rtu_scan: the RTU framer's fast paths 1 and 2 with the read-by-read timeline step
- *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read).
+ *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read);
+ *  - pair_rows, pair_update: pairing (sniffer/store.py: FrameStore.pair_rows,
+ *    sniffer/pairing.py: Pairer.update);
+ *  - stats_scan, ranked: the per-unit statistics and their nearest-rank quantiles
+ *    (sniffer/stats.py: Stats.update, nearest_rank, median_gap);
+ *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/sunspec.py);
+ *  - join_reads: batches of reads held by the pipeline, as one (sniffer/pipeline.py).
  *
- * Both are copies of the Python code named, which stays the reference and the fallback:
+ * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
  * Python code takes over from exactly there. Float results are computed with the same
  * operations in the same order (the build turns off fused multiply-add) so they are
@@ -108,7 +114,15 @@ static int exact_quotient(uint64_t ticks, uint64_t tps, double *out) {
     int bits = 0;
     for (uint64_t v = q; v; v >>= 1) bits++;
     int s = 53 - bits;
-    uint64_t m = q;
+    uint64_t m;
+#ifdef __SIZEOF_INT128__
+    /* the s bits of the fraction in one division (as the loop below computes them):
+     * reading 1M packets of nanosecond stamps, in-process: 0.30 -> 0.20 s */
+    unsigned __int128 frac = (unsigned __int128)r << s;
+    m = q << s | (uint64_t)(frac / tps);
+    r = (uint64_t)(frac % tps);
+#else
+    m = q;
     for (int i = 0; i < s; i++) {
         r <<= 1; /* r < tps <= 2**62 */
         m <<= 1;
@@ -117,6 +131,7 @@ static int exact_quotient(uint64_t ticks, uint64_t tps, double *out) {
             m |= 1;
         }
     }
+#endif
     uint64_t r2 = r << 1;
     if (r2 > tps || (r2 == tps && (m & 1))) m += 1;
     *out = ldexp((double)m, -s);
@@ -618,11 +633,681 @@ done:
     return result;
 }
 
+/* ---- the store's columns, for the passes over rows ------------------------------------ */
+
+/* The numbers these passes store or test, as sniffer/vocab.py defines them (the module's
+ * VOCAB says them back; tests/test_core_rows.py holds them to vocab's). */
+#define K_NOISE 0
+#define K_REQUEST 1
+#define K_RESPONSE 2
+#define K_EXCEPTION 3
+#define K_UNKNOWN 4
+#define K_EVENT 5
+#define S_OK 1
+#define S_EXCEPTION 2
+#define S_TIMEOUT 3
+#define S_ORPHAN 4
+#define S_BROADCAST 5
+#define S_OPEN 6
+#define S_BAD_ANSWER 7
+#define F_CHECK_BAD (1u << 0)
+#define F_NON_HEX (1u << 4)
+#define F_ENVELOPE_BAD (1u << 17)
+#define F_ASCII (1u << 24)
+#define BAD_CHECK_BITS (F_CHECK_BAD | F_NON_HEX | F_ENVELOPE_BAD)
+#define F_RETRY (1u << 11)
+#define F_LATE (1u << 12)
+#define F_ANSWERED_BROADCAST (1u << 13)
+
+/* One column of a FrameStore (an array.array attribute) as a buffer of the type code
+ * `code`, writable if asked. 0 on success; -1 with an exception set. */
+static int column(PyObject *store, const char *name, char code, int writable, Py_buffer *v) {
+    PyObject *o = PyObject_GetAttrString(store, name);
+    if (o == NULL) return -1;
+    int r = PyObject_GetBuffer(o, v, PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0));
+    Py_DECREF(o);
+    if (r < 0) return -1;
+    if (v->format == NULL || v->format[0] != code || v->format[1] != '\0') {
+        PyErr_Format(PyExc_TypeError, "store.%s: an array of type '%c' expected", name, code);
+        PyBuffer_Release(v);
+        return -1;
+    }
+    return 0;
+}
+
+typedef struct {
+    const char *name;
+    char code;
+    int writable;
+} ColSpec;
+
+/* Several columns at once: all or none (released again on failure). */
+static int columns(PyObject *store, const ColSpec *specs, int count, Py_buffer *views) {
+    for (int i = 0; i < count; i++) {
+        if (column(store, specs[i].name, specs[i].code, specs[i].writable, &views[i]) < 0) {
+            for (int j = 0; j < i; j++) PyBuffer_Release(&views[j]);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static void release_all(Py_buffer *views, int count) {
+    for (int i = 0; i < count; i++) PyBuffer_Release(&views[i]);
+}
+
+/* The bytes of row i, as FrameStore.raw slices them out of its channel's stream (a
+ * slice past the end is cut short). 0 on success; -1 with an exception set. */
+static int row_bytes(PyObject *streams, const unsigned char *channel, const uint64_t *offset,
+                     const uint16_t *length, Py_ssize_t i, const char **p, Py_ssize_t *n) {
+    PyObject *key = PyLong_FromLong(channel[i]);
+    if (key == NULL) return -1;
+    PyObject *stream = PyDict_GetItemWithError(streams, key); /* borrowed */
+    Py_DECREF(key);
+    if (stream == NULL) {
+        if (!PyErr_Occurred()) PyErr_Format(PyExc_KeyError, "no stream for channel %d", channel[i]);
+        return -1;
+    }
+    if (!PyByteArray_Check(stream)) {
+        PyErr_SetString(PyExc_TypeError, "a store's streams are bytearrays");
+        return -1;
+    }
+    Py_ssize_t size = PyByteArray_GET_SIZE(stream);
+    uint64_t start = offset[i], stop = start + length[i];
+    if (start > (uint64_t)size) start = (uint64_t)size;
+    if (stop > (uint64_t)size) stop = (uint64_t)size;
+    *p = PyByteArray_AS_STRING(stream) + start;
+    *n = (Py_ssize_t)(stop - start);
+    return 0;
+}
+
+/* pair_rows(partner, status, fc, pairs): FrameStore.pair_rows over `pairs` (int64,
+ * flat: request row, answer row, ...). */
+static PyObject *py_pair_rows(PyObject *self, PyObject *args) {
+    Py_buffer pv, sv, fv, qv;
+    if (!PyArg_ParseTuple(args, "w*w*y*y*", &pv, &sv, &fv, &qv)) return NULL;
+    PyObject *result = NULL;
+    int32_t *partner = (int32_t *)pv.buf;
+    unsigned char *status = (unsigned char *)sv.buf;
+    const unsigned char *fc = (const unsigned char *)fv.buf;
+    const int64_t *pairs = (const int64_t *)qv.buf;
+    Py_ssize_t rows = sv.len, count = qv.len / 8;
+    if (pv.len != 4 * rows || fv.len < rows || qv.len % 16) {
+        PyErr_SetString(PyExc_ValueError, "pair_rows: columns of different lengths");
+        goto done;
+    }
+    for (Py_ssize_t k = 0; k < count; k += 2) { /* checked first: nothing half done */
+        if (pairs[k] < 0 || pairs[k] >= rows || pairs[k + 1] < 0 || pairs[k + 1] >= rows) {
+            PyErr_SetString(PyExc_IndexError, "pair_rows: a row out of range");
+            goto done;
+        }
+    }
+    for (Py_ssize_t k = 0; k < count; k += 2) {
+        Py_ssize_t req = (Py_ssize_t)pairs[k], resp = (Py_ssize_t)pairs[k + 1];
+        partner[req] = (int32_t)resp;
+        partner[resp] = (int32_t)req;
+        status[req] = status[resp] = (fc[resp] & 0x80) ? S_EXCEPTION : S_OK;
+    }
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyBuffer_Release(&pv);
+    PyBuffer_Release(&sv);
+    PyBuffer_Release(&fv);
+    PyBuffer_Release(&qv);
+    return result;
+}
+
+/* pair_update(store, start, open, timeout, broadcasts, last) -> (open, last)
+ * Pairer.update's loop over rows start..len(store) (sniffer/pairing.py), with its
+ * helpers _request, _pair, _time_out and _check_retry. `open` is the open request's row
+ * or -1; `broadcasts` 256 bytes, 1 for the function codes whose broadcasts are answered;
+ * `last` the raw bytes of the last request that timed out (Pairer.last_timed_out). The
+ * `last` returned says what Pairer.last_timed_out becomes: -2 as it was, -1 empty, a row
+ * number: that row's bytes. */
+static PyObject *py_pair_update(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_ssize_t start, open;
+    double timeout;
+    Py_buffer bv, lv;
+    if (!PyArg_ParseTuple(args, "Onndy*y*", &store, &start, &open, &timeout, &bv, &lv))
+        return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0},    {"unit", 'B', 0},    {"fc", 'B', 0},      {"partner", 'i', 1},
+        {"flags", 'I', 1},   {"status", 'B', 1},  {"t", 'd', 0},       {"t_end", 'd', 0},
+        {"offset", 'Q', 0},  {"length", 'H', 0},  {"channel", 'B', 0},
+    };
+    Py_buffer c[11];
+    PyObject *result = NULL, *streams = NULL;
+    if (bv.len != 256) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: broadcasts must be 256 bytes");
+        goto early;
+    }
+    if (columns(store, specs, 11, c) < 0) goto early;
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto done;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "store.streams must be a dict");
+        goto done;
+    }
+    const unsigned char *kind = c[0].buf, *unit = c[1].buf, *fc = c[2].buf;
+    int32_t *partner = c[3].buf;
+    uint32_t *flags = c[4].buf;
+    unsigned char *status = c[5].buf;
+    const double *t = c[6].buf, *t_end = c[7].buf;
+    const uint64_t *offset = c[8].buf;
+    const uint16_t *length = c[9].buf;
+    const unsigned char *channel = c[10].buf;
+    const unsigned char *answered = bv.buf;
+    Py_ssize_t n = c[6].len / 8;
+    if (c[0].len != n || c[1].len != n || c[2].len != n || c[3].len != 4 * n ||
+        c[4].len != 4 * n || c[5].len != n || c[7].len != 8 * n || c[8].len != 8 * n ||
+        c[9].len != 2 * n || c[10].len != n) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: columns of different lengths (sync)");
+        goto done;
+    }
+    if (start < 0 || open < -1 || open >= n) {
+        PyErr_SetString(PyExc_ValueError, "pair_update: start or open out of range");
+        goto done;
+    }
+    for (Py_ssize_t i = start; i < n; i++) { /* every partner a row or -1 */
+        if (partner[i] < -1 || partner[i] >= n) {
+            PyErr_SetString(PyExc_ValueError, "pair_update: a partner out of range");
+            goto done;
+        }
+    }
+    /* the last timed-out request: `last_row` -2: the bytes given, -1: none, else a row */
+    Py_ssize_t last_row = lv.len ? -2 : -1, last_code = -2;
+    const char *last_p = lv.buf;
+    Py_ssize_t last_n = lv.len;
+
+/* _time_out(req): sets open to -1; unless answered after all, a timeout whose bytes
+ * are kept for the retry check */
+#define TIME_OUT(req)                                                                 \
+    do {                                                                              \
+        Py_ssize_t r_ = (req);                                                        \
+        open = -1;                                                                    \
+        if (partner[r_] == -1) {                                                      \
+            status[r_] = S_TIMEOUT;                                                   \
+            if (row_bytes(streams, channel, offset, length, r_, &last_p, &last_n) < 0) \
+                goto done;                                                            \
+            last_row = last_n ? r_ : -1;                                              \
+            last_code = last_row;                                                     \
+        }                                                                             \
+    } while (0)
+
+/* _check_retry(i), where the bytes kept are not empty */
+#define CHECK_RETRY(i)                                                                      \
+    do {                                                                                    \
+        const char *p_;                                                                     \
+        Py_ssize_t n_;                                                                      \
+        if (row_bytes(streams, channel, offset, length, (i), &p_, &n_) < 0) goto done;      \
+        if (n_ == last_n && memcmp(p_, last_p, (size_t)n_) == 0) flags[i] |= F_RETRY;       \
+        last_row = -1;                                                                      \
+        last_code = -1;                                                                     \
+    } while (0)
+
+    for (Py_ssize_t i = start; i < n; i++) {
+        int k = kind[i];
+        if (k == K_NOISE || k == K_EVENT) continue;
+        Py_ssize_t op = open;
+        if (op >= 0 && t[i] - t_end[op] > timeout) {
+            TIME_OUT(op);
+            op = -1;
+        }
+        Py_ssize_t j = partner[i];
+        if (j >= 0) { /* paired as it was framed */
+            if (j < i) { /* the answer */
+                if (op == j) open = -1;
+                if (t[i] - t_end[j] > timeout) flags[i] |= F_LATE;
+            } else { /* the request */
+                if (op >= 0) TIME_OUT(op);
+                if (last_row != -1) CHECK_RETRY(i);
+            }
+            continue;
+        }
+        if (k == K_REQUEST) { /* _request */
+            if (open >= 0) TIME_OUT(open);
+            if (unit[i] == 0 && !answered[fc[i]]) {
+                status[i] = S_BROADCAST;
+                open = -1;
+            } else {
+                status[i] = S_OPEN;
+                open = i;
+            }
+            if (last_row != -1) CHECK_RETRY(i);
+            continue;
+        }
+        int u = unit[i];
+        if (op >= 0 && (unit[op] == u || unit[op] == 0) && fc[op] == (fc[i] & 0x7F)) {
+            /* _pair(op, i) */
+            unsigned char st = (flags[i] & BAD_CHECK_BITS)   ? S_BAD_ANSWER
+                               : (fc[i] & 0x80) ? S_EXCEPTION
+                                                : S_OK;
+            partner[op] = (int32_t)i;
+            partner[i] = (int32_t)op;
+            status[op] = status[i] = st;
+            if (t[i] - t_end[op] > timeout) flags[i] |= F_LATE;
+            open = -1;
+        } else if (k != K_UNKNOWN) {
+            status[i] = S_ORPHAN;
+            if (u == 0) flags[i] |= F_ANSWERED_BROADCAST;
+        }
+    }
+#undef TIME_OUT
+#undef CHECK_RETRY
+    result = Py_BuildValue("(nn)", open, last_code);
+done:
+    Py_XDECREF(streams);
+    release_all(c, 11);
+early:
+    PyBuffer_Release(&bv);
+    PyBuffer_Release(&lv);
+    return result;
+}
+
+/* stats_scan(store, start, n, mode, unresolved)
+ *   -> (noise spans, noise bytes, events, units, exception rows, open rows)
+ * Stats.update's count of rows start..n (sniffer/stats.py: update, _requests, _answers)
+ * but the exception codes and the open requests already remembered: `units` lists, in
+ * the order each unit's first frame comes, (unit, last_seen, check errors, requests,
+ * timeouts, responses, latencies left out, request times, latencies), the times and
+ * latencies as float64 bytes in row order; the answers with the exception bit and the
+ * requests still open come back as int64 rows for Python to finish. `mode` says which
+ * latencies are kept, as pairing.measure: 0 none (no stamps), 1 those >= 0 (exact
+ * stamps), 2 those not below `unresolved`. */
+typedef struct {
+    int seen;
+    double last_seen;
+    Py_ssize_t check_errors, requests, timeouts, responses, left_out;
+    Buf times, latencies;
+} UnitTally;
+
+static PyObject *py_stats_scan(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_ssize_t start, n;
+    int mode;
+    double unresolved;
+    if (!PyArg_ParseTuple(args, "Onnid", &store, &start, &n, &mode, &unresolved)) return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0}, {"unit", 'B', 0},    {"fc", 'B', 0}, {"partner", 'i', 0},
+        {"flags", 'I', 0}, {"status", 'B', 0}, {"t", 'd', 0},  {"t_end", 'd', 0},
+        {"length", 'H', 0},
+    };
+    Py_buffer c[9];
+    if (columns(store, specs, 9, c) < 0) return NULL;
+    PyObject *result = NULL, *list = NULL;
+    UnitTally *tally = PyMem_Calloc(256, sizeof(UnitTally));
+    Buf exceptions = {0}, open_rows = {0};
+    unsigned char order[256];
+    int n_units = 0;
+    if (tally == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const unsigned char *kind = c[0].buf, *unit = c[1].buf, *fc = c[2].buf, *status = c[5].buf;
+    const int32_t *partner = c[3].buf;
+    const uint32_t *flags = c[4].buf;
+    const double *t = c[6].buf, *t_end = c[7].buf;
+    const uint16_t *length = c[8].buf;
+    Py_ssize_t rows = c[6].len / 8;
+    if (c[0].len != rows || c[1].len != rows || c[2].len != rows || c[3].len != 4 * rows ||
+        c[4].len != 4 * rows || c[5].len != rows || c[7].len != 8 * rows ||
+        c[8].len != 2 * rows) {
+        PyErr_SetString(PyExc_ValueError, "stats_scan: columns of different lengths (sync)");
+        goto done;
+    }
+    if (start < 0 || n > rows || start > n) {
+        PyErr_SetString(PyExc_ValueError, "stats_scan: rows out of range");
+        goto done;
+    }
+    Py_ssize_t spans = 0, noise_bytes = 0, events = 0;
+    for (Py_ssize_t i = start; i < n; i++) {
+        int k = kind[i];
+        if (k == K_NOISE) {
+            spans += 1;
+            noise_bytes += length[i];
+            continue;
+        }
+        if (k == K_EVENT) {
+            events += 1;
+            continue;
+        }
+        int u = unit[i];
+        UnitTally *ut = &tally[u];
+        if (!ut->seen) {
+            ut->seen = 1;
+            order[n_units++] = (unsigned char)u;
+        }
+        ut->last_seen = t_end[i];
+        if (flags[i] & BAD_CHECK_BITS) {
+            ut->check_errors += 1;
+            continue;
+        }
+        if (k == K_REQUEST) {
+            ut->requests += 1;
+            if (buf_put(&ut->times, &t[i], 8) < 0) goto done;
+            if (status[i] == S_TIMEOUT) {
+                ut->timeouts += 1;
+            } else if (status[i] == S_OPEN) {
+                int64_t row = i;
+                if (buf_put(&open_rows, &row, 8) < 0) goto done;
+            }
+        } else if (k == K_RESPONSE || k == K_EXCEPTION) {
+            ut->responses += 1;
+            if (fc[i] & 0x80) {
+                int64_t row = i;
+                if (buf_put(&exceptions, &row, 8) < 0) goto done;
+            }
+            Py_ssize_t p = partner[i];
+            if (p == -1) continue;
+            if (p < 0) p += rows; /* as Python indexes */
+            if (p < 0 || p >= rows) {
+                PyErr_SetString(PyExc_IndexError, "stats_scan: a partner out of range");
+                goto done;
+            }
+            double raw = t[i] - t_end[p];
+            int kept = mode == 0 ? 0 : mode == 1 ? raw >= 0.0 : !(raw < unresolved);
+            if (kept) {
+                if (buf_put(&ut->latencies, &raw, 8) < 0) goto done;
+            } else {
+                ut->left_out += 1;
+            }
+        }
+    }
+    list = PyList_New(n_units);
+    if (list == NULL) goto done;
+    for (int j = 0; j < n_units; j++) {
+        UnitTally *ut = &tally[order[j]];
+        PyObject *times = buf_bytes(&ut->times), *lat = buf_bytes(&ut->latencies), *item = NULL;
+        if (times && lat)
+            item = Py_BuildValue("(idnnnnnOO)", (int)order[j], ut->last_seen, ut->check_errors,
+                                 ut->requests, ut->timeouts, ut->responses, ut->left_out, times,
+                                 lat);
+        Py_XDECREF(times);
+        Py_XDECREF(lat);
+        if (item == NULL) goto done;
+        PyList_SET_ITEM(list, j, item);
+    }
+    {
+        PyObject *e = buf_bytes(&exceptions), *o = buf_bytes(&open_rows);
+        if (e && o) result = Py_BuildValue("(nnnOOO)", spans, noise_bytes, events, list, e, o);
+        Py_XDECREF(e);
+        Py_XDECREF(o);
+    }
+done:
+    Py_XDECREF(list);
+    if (tally != NULL) {
+        for (int u = 0; u < 256; u++) {
+            buf_free(&tally[u].times);
+            buf_free(&tally[u].latencies);
+        }
+        PyMem_Free(tally);
+    }
+    buf_free(&exceptions);
+    buf_free(&open_rows);
+    release_all(c, 9);
+    return result;
+}
+
+/* sunspec_rows(store, rows, at, known, skip, bases) -> positions
+ * The cheap half of SunSpecTracker.follow_rows (sniffer/sunspec.py): of rows[at:]
+ * (int64), the positions (int64) of those it may take: answers to FC 3 with a good check,
+ * paired, of a unit not in `skip`, whose request either is an ASCII frame (Python reads
+ * it) or is at least 8 bytes and of a unit in `known` or reads a range that holds one of
+ * `bases` and the register after it. `known` and `skip` are 256 bytes, 1 for a unit;
+ * `bases` int64, sorted. Rows this cannot read (a partner or stream out of range) are
+ * kept, for Python to decide as it always did. */
+static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
+    PyObject *store;
+    Py_buffer rv, kv, sv, bv;
+    Py_ssize_t at;
+    if (!PyArg_ParseTuple(args, "Oy*ny*y*y*", &store, &rv, &at, &kv, &sv, &bv)) return NULL;
+    static const ColSpec specs[] = {
+        {"fc", 'B', 0},     {"flags", 'I', 0},  {"partner", 'i', 0}, {"unit", 'B', 0},
+        {"offset", 'Q', 0}, {"length", 'H', 0}, {"channel", 'B', 0},
+    };
+    Py_buffer c[7];
+    PyObject *result = NULL, *streams = NULL;
+    Buf out = {0};
+    if (kv.len != 256 || sv.len != 256 || rv.len % 8 || bv.len % 8) {
+        PyErr_SetString(PyExc_ValueError, "sunspec_rows: bad masks or arrays");
+        goto early;
+    }
+    if (columns(store, specs, 7, c) < 0) goto early;
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto done;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "store.streams must be a dict");
+        goto done;
+    }
+    const unsigned char *fc = c[0].buf, *unit = c[3].buf, *channel = c[6].buf;
+    const uint32_t *flags = c[1].buf;
+    const int32_t *partner = c[2].buf;
+    const uint64_t *offset = c[4].buf;
+    const uint16_t *length = c[5].buf;
+    const unsigned char *known = kv.buf, *skip = sv.buf;
+    const int64_t *rows = rv.buf, *bases = bv.buf;
+    Py_ssize_t count = rv.len / 8, n_bases = bv.len / 8, n = c[0].len;
+    if (c[1].len != 4 * n || c[2].len != 4 * n || c[3].len != n || c[4].len != 8 * n ||
+        c[5].len != 2 * n || c[6].len != n) {
+        PyErr_SetString(PyExc_ValueError, "sunspec_rows: columns of different lengths (sync)");
+        goto done;
+    }
+    for (Py_ssize_t k = at < 0 ? 0 : at; k < count; k++) {
+        int64_t i = rows[k];
+        int keep = 1;
+        if (i >= 0 && i < n) {
+            int64_t req = partner[i];
+            if (fc[i] != 3 || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
+                keep = 0;
+            } else if (req >= 0 && req < n && !(flags[req] & F_ASCII)) {
+                if (length[req] < 8) {
+                    keep = 0;
+                } else if (!known[unit[i]]) {
+                    const char *p;
+                    Py_ssize_t got;
+                    if (row_bytes(streams, channel, offset, length, (Py_ssize_t)req, &p, &got) < 0)
+                        goto done;
+                    if (got >= 6) {
+                        const unsigned char *q = (const unsigned char *)p;
+                        int64_t first = q[2] << 8 | q[3], regs = q[4] << 8 | q[5];
+                        keep = 0; /* the smallest base at or after `first` must fit */
+                        for (Py_ssize_t b = 0; b < n_bases; b++) {
+                            if (bases[b] >= first) {
+                                keep = bases[b] + 2 <= first + regs;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if (keep) {
+            int64_t position = k;
+            if (buf_put(&out, &position, 8) < 0) goto done;
+        }
+    }
+    result = buf_bytes(&out);
+done:
+    Py_XDECREF(streams);
+    release_all(c, 7);
+early:
+    buf_free(&out);
+    PyBuffer_Release(&rv);
+    PyBuffer_Release(&kv);
+    PyBuffer_Release(&sv);
+    PyBuffer_Release(&bv);
+    return result;
+}
+
+/* join_reads(batches) -> (data, ends, t_starts, t_ends)
+ * Consecutive batches of reads (sniffer/sources/reads.py: Reads) as one: their bytes
+ * joined, each read's end offset moved by the bytes of the batches before it (int64),
+ * the times (float64) one after the other (sniffer/pipeline.py: _joined). */
+static PyObject *py_join_reads(PyObject *self, PyObject *arg) {
+    if (!PyList_Check(arg)) {
+        PyErr_SetString(PyExc_TypeError, "join_reads: a list of batches");
+        return NULL;
+    }
+    Buf data = {0}, ends = {0}, starts = {0}, tends = {0};
+    PyObject *result = NULL;
+    int64_t before = 0;
+    for (Py_ssize_t b = 0; b < PyList_GET_SIZE(arg); b++) {
+        PyObject *batch = PyList_GET_ITEM(arg, b);
+        static const char *names[4] = {"data", "ends", "t_starts", "t_ends"};
+        static const char codes[4] = {0, 'q', 'd', 'd'};
+        Py_buffer v[4];
+        int got = 0;
+        for (; got < 4; got++) {
+            PyObject *o = PyObject_GetAttrString(batch, names[got]);
+            if (o == NULL) break;
+            int r = PyObject_GetBuffer(o, &v[got], codes[got] ? PyBUF_FORMAT : PyBUF_SIMPLE);
+            Py_DECREF(o);
+            if (r < 0) break;
+            if (codes[got] && (v[got].format == NULL || v[got].format[0] != codes[got] ||
+                               v[got].format[1] != '\0')) {
+                PyErr_Format(PyExc_TypeError, "join_reads: %s of type '%c' expected", names[got],
+                             codes[got]);
+                PyBuffer_Release(&v[got]);
+                break;
+            }
+        }
+        int ok = got == 4 && v[1].len == v[2].len && v[1].len == v[3].len;
+        if (got == 4 && !ok) PyErr_SetString(PyExc_ValueError, "join_reads: arrays of different lengths");
+        if (ok) {
+            const int64_t *e = v[1].buf;
+            Py_ssize_t count = v[1].len / 8;
+            ok = buf_put(&data, v[0].buf, v[0].len) == 0 && buf_put(&starts, v[2].buf, v[2].len) == 0 &&
+                 buf_put(&tends, v[3].buf, v[3].len) == 0;
+            for (Py_ssize_t k = 0; ok && k < count; k++) {
+                int64_t moved = e[k] + before;
+                ok = buf_put(&ends, &moved, 8) == 0;
+            }
+            before += v[0].len;
+        }
+        for (int i = 0; i < got; i++) PyBuffer_Release(&v[i]);
+        if (!ok) goto done;
+    }
+    {
+        PyObject *d = buf_bytes(&data), *e = buf_bytes(&ends), *s = buf_bytes(&starts),
+                 *te = buf_bytes(&tends);
+        if (d && e && s && te) result = PyTuple_Pack(4, d, e, s, te);
+        Py_XDECREF(d);
+        Py_XDECREF(e);
+        Py_XDECREF(s);
+        Py_XDECREF(te);
+    }
+done:
+    buf_free(&data);
+    buf_free(&ends);
+    buf_free(&starts);
+    buf_free(&tends);
+    return result;
+}
+
+/* ranked(values, ranks, gaps) -> the values at those ranks of the sorted values, or None
+ * sniffer/stats.py's nearest-rank quantiles (sorted(values)[rank]) without sorting: each
+ * rank found by selection. `values` is float64 (an array 'd'); with `gaps`, the values
+ * are the differences of consecutive ones, b - a (median_gap). None when a NaN or a
+ * negative zero is among them: sorted() puts a NaN where the order of the values leaves
+ * it, and -0.0 where it came among equal zeros, so only a sort says; Python sorts then.
+ * Without either the values are in a total order and the value at each rank is the one
+ * sorted() puts there. `ranks` ascending, each < the number of values. */
+static void swap_d(double *a, double *b) {
+    double t = *a;
+    *a = *b;
+    *b = t;
+}
+
+/* leaves the k-th smallest of v[lo..hi] at v[k], smaller ones before, larger after */
+static void select_kth(double *v, Py_ssize_t lo, Py_ssize_t hi, Py_ssize_t k) {
+    while (hi > lo) {
+        Py_ssize_t mid = lo + (hi - lo) / 2; /* median of three as the pivot */
+        if (v[mid] < v[lo]) swap_d(&v[mid], &v[lo]);
+        if (v[hi] < v[lo]) swap_d(&v[hi], &v[lo]);
+        if (v[hi] < v[mid]) swap_d(&v[hi], &v[mid]);
+        double pivot = v[mid];
+        Py_ssize_t i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (pivot < v[j]) j--;
+            if (i <= j) {
+                swap_d(&v[i], &v[j]);
+                i++;
+                j--;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else return; /* between: equal to the pivot */
+    }
+}
+
+static PyObject *py_ranked(PyObject *self, PyObject *args) {
+    Py_buffer vv;
+    PyObject *ranks;
+    int gaps;
+    if (!PyArg_ParseTuple(args, "y*O!p", &vv, &PyTuple_Type, &ranks, &gaps)) return NULL;
+    PyObject *result = NULL;
+    double *v = NULL;
+    Py_ssize_t n = vv.len / 8;
+    const double *src = vv.buf;
+    if (vv.len % 8) {
+        PyErr_SetString(PyExc_TypeError, "ranked: float64 values");
+        goto done;
+    }
+    if (gaps) n = n > 0 ? n - 1 : 0;
+    v = PyMem_Malloc(sizeof(double) * (size_t)(n ? n : 1));
+    if (v == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double x = gaps ? src[i + 1] - src[i] : src[i];
+        if (isnan(x) || (x == 0.0 && signbit(x))) {
+            result = Py_None; /* only a sort says */
+            Py_INCREF(result);
+            goto done;
+        }
+        v[i] = x;
+    }
+    Py_ssize_t count = PyTuple_GET_SIZE(ranks), lo = 0;
+    result = PyTuple_New(count);
+    if (result == NULL) goto done;
+    for (Py_ssize_t j = 0; j < count; j++) {
+        Py_ssize_t k = PyLong_AsSsize_t(PyTuple_GET_ITEM(ranks, j));
+        if (k == -1 && PyErr_Occurred()) goto fail;
+        if (k < lo || k >= n) {
+            PyErr_SetString(PyExc_ValueError, "ranked: ranks ascending and within the values");
+            goto fail;
+        }
+        select_kth(v, lo, n - 1, k);
+        PyObject *x = PyFloat_FromDouble(v[k]);
+        if (x == NULL) goto fail;
+        PyTuple_SET_ITEM(result, j, x);
+        lo = k; /* the next rank lies at or after this one */
+    }
+    goto done;
+fail:
+    Py_CLEAR(result);
+done:
+    PyMem_Free(v);
+    PyBuffer_Release(&vv);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
     {"bulk_pcap", py_bulk_pcap, METH_VARARGS, "Classic pcap data packets of one batch."},
     {"rtu_scan", py_rtu_scan, METH_VARARGS, "The RTU framer's fast paths over reads."},
+    {"pair_rows", py_pair_rows, METH_VARARGS, "FrameStore.pair_rows over int64 pairs."},
+    {"pair_update", py_pair_update, METH_VARARGS, "Pairer.update's loop over new rows."},
+    {"stats_scan", py_stats_scan, METH_VARARGS, "Stats.update's counts over new rows."},
+    {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
+    {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
+    {"ranked", py_ranked, METH_VARARGS, "Values at ranks of the sorted values, by selection."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -633,5 +1318,20 @@ static struct PyModuleDef module = {
 
 PyMODINIT_FUNC PyInit__core(void) {
     crc_init();
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL) return NULL;
+    /* the vocabulary the passes over rows were built with (see sniffer/vocab.py) */
+    PyObject *vocab = Py_BuildValue(
+        "{sisisisisisisisisisisisisisIsIsIsIsIsI}", "NOISE", K_NOISE, "REQUEST", K_REQUEST,
+        "RESPONSE", K_RESPONSE, "EXCEPTION", K_EXCEPTION, "UNKNOWN", K_UNKNOWN, "EVENT", K_EVENT,
+        "S_OK", S_OK, "S_EXCEPTION", S_EXCEPTION, "S_TIMEOUT", S_TIMEOUT, "S_ORPHAN", S_ORPHAN,
+        "S_BROADCAST", S_BROADCAST, "S_OPEN", S_OPEN, "S_BAD_ANSWER", S_BAD_ANSWER,
+        "CHECK_BAD", F_CHECK_BAD, "BAD_CHECK", BAD_CHECK_BITS, "RETRY", F_RETRY, "LATE", F_LATE,
+        "ANSWERED_BROADCAST", F_ANSWERED_BROADCAST, "ASCII", F_ASCII);
+    if (vocab == NULL || PyModule_AddObject(m, "VOCAB", vocab) < 0) {
+        Py_XDECREF(vocab);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
 }

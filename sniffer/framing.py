@@ -338,7 +338,8 @@ class RtuFramer(_Framer):
         self.pending_deadline = INF  # see _scan_bytes
         self.pending_row = -1  # its row in `out`, when rows are paired as they are framed
         self.pair_inline = True  # off while `out` is a staging store (several channels)
-        self.pairs: list[int] = []  # rows the fast path paired, flat: request, answer, ...
+        # rows the fast path paired, flat: request, answer, ... (int64, as rtu_scan gives)
+        self.pairs: array[int] = array("q")
         self.units_seen: set[int] = set()
         self.last_frame_end: float | None = None
         self.scan_end = 0  # the end of the bytes the scan in progress may see
@@ -691,9 +692,7 @@ class RtuFramer(_Framer):
             out.unit.frombytes(units)
             out.fc.frombytes(codes)
         if pairs:
-            flat: array[int] = array("q")
-            flat.frombytes(pairs)
-            self.pairs.extend(flat)
+            self.pairs.frombytes(pairs)
         if reads is not None and len(tl.spans) > 64:
             tl.forget_before(self.pos)
         return slow, k, prev, end
@@ -712,7 +711,7 @@ class RtuFramer(_Framer):
         if self.pairs:
             if self.pair_inline:
                 out.pair_rows(self.pairs)
-            self.pairs.clear()
+            del self.pairs[:]
 
     def _candidates(
         self,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from sniffer import core
 from sniffer.model import LineSettings, Stamp
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
@@ -35,11 +36,28 @@ class Pairer:
         self.next = 0
         self.open = -1  # index of the request waiting for its answer
         self.last_timed_out = b""  # raw bytes of the last request that got no answer
+        # the same as 256 bytes, for the compiled loop (made again if the set is replaced)
+        self._answered_of = answered_broadcasts
+        self._answered = bytes(fc in answered_broadcasts for fc in range(256))
 
     def update(self) -> None:
         s = self.store
         s.sync()
         n = len(s)
+        fast = core.FAST
+        if fast is not None and self.next < n:
+            if self._answered_of is not self.answered_broadcasts:
+                self._answered_of = self.answered_broadcasts
+                self._answered = bytes(fc in self._answered_of for fc in range(256))
+            # the compiled copy of the loop below (sniffer/_core.c: pair_update); 1M
+            # frames of 16 ms reads: 0.006 s instead of 0.11 s (CPU, in-process)
+            self.open, last = fast.pair_update(
+                s, self.next, self.open, self.timeout, self._answered, self.last_timed_out
+            )
+            if last != -2:
+                self.last_timed_out = b"" if last == -1 else s.raw(last)
+            self.next = n
+            return
         kind, unit, fc, partner = s.kind, s.unit, s.fc, s.partner
         t, t_end, timeout = s.t, s.t_end, self.timeout
         for i in range(self.next, n):

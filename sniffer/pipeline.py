@@ -19,11 +19,15 @@ What a source knows besides its bytes comes with it (`SourceInfo`):
 
 from __future__ import annotations
 
+from array import array
 from bisect import bisect_right
 from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import repeat
+from operator import add
 
 from dissectors.functions import FUNCTIONS, Registry
+from sniffer import core
 from sniffer.framing import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.pairing import Pairer, default_timeout
@@ -36,6 +40,11 @@ BYTE_ERRORS = ("framing error", "parity error")  # events about the byte before 
 READ_GAPS = 4096  # gaps between host reads that the read resolution is estimated from
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
+# Batches of reads (a reader's, at most MAX_BATCH_SPAN each) held and framed together,
+# up to this many bytes: the framer's cost per call, paid once for many. Reading, framing
+# and pairing 1M frames in-process (19k batches): 16 ms reads 0.54 -> 0.45 s, one frame
+# per packet 0.65 -> 0.64 s (what is left there is the reader's, per batch)
+HOLD_BYTES = 1 << 19
 
 
 @dataclass
@@ -100,6 +109,10 @@ class Pipeline:
         self.channels: dict[int, _Channel] = {}
         self._sample = bytearray()
         self._bus_end: float | None = None  # end of the last frame merged, any channel
+        # batches of reads of one channel not yet handed to its framer (see HOLD_BYTES);
+        # whatever looks at the framers or the store frames them first (`_frame_held`)
+        self._held: list[Reads] = []
+        self._held_bytes = 0
 
     @property
     def multi(self) -> bool:
@@ -111,6 +124,8 @@ class Pipeline:
         if isinstance(chunk, Reads):
             self._feed_reads(chunk)
             return
+        if self._held:
+            self._frame_held()
         if self._frame_starts and chunk.data and chunk.t_start is None:
             # the stamp is when the frame began: it ends when its bytes are through
             end = chunk.t_end + len(chunk.data) * self.line.char_time
@@ -159,6 +174,8 @@ class Pipeline:
             or self._frame_starts
             or (ch.hint_dir is not None and ch.hint_dir[-1:] != [reads.direction])
         ):
+            if self._held:
+                self._frame_held()
             for chunk in reads.split():
                 self.feed(chunk)
             return
@@ -168,8 +185,24 @@ class Pipeline:
                 if not self._estimating:
                     break  # READ_GAPS reached here, as it would be read by read
         ch.fed += len(reads.data)
-        ch.framer.feed_reads(reads)
         ch.last_t = reads.t_end
+        # framed with the batches before it: the framer frames a batch read by read,
+        # so the rows are the same however the reads are cut into batches
+        self._held.append(reads)
+        self._held_bytes += len(reads.data)
+        if self._held_bytes >= HOLD_BYTES:
+            self._frame_held()
+
+    def _frame_held(self) -> None:
+        """Hand the batches held to their channel's framer, as one batch."""
+        held = self._held
+        if not held:
+            return
+        self._held = []
+        self._held_bytes = 0
+        framer = self.channels[held[0].channel].framer
+        assert framer is not None
+        framer.feed_reads(held[0] if len(held) == 1 else _joined(held))
 
     def feed_all(self, chunks: Iterable[Chunk]) -> None:
         for chunk in chunks:
@@ -178,6 +211,7 @@ class Pipeline:
     def sync(self) -> None:
         """Bring the store up to date: complete the framers' rows, merge channels, pair.
         Readers of the store call this (Session.refresh does) before they look."""
+        self._frame_held()
         self._release(final=False)
         self._estimate_resolution()
         self.pairer.update()
@@ -186,6 +220,7 @@ class Pipeline:
     def idle(self, now: float) -> None:
         """Live sources call this when the line has been quiet: bytes buffered in the
         framers are decided, and overdue requests time out."""
+        self._frame_held()
         for ch in self.channels.values():
             if ch.framer is not None and now - ch.last_t >= self.line.t35:
                 ch.framer.idle()
@@ -193,6 +228,7 @@ class Pipeline:
         self.pairer.tick(now)
 
     def finish(self) -> None:
+        self._frame_held()
         for ch in self.channels.values():
             if ch.framer is None:
                 self.mode = self.mode or "rtu"
@@ -255,6 +291,7 @@ class Pipeline:
 
     def too_fast(self) -> tuple[int, float | None]:
         """How many chunks came sooner than the line speed allows, and the first's time."""
+        self._frame_held()
         count, first = 0, None
         for ch in self.channels.values():
             if ch.framer is not None:
@@ -427,3 +464,36 @@ def frame_capture(
 
 
 __all__ = ["Pipeline", "frame_capture"]
+
+
+def _joined(batches: list[Reads]) -> Reads:
+    """Consecutive batches of reads of one channel as one batch (each read's end offset
+    moved by the bytes of the batches before it)."""
+    first, last = batches[0], batches[-1]
+    ends: array[int] = array("q")
+    t_starts: array[float] = array("d")
+    t_ends: array[float] = array("d")
+    fast = core.FAST
+    if fast is not None:  # the compiled copy of the loop below: 3 C calls a batch less
+        data, moved, starts, times = fast.join_reads(batches)
+        ends.frombytes(moved)
+        t_starts.frombytes(starts)
+        t_ends.frombytes(times)
+    else:
+        before = 0
+        for b in batches:
+            ends.extend(map(add, b.ends, repeat(before)) if before else b.ends)
+            t_starts.extend(b.t_starts)
+            t_ends.extend(b.t_ends)
+            before += len(b.data)
+        data = b"".join([b.data for b in batches])
+    return Reads(
+        data,
+        last.t_end,
+        first.t_start,
+        first.channel,
+        first.direction,
+        ends=ends,
+        t_starts=t_starts,
+        t_ends=t_ends,
+    )

