@@ -94,8 +94,8 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
 #define EPB_FLAGS 2
 #define MAX_TIME 1e10
 #define RTAC_MAX_LEAD 60.0
-#define MAX_BATCH_SPAN 0.25
-#define MAX_BATCH_BYTES (1 << 16)
+#define MAX_BATCH_SPAN 4.0
+#define MAX_BATCH_BYTES (1 << 19)
 
 static uint32_t rd32(const unsigned char *p, int big) {
     if (big) return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
@@ -1330,6 +1330,13 @@ PyMODINIT_FUNC PyInit__core(void) {
         "ANSWERED_BROADCAST", F_ANSWERED_BROADCAST, "ASCII", F_ASCII);
     if (vocab == NULL || PyModule_AddObject(m, "VOCAB", vocab) < 0) {
         Py_XDECREF(vocab);
+        Py_DECREF(m);
+        return NULL;
+    }
+    /* the batch limits the pcap walks cut at (sniffer/sources/reads.py says the same) */
+    PyObject *limits = Py_BuildValue("(dn)", MAX_BATCH_SPAN, (Py_ssize_t)MAX_BATCH_BYTES);
+    if (limits == NULL || PyModule_AddObject(m, "BATCH_LIMITS", limits) < 0) {
+        Py_XDECREF(limits);
         Py_DECREF(m);
         return NULL;
     }

@@ -28,7 +28,7 @@ from sniffer.sources.linktypes import (
     RTAC_FRAMING_ERROR,
 )
 from sniffer.sources.pcapng_writer import describe_interface, rtac_record
-from sniffer.sources.reads import Reads, batching
+from sniffer.sources.reads import MAX_BATCH_SPAN, Reads, batching
 from sniffer.synth import polling_frames
 
 T0 = 1_714_564_800.0
@@ -235,8 +235,10 @@ def test_bulk_pcap_walk_gives_the_chunks_and_warnings_of_the_record_walk(
 
 
 def test_data_packets_of_every_shape_come_in_batches(tmp_path: Path) -> None:
-    """The batches are real: a clean capture's reads come as few `Reads`."""
-    reads = [(FRAMES[k % 50], T0 + k * 0.01) for k in range(300)]
+    """The batches are real: a clean capture's reads come as few `Reads`, cut at
+    MAX_BATCH_SPAN seconds (300 reads over 12 spans)."""
+    gap = MAX_BATCH_SPAN / 25
+    reads = [(FRAMES[k % 50], T0 + k * gap) for k in range(300)]
     for shape in SHAPES:
         path = tmp_path / f"{shape.replace(' ', '')}.cap"
         _recording(path, reads, shape)

@@ -31,7 +31,7 @@ from sniffer import core, pipeline
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.pairing import Pairer
 from sniffer.pipeline import Pipeline, _joined
-from sniffer.sources.reads import Reads
+from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads
 from sniffer.stats import Stats, UnitStats, median_gap, nearest_rank
 from sniffer.store import COLUMNS, FrameStore
 from sniffer.sunspec import BASES, SunSpecTracker
@@ -67,6 +67,10 @@ def test_the_compiled_passes_use_the_vocabulary_of_sniffer_vocab() -> None:
         "ASCII": int(Flag.ASCII),
     }
     assert said == fast.VOCAB
+
+
+def test_the_compiled_walks_cut_batches_where_the_python_ones_do() -> None:
+    assert _compiled().BATCH_LIMITS == (MAX_BATCH_SPAN, MAX_BATCH_BYTES)
 
 
 # -- random rows --------------------------------------------------------------------------
