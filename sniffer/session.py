@@ -194,6 +194,17 @@ class Session:
         self.base += rows
         return True
 
+    def _timed(self) -> bool:
+        """Whether the rows framed so far may be counted for good: not while the host
+        reads' resolution is still unknown (`Pipeline` estimates it from the first
+        reads), since the statistics count an answer faster than the stamps resolve as
+        such only once it is known. A whole store counts its rows at the end, or at the
+        first progress (0.25 s in, the resolution long known), and a windowed replay must
+        count them alike; one whose reads never come close enough to tell (a slow poll,
+        a read a second) keeps every row, as before windows."""
+        store = self.store
+        return store.stamps != Stamp.READ_END or store.resolution > 0
+
     def forget_annotation(self) -> None:
         """The annotator's state carried into an emptied store (a new segment): what it
         learnt stays, the rows it learnt it from are gone."""
@@ -282,8 +293,10 @@ class Session:
                             writer.abandon()
                         return
                 if window is not None and len(self.store) >= retry:
-                    self.refresh()
-                    if self.settled():
+                    self.pipeline.sync()
+                    if self._timed():
+                        self.refresh()
+                    if self._timed() and self.settled():
                         if segment is not None:
                             segment(self)
                         if writer is not None:
