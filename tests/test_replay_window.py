@@ -18,6 +18,7 @@ import json
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -285,11 +286,11 @@ def test_the_sidecar_written_and_read_a_segment_at_a_time(
         assert Counted.cuts == 0  # (blocks dropped, nothing framed)
 
 
-def _header(side: Path) -> dict[str, object]:
+def _header(side: Path) -> dict[str, Any]:
     data = side.read_bytes()
     size: int = index._PREFIX.unpack_from(data, len(index.MAGIC))[0]
     start = len(index.MAGIC) + index._PREFIX.size
-    found: dict[str, object] = json.loads(data[start : start + size])
+    found: dict[str, Any] = json.loads(data[start : start + size])
     return found
 
 
