@@ -221,9 +221,18 @@ class PollCycles:
             sent = requests[identity] = _Sent(what, store.fc[i])
         return sent
 
-    def cycles(self) -> dict[int, UnitCycle]:
-        """Every unit's poll cycle, from the requests added so far."""
-        return _cycles(self.sendings)
+    def cycles(self, more: FrameStore | None = None) -> dict[int, UnitCycle]:
+        """Every unit's poll cycle, from the requests added so far and those of `more`
+        (not added: a live window's rows, counted again when the next summary comes)."""
+        if more is None:
+            return _cycles(self.sendings)
+        both = PollCycles()
+        both.sendings = {
+            unit: {key: _Sent(s.what, s.fc, array("d", s.times), s.retries) for key, s in r.items()}
+            for unit, r in self.sendings.items()
+        }
+        both.add(more)
+        return _cycles(both.sendings)
 
 
 def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
