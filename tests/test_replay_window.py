@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import io
 import json
+import random
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,6 +28,7 @@ from hypothesis import strategies as st
 from dissectors.checks import with_crc
 from sniffer import index
 from sniffer import session as session_module
+from sniffer.baud import SpeedCheck, wrong_speed
 from sniffer.cli import build_parser
 from sniffer.cli import replay as replay_cli
 from sniffer.errors import UserError
@@ -36,8 +38,10 @@ from sniffer.serial_source import PortSpec
 from sniffer.session import Session, open_session
 from sniffer.sources.reads import batching
 from sniffer.stats import Stats
-from sniffer.store import COLUMNS
+from sniffer.store import COLUMNS, FrameStore
 from sniffer.synth import polling_frames
+from sniffer.vocab import Flag, Kind
+from tests.random_rows import random_store
 
 ROOT = Path(__file__).resolve().parent.parent
 LINE = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
@@ -321,3 +325,30 @@ def test_a_sidecar_damaged_after_blocks_were_counted_is_indexed_again(
     session, capture = open_session(path)
     session.ingest(capture.chunks())
     assert session.indexed_from is not None
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_baud_check_counted_in_parts_is_that_of_the_whole(seed: int) -> None:
+    rng = random.Random(seed)
+    store = random_store(rng, 600, channels=1 + seed % 2)
+    if seed % 3:  # no valid frame at all, mostly noise: the counts decide
+        for i in range(len(store)):
+            store.flags[i] |= int(Flag.CHECK_BAD)
+            if store.kind[i] != Kind.EVENT and rng.random() < 0.8:
+                store.kind[i] = Kind.NOISE
+    cuts = sorted(rng.sample(range(1, len(store)), rng.randrange(1, 30)))
+    for min_bytes in (1, 64, 5000):
+        check = SpeedCheck()
+        for a in [0, *cuts]:
+            check.add(store, a) if a == cuts[-1] else check.add(_rows(store, a, cuts), 0)
+        assert check.warning(min_bytes) == wrong_speed(store, min_bytes)
+    assert seed % 3 == 0 or wrong_speed(store, 1) is not None
+
+
+def _rows(store: FrameStore, a: int, cuts: list[int]) -> FrameStore:
+    """Rows `a` up to the next cut in a store of their own."""
+    b = next(c for c in cuts if c > a)
+    part = FrameStore(store.streams)
+    for name in COLUMNS:
+        getattr(part, name).extend(getattr(store, name)[a:b])
+    return part
