@@ -121,6 +121,7 @@ class Session:
     def finish(self) -> None:
         self.pipeline.finish()
         self.refresh()
+        self._place_contradiction()
         # what the source's labels and stamps turned out to be worth, said once
         self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
         self.notes.extend(n for n in self.pipeline.timing_notes() if n not in self.notes)
@@ -163,10 +164,7 @@ class Session:
         self.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
         for number, stream in store.streams.items():
             self.stream_base[number] = self.stream_base.get(number, 0) + len(stream)
-        if pipeline.first_contradiction >= 0 and not self._contradiction_placed:
-            # the row a source warning names, numbered in the capture
-            pipeline.first_contradiction += self.base
-            self._contradiction_placed = True
+        self._place_contradiction()
         rows = len(store)
         fresh = FrameStore(store.streams)  # the same bytearrays, emptied below
         fresh.stamps, fresh.resolution = store.stamps, store.resolution
@@ -193,6 +191,14 @@ class Session:
         self.store = fresh
         self.base += rows
         return True
+
+    def _place_contradiction(self) -> None:
+        """The row a source warning names (the first frame labelled against its
+        content), numbered in the whole capture once its segment ends."""
+        pipeline = self.pipeline
+        if pipeline.first_contradiction >= 0 and not self._contradiction_placed:
+            pipeline.first_contradiction += self.base
+            self._contradiction_placed = True
 
     def _timed(self) -> bool:
         """Whether the rows framed so far may be counted for good: not while the host

@@ -352,3 +352,25 @@ def _rows(store: FrameStore, a: int, cuts: list[int]) -> FrameStore:
     for name in COLUMNS:
         getattr(part, name).extend(getattr(store, name)[a:b])
     return part
+
+
+def test_the_row_a_source_warning_names_is_numbered_in_the_capture(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A frame labelled against its content, late in a log: the warning names its row in
+    the whole capture, not in the segment it was in."""
+    monkeypatch.setenv("MODSCOPE_NO_INDEX", "1")
+    lines = ["Modbus poll log, COM4 19200 8N2"]
+    for k in range(60):
+        t = f"12:00:{k // 2:02d}.{(k % 2) * 500:03d}"
+        request, answer = ("RX", "TX") if k in (41, 50) else ("TX", "RX")
+        lines.append(f"{t} {request}: {READ.hex(' ').upper()}")
+        lines.append(f"{t[:-3]}{(k % 2) * 500 + 40:03d} {answer}: {ANSWER.hex(' ').upper()}")
+    path = tmp_path / "poll.log"
+    path.write_text("\n".join(lines) + "\n")
+    whole = replayed([str(path)], None)
+    assert "labelled against their content (the first is row 82)" in whole[1]
+    for window in (1, 3, 10, 90):
+        Counted.cuts = 0
+        assert replayed([str(path)], window) == whole
+        assert Counted.cuts > (10 if window < 10 else 0)
