@@ -282,50 +282,50 @@ class Session:
 
             writer = sidecar.Writer(self._sidecar[0])
         retry = window or 0  # rows in the store before the next try at a new segment
-        # readers may pass runs of reads as one batch (sniffer.sources.reads): the
-        # pipeline frames them read by read, so the rows are the same
-        with batching(self.batch_reads):
-            for chunk in chunks:
-                self.feed(chunk)
-                done += len(chunk.data)
-                now = time.monotonic()
-                if now - last >= every:
-                    last = now
-                    self.refresh()
-                    if progress is not None:
-                        progress(done, self.base + len(self.store))
-                    if should_stop is not None and should_stop():
-                        if writer is not None:
-                            writer.abandon()
-                        return
-                if window is not None and len(self.store) >= retry:
-                    self.pipeline.sync()
-                    if self._timed():
+        try:
+            # readers may pass runs of reads as one batch (sniffer.sources.reads): the
+            # pipeline frames them read by read, so the rows are the same
+            with batching(self.batch_reads):
+                for chunk in chunks:
+                    self.feed(chunk)
+                    done += len(chunk.data)
+                    now = time.monotonic()
+                    if now - last >= every:
+                        last = now
                         self.refresh()
-                    if self._timed() and self.settled():
-                        if segment is not None:
-                            segment(self)
-                        if writer is not None:
-                            writer.add(self)
-                        self.new_segment()
-                        retry = window
-                    else:  # try again once some more rows came (the test costs a scan)
-                        retry = len(self.store) + max(1, window // 8)
-        self.finish()
-        if segment is not None:
-            segment(self)
-        if self._sidecar is not None:
-            from sniffer import index as sidecar
+                        if progress is not None:
+                            progress(done, self.base + len(self.store))
+                        if should_stop is not None and should_stop():
+                            return
+                    if window is not None and len(self.store) >= retry:
+                        self.pipeline.sync()
+                        if self._timed():
+                            self.refresh()
+                        if self._timed() and self.settled():
+                            if segment is not None:
+                                segment(self)
+                            if writer is not None:
+                                writer.add(self)
+                            self.new_segment()
+                            retry = window
+                        else:  # try again once more rows came (the test costs a scan)
+                            retry = len(self.store) + max(1, window // 8)
+            self.finish()
+            if segment is not None:
+                segment(self)
+            if self._sidecar is not None:
+                from sniffer import index as sidecar
 
-            path, capture, key = self._sidecar
-            if capture.finished:  # read to its end
-                if writer is not None:
-                    writer.add(self)
-                    writer.close(self, capture, key)
-                else:
-                    sidecar.save(self, capture, path, key)
-                self._sidecar = None
-            elif writer is not None:
+                path, capture, key = self._sidecar
+                if capture.finished:  # read to its end
+                    if writer is not None:
+                        writer.add(self)
+                        writer.close(self, capture, key)
+                    else:
+                        sidecar.save(self, capture, path, key)
+                    self._sidecar = None
+        finally:
+            if writer is not None:  # (no half-written sidecar left behind: Ctrl-C)
                 writer.abandon()
         if progress is not None:
             progress(done, self.base + len(self.store))

@@ -374,3 +374,25 @@ def test_the_row_a_source_warning_names_is_numbered_in_the_capture(
         Counted.cuts = 0
         assert replayed([str(path)], window) == whole
         assert Counted.cuts > (10 if window < 10 else 0)
+
+
+def test_an_interrupted_replay_leaves_no_half_written_sidecar(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
+    monkeypatch.setattr(index, "MIN_SIZE", 0)
+    steps = ["read", "read2", "silent"] * 40
+    path = recorded(tmp_path / "bus.pcapng", reads_of(scripted(steps, [0.02]), 0.004))
+    calls = 0
+
+    def interrupted(self: Session) -> bool:
+        nonlocal calls
+        calls += 1
+        if calls == 3:
+            raise KeyboardInterrupt
+        return True
+
+    monkeypatch.setattr(Session, "settled", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        replayed([str(path)], 2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bus.pcapng"]
