@@ -182,7 +182,13 @@ def write_listing(
     out: TextIO, args: argparse.Namespace, session: Session, query: Query | None
 ) -> None:
     """The rows a filter and -c let through, in the format asked for (text by default),
-    by `--jobs` processes over ranges of rows when that pays (see `sniffer.parallel`)."""
+    by `--jobs` processes over ranges of rows when that pays (see `sniffer.parallel`).
+
+    Not windowed (every row stays in the store, unlike `--stats`): the workers take
+    ranges of one store, the filter and relative times count from its rows, a row is
+    described with what the annotator learnt from the whole capture (SunSpec models,
+    parameter windows found later), and the warnings come before the rows; listing
+    each segment as it goes, as live does, would change some of that."""
     fmt = args.format or "text"
     selection = Selection(session, query, args.count)
     origin = selection.origin()  # what relative times count from, in every range
