@@ -38,15 +38,15 @@ import tempfile
 import zlib
 from array import array
 from collections.abc import Callable, Mapping
-from functools import cache
-from itertools import compress, repeat
+from functools import cache, lru_cache
+from itertools import compress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sniffer import __version__
 from sniffer.columns import marking
 from sniffer.model import Stamp
-from sniffer.store import COLUMNS
+from sniffer.store import COLUMNS, NO_PARTNER
 from sniffer.vocab import Kind
 
 if TYPE_CHECKING:
@@ -478,18 +478,35 @@ def _renumber(
     channels = store.channel[a:b]
     present = set(channels.tobytes())
     if len(present) == 1:
-        by = bases.get(next(iter(present)), 0)
-        shifted = array(offset.typecode, map(operator.add, offset, repeat(by)))
+        shifted = _plus(offset, bases.get(next(iter(present)), 0))
     else:
         shifted = array(
             offset.typecode,
             (o + bases.get(ch, 0) for o, ch in zip(offset, channels, strict=True)),
-        )
+        ).tobytes()
     partner = store.partner[a:b]
+    parts[COLUMNS.index("offset")] = memoryview(shifted)
     if base:
         partner = array(partner.typecode, (p if p < 0 else p + base for p in partner))
-    parts[COLUMNS.index("offset")] = memoryview(shifted).cast("B")
-    parts[COLUMNS.index("partner")] = memoryview(partner).cast("B")
+        parts[COLUMNS.index("partner")] = memoryview(partner).cast("B")
+
+
+def _plus(column: array[int] | memoryview, by: int) -> bytes:
+    """The bytes of `column` (unsigned words: offsets) with `by` added to every value;
+    every result must fit its word (a word never carries into the next). The column is
+    taken as one big integer and `by` times a word of 1 at every row added to it, in C:
+    for 65,536 offsets 1.1-1.5 ms, where `array(map(add, ...))` takes 3-6 ms (about
+    1.5 s of a 30M-frame day's sidecar, written or read back)."""
+    raw = column.tobytes()
+    size = column.itemsize
+    total = int.from_bytes(raw, sys.byteorder) + by * _ones(len(raw) // size, size)
+    return total.to_bytes(len(raw), sys.byteorder)
+
+
+@lru_cache(maxsize=4)
+def _ones(rows: int, size: int) -> int:
+    """`rows` words of `size` bytes, each holding 1, as one integer (native order)."""
+    return int.from_bytes((1).to_bytes(size, sys.byteorder) * rows, sys.byteorder)
 
 
 def _stats_header(session: Session) -> dict[str, Any]:
@@ -558,7 +575,9 @@ def load(
     is given its rows in the store (row `i` is row `session.base + i` of the capture,
     offsets counted from `session.stream_base`), then they are dropped, as a windowed
     `Session.ingest` drops its segments; the last block's rows stay. Rows handed to it
-    are never taken back: a damaged block after the first raises `DamagedError`.
+    are never taken back: a damaged block after the first raises `DamagedError`. (A
+    block may begin with the answer to a request at the end of the block before: its
+    partner is then given as none.)
 
     The rows come block by block, each checked (CRC-32, rows inside their bytes) before
     it joins the store, and `progress(bytes, rows)` is called after each block, the
@@ -821,17 +840,20 @@ def _local(
         by = bases.get(next(iter(present)), 0)
         if min(offset) < by:
             return None
-        shifted = array("Q", map(operator.sub, offset, repeat(by)))
+        shifted = _plus(offset, -by)
     else:
-        shifted = array("Q")
+        local = array("Q")
         for o, ch in zip(offset, channel, strict=True):
             by = bases.get(ch, 0)
             if o < by:
                 return None
-            shifted.append(o - by)
-    partner = array("i", (p if p < 0 else p - base for p in columns["partner"]))
-    out = dict(columns)
-    out["offset"] = memoryview(shifted)  # (the typecodes the header was checked for)
+            local.append(o - by)
+        shifted = local.tobytes()
+    # a partner in a block dropped before (a request at the end of the block before, its
+    # answer here) is given as none: the rows a partner points at must exist
+    partner = array("i", (p - base if p >= base else NO_PARTNER for p in columns["partner"]))
+    out = dict(columns)  # (the typecodes the header was checked for)
+    out["offset"] = memoryview(shifted).cast("Q")
     out["partner"] = memoryview(partner)
     return out
 

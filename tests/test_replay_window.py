@@ -17,6 +17,7 @@ import io
 import json
 import random
 import re
+from array import array
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -396,3 +397,15 @@ def test_an_interrupted_replay_leaves_no_half_written_sidecar(
     with pytest.raises(KeyboardInterrupt):
         replayed([str(path)], 2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bus.pcapng"]
+
+
+@pytest.mark.parametrize("rows", [0, 1, 5, 4096])
+def test_offsets_renumbered_as_one_big_integer(rows: int) -> None:
+    rng = random.Random(rows)
+    offsets = array("Q", sorted(rng.randrange(1 << 40) for _ in range(rows)))
+    for by in (0, 1, 123_456_789, 1 << 41):
+        assert index._plus(offsets, by) == array("Q", (o + by for o in offsets)).tobytes()
+    least = min(offsets, default=0)
+    for by in (least, least // 2):
+        local = index._plus(memoryview(offsets), -by)
+        assert local == array("Q", (o - by for o in offsets)).tobytes()
