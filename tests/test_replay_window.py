@@ -256,14 +256,17 @@ def _sidecar_of(path: Path) -> Path:
     return Path(str(path) + index.SUFFIX)
 
 
+@pytest.mark.parametrize("reserve", [index.RESERVE, 64])
 def test_the_sidecar_written_and_read_a_segment_at_a_time(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, reserve: int
 ) -> None:
     """A windowed replay writes the sidecar a whole store would (but where its blocks
     end); read back a block at a time it gives the same output, and read whole (the TUI,
-    the listings) the rows indexing gives."""
+    the listings) the rows indexing gives. (With too little room for the header, it is
+    written in front of a copy of the blocks.)"""
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "RESERVE", reserve)
     monkeypatch.setattr(index, "BLOCK", 40)  # several blocks a segment, too
     steps = ["read", "read2", "write", "silent", "broadcast", "exception", "retry"] * 30
     path = recorded(tmp_path / "bus.pcapng", reads_of(scripted(steps, [0.02, 0.4]), 0.004))
@@ -277,6 +280,10 @@ def test_the_sidecar_written_and_read_a_segment_at_a_time(
         assert replayed([str(path)], window) == whole  # indexed, the sidecar written
         header = _header(_sidecar_of(path))
         assert len(header["blocks"]) > len(fresh.store) // 100
+        assert sorted(p.name for p in tmp_path.iterdir()) == [
+            "bus.pcapng",
+            "bus.pcapng" + index.SUFFIX,
+        ]
         session, capture = open_session(path)
         session.ingest(capture.chunks())  # read whole, as the TUI and the listings do
         assert session.indexed_from is not None
