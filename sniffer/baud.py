@@ -129,25 +129,52 @@ def choose_format(
 def wrong_speed(store: FrameStore, min_bytes: int = 64) -> str | None:
     """A warning when a capture's bytes look read at the wrong speed: many bytes, no
     check-valid frame (and line errors, where the source reported them)."""
-    store.sync()
-    kinds = store.kind.tobytes()
-    # one valid frame is enough: the speed is right (the columns scanned in C: a row at a
-    # time, with flag operators, this cost about 2.5 us a row when no frame was valid)
-    if 1 in but_not(kinds.translate(_IS_FRAME), flag_mask(store.flags, BAD_CHECK)):
-        return None
-    on_bus = kinds.translate(_IS_BUS_BYTES)  # every row but events
-    total = sum(compress(store.length, on_bus))
-    noise = sum(compress(store.length, kinds.translate(_IS_NOISE)))
-    if total < min_bytes or noise < total // 2:
-        return None
-    errors = both(on_bus, flag_mask(store.flags, int(Flag.LINE_ERROR))).count(1)
-    lead = f"{total} bytes and no valid Modbus frame"
-    if errors:
-        lead += f" ({errors} rows with framing or parity errors)"
-    return (
-        f"{lead}: were these bytes read at the wrong speed or format? "
-        "On the line itself, `modscope scan PORT` finds its settings"
-    )
+    check = SpeedCheck()
+    check.add(store)
+    return check.warning(min_bytes)
+
+
+class SpeedCheck:
+    """`wrong_speed` over rows given in parts (`add`): a whole store, or the segments of
+    a windowed session one after the other. It keeps three counts."""
+
+    def __init__(self) -> None:
+        self.valid = False  # a check-valid frame was seen: the speed is right
+        self.total = 0  # bytes of every row but events
+        self.noise = 0  # bytes of noise rows
+        self.errors = 0  # rows (but events) with framing or parity errors
+
+    def add(self, store: FrameStore, start: int = 0) -> None:
+        """Count the rows of `store` from `start` on."""
+        if self.valid:
+            return
+        store.sync()
+        n = len(store)
+        kinds = store.kind[start:n].tobytes()
+        # one valid frame is enough: the speed is right (the columns scanned in C: a row
+        # at a time, with flag operators, this cost about 2.5 us a row when no frame was
+        # valid)
+        if 1 in but_not(kinds.translate(_IS_FRAME), flag_mask(store.flags, BAD_CHECK, start, n)):
+            self.valid = True
+            return
+        lengths = store.length[start:n]
+        on_bus = kinds.translate(_IS_BUS_BYTES)  # every row but events
+        self.total += sum(compress(lengths, on_bus))
+        self.noise += sum(compress(lengths, kinds.translate(_IS_NOISE)))
+        self.errors += both(on_bus, flag_mask(store.flags, int(Flag.LINE_ERROR), start, n)).count(1)
+
+    def warning(self, min_bytes: int = 64) -> str | None:
+        """The warning, for the rows added so far (None: no reason to doubt the speed)."""
+        total = self.total
+        if self.valid or total < min_bytes or self.noise < total // 2:
+            return None
+        lead = f"{total} bytes and no valid Modbus frame"
+        if self.errors:
+            lead += f" ({self.errors} rows with framing or parity errors)"
+        return (
+            f"{lead}: were these bytes read at the wrong speed or format? "
+            "On the line itself, `modscope scan PORT` finds its settings"
+        )
 
 
 _IS_BUS_BYTES = marking(k for k in range(256) if k != Kind.EVENT)  # kind byte -> 0/1

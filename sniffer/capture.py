@@ -138,6 +138,9 @@ class LiveCapture:
         self.window = window
         self.gather = gather
         self.segments = 0  # new segments started
+        # given the rows of each segment just before they are dropped (what counts over
+        # the whole capture: the --stats poll cycle, `sniffer.pollcycle.PollCycles`)
+        self.segment: Callable[[Session], None] | None = None
         if window is not None and session is not None:
             # the statistics too: counted per printed figure, not kept value by value
             session.stats.bound()
@@ -283,7 +286,11 @@ class LiveCapture:
 
     def _cut(self) -> None:
         assert self.session is not None
-        if self.shown == len(self.session.store) and self.session.new_segment():
+        session = self.session
+        if self.shown == len(session.store) and session.settled():
+            if self.segment is not None:
+                self.segment(session)
+            session.new_segment()
             self.shown = 0
             self.segments += 1
             if self.publisher is not None:

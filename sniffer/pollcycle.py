@@ -12,7 +12,7 @@ from __future__ import annotations
 from array import array
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from itertools import chain, compress, repeat
+from itertools import compress, repeat
 from operator import add, lt, sub
 
 from dissectors.dissect import dissect
@@ -139,41 +139,75 @@ def _plain_what(body: bytes) -> tuple[tuple[object, ...], str] | None:
 _IS_REQUEST = marking((Kind.REQUEST,))  # kind byte -> 0/1
 _FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC
 _RETRY = int(Flag.RETRY)
-_Sendings = dict[int, dict[tuple[object, ...], tuple[str, int, list["array[int]"]]]]
 
 
-# rows looked at a block at a time: what a block's keys and row numbers hold is freed
-# before the next, so the memory the poll cycle takes beyond its groups does not grow
-# with the capture (the whole 1M-frame capture at once took 80 MB more at its peak;
-# a 30M-frame day, 2.4 GB)
+# rows looked at a block at a time: what a block's keys hold is freed before the next,
+# so the memory the poll cycle takes beyond the times it keeps does not grow with the
+# capture (the whole 1M-frame capture at once took 80 MB more at its peak; a 30M-frame
+# day, 2.4 GB)
 BLOCK = 1 << 16
 
 
-def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
-    """Every unit's poll cycle, from the requests in `store`."""
-    store.sync()
-    # the requests with a good check, picked out of the columns in C
-    requests = but_not(
-        store.kind.tobytes().translate(_IS_REQUEST), flag_mask(store.flags, BAD_CHECK)
-    )
-    # a polling master sends the same requests all day: the rows are grouped by their
-    # bytes, and each distinct request is taken apart once (1M frames, 500k requests:
-    # 0.36 s, against 1.15 s looking up a dissection and the columns row by row); the
-    # row numbers of a group are kept as an array of 8-byte ints
-    by_key: dict[object, array[int]] = {}
-    for lo in range(0, len(requests), BLOCK):
-        hi = min(lo + BLOCK, len(requests))
-        mask = requests[lo:hi]
-        if 1 not in mask:
-            continue
-        for key, i in zip(_keys(store, lo, mask), compress(range(lo, hi), mask), strict=True):
-            found = by_key.get(key)
-            if found is None:
-                found = by_key[key] = array("q")
-            found.append(i)
-    sendings: _Sendings = {}
-    for key, sent in by_key.items():  # in order of first sending
-        i = sent[0]
+@dataclass(slots=True)
+class _Sent:
+    """The sendings of one request (one identity of one unit): their times in the order
+    of their rows, and how many were retries."""
+
+    what: str
+    fc: int
+    times: array[float] = field(default_factory=lambda: array("d"))
+    retries: int = 0
+
+
+class PollCycles:
+    """The poll cycle counted over rows given in parts (`add`): a whole store, or the
+    segments of a windowed session one after the other (`sniffer.session.Session.window`),
+    whose rows are then gone. What it keeps of each request with a good check is its time
+    (8 bytes): the period, jitter and gaps are quantiles and comparisons of the exact
+    waits, so nothing coarser gives the same table. `cycles()` gives what `poll_cycles`
+    of one store holding every row gives."""
+
+    def __init__(self) -> None:
+        # unit -> identity -> sendings, each in order of its first sending
+        self.sendings: dict[int, dict[tuple[object, ...], _Sent]] = {}
+
+    def add(self, store: FrameStore, start: int = 0) -> None:
+        """Count the requests among the rows of `store` from `start` on."""
+        store.sync()
+        n = len(store)
+        if start >= n:
+            return
+        # the requests with a good check, picked out of the columns in C
+        requests = but_not(
+            store.kind[start:n].tobytes().translate(_IS_REQUEST),
+            flag_mask(store.flags, BAD_CHECK, start, n),
+        )
+        # a polling master sends the same requests all day: each distinct request (its
+        # bytes) is taken apart once a call (1M frames, 500k requests: 0.36 s, against
+        # 1.15 s looking up a dissection and the columns row by row)
+        found: dict[object, _Sent] = {}
+        t = store.t
+        for lo in range(start, n, BLOCK):
+            hi = min(lo + BLOCK, n)
+            mask = requests[lo - start : hi - start]
+            if 1 not in mask:
+                continue
+            keys = _keys(store, lo, mask)
+            for key, i, when in zip(
+                keys, compress(range(lo, hi), mask), compress(t[lo:hi], mask), strict=True
+            ):
+                sent = found.get(key)
+                if sent is None:
+                    sent = found[key] = self._sent(store, key, i)
+                sent.times.append(when)
+            retried = both(mask, flag_mask(store.flags, _RETRY, lo, hi))
+            if 1 in retried:
+                for key, retry in zip(keys, compress(retried, mask), strict=True):
+                    if retry:
+                        found[key].retries += 1
+
+    def _sent(self, store: FrameStore, key: object, i: int) -> _Sent:
+        """Where the sendings of row `i`'s request (`key`: its bytes) are counted."""
         # the key is the row's bytes (and framing), so it fixes the unit and body too
         if isinstance(key, bytes):
             unit, body = store.unit[i], key[:-2]
@@ -181,10 +215,31 @@ def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
             view = store.view(i)
             unit, body = view.unit, view.body()
         identity, what = _what(body)  # writes with other values: the same identity
-        found_ = sendings.setdefault(unit, {}).setdefault(identity, (what, store.fc[i], []))
-        found_[2].append(sent)
-    retried = set(compress(range(len(store)), both(requests, flag_mask(store.flags, _RETRY))))
-    return _cycles(store, sendings, retried)
+        requests = self.sendings.setdefault(unit, {})
+        sent = requests.get(identity)
+        if sent is None:
+            sent = requests[identity] = _Sent(what, store.fc[i])
+        return sent
+
+    def cycles(self, more: FrameStore | None = None) -> dict[int, UnitCycle]:
+        """Every unit's poll cycle, from the requests added so far and those of `more`
+        (not added: a live window's rows, counted again when the next summary comes)."""
+        if more is None:
+            return _cycles(self.sendings)
+        both = PollCycles()
+        both.sendings = {
+            unit: {key: _Sent(s.what, s.fc, array("d", s.times), s.retries) for key, s in r.items()}
+            for unit, r in self.sendings.items()
+        }
+        both.add(more)
+        return _cycles(both.sendings)
+
+
+def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
+    """Every unit's poll cycle, from the requests in `store`."""
+    found = PollCycles()
+    found.add(store)
+    return found.cycles()
 
 
 def _keys(store: FrameStore, lo: int, rows: bytes) -> list[object]:
@@ -222,18 +277,16 @@ def _keys(store: FrameStore, lo: int, rows: bytes) -> list[object]:
     return keys
 
 
-def _cycles(store: FrameStore, sendings: _Sendings, retried: set[int]) -> dict[int, UnitCycle]:
-    """The cycles of the requests sent (the rows of each, in one or more lists)."""
+def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, UnitCycle]:
+    """The cycles of the requests sent (the times of each)."""
     out: dict[int, UnitCycle] = {}
     for unit, requests in sorted(sendings.items()):
         cycle = out[unit] = UnitCycle(unit)
-        for what, fc, parts in requests.values():
-            sent = parts[0] if len(parts) == 1 else sorted(chain.from_iterable(parts))
-            if len(sent) < MIN_REPEATS:
+        for sent in requests.values():
+            if len(sent.times) < MIN_REPEATS:
                 cycle.once += 1
                 continue
-            times = list(map(store.t.__getitem__, sent))
-            retries = sum(map(retried.__contains__, sent)) if retried else 0
+            times = sent.times.tolist()
             waits = list(map(sub, times[1:], times[:-1]))
             ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
             period = _rank(ordered, 0.5)
@@ -246,15 +299,15 @@ def _cycles(store: FrameStore, sendings: _Sendings, retried: set[int]) -> dict[i
             cycle.polls.append(
                 Poll(
                     unit,
-                    fc,
-                    what,
+                    sent.fc,
+                    sent.what,
                     len(times),
                     period,
                     jitter,
                     gaps,
                     times[0],
                     times[-1],
-                    retries,
+                    sent.retries,
                 )
             )
         cycle.polls.sort(key=lambda p: (p.period, p.what))

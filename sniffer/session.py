@@ -19,7 +19,7 @@ from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.sources.reads import Reads, batching
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
-from sniffer.vocab import Status
+from sniffer.vocab import Kind, Status
 
 
 def _demo_file(name: str) -> Path:
@@ -85,10 +85,20 @@ class Session:
         # rows of earlier segments (a windowed live capture, see new_segment): row i of
         # `store` is row `base + i` of the capture
         self.base = 0
+        # what the dropped rows leave behind: each channel's bytes before its stream's
+        # start (`stream_base`), and how many of them were frames (not noise or events)
+        self.stream_base: dict[int, int] = {}
+        self.frames_before = 0
+        self._contradiction_placed = False  # pipeline.first_contradiction counts from 0
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
         # the sidecar index (sniffer.index): where it came from, or what to save it as
         self.indexed_from: Path | None = None
         self._sidecar: tuple[Path, Capture, str] | None = None
+
+    @property
+    def indexing(self) -> bool:
+        """Whether `ingest` will read or write a sidecar index (see `open_session`)."""
+        return self._sidecar is not None
 
     @property
     def mode(self) -> str:
@@ -111,20 +121,16 @@ class Session:
     def finish(self) -> None:
         self.pipeline.finish()
         self.refresh()
+        self._place_contradiction()
         # what the source's labels and stamps turned out to be worth, said once
         self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
         self.notes.extend(n for n in self.pipeline.timing_notes() if n not in self.notes)
 
-    def new_segment(self) -> bool:
-        """Forget the rows framed so far and go on in an empty store, numbering rows on
-        from where they were (`base`): what keeps a headless live capture's memory
-        bounded. Only at a settled moment: every byte read decided, no request waiting
-        for its answer or its timeout, no row waiting to be merged or counted; False
-        (nothing done) otherwise. The framers, the pairer, the annotation state and the
-        statistics carry on as they are, so the rows that follow are those one store
-        would have had, shifted by `base`. Callers must be done with the old rows (listed,
-        exported, published) and tell every consumer that numbers rows (see
-        `sniffer.capture.LiveCapture.cut`)."""
+    def settled(self) -> bool:
+        """Whether the store may be dropped now (see `new_segment`): every byte read
+        decided, no request waiting for its answer or its timeout, no row waiting to be
+        merged; the caller brings pairing and the statistics up to date first
+        (`refresh`)."""
         pipeline = self.pipeline
         store = self.store
         if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
@@ -137,6 +143,28 @@ class Session:
                 return False
             if ch.staging is not None and ch.read < len(ch.staging):
                 return False
+        return True
+
+    def new_segment(self) -> bool:
+        """Forget the rows framed so far and go on in an empty store, numbering rows on
+        from where they were (`base`): what keeps a headless live capture's memory
+        bounded, and a replay's (`ingest` with a window). Only at a settled moment
+        (`settled`); False (nothing done) otherwise. The framers, the pairer, the
+        annotation state and the statistics carry on as they are, so the rows that follow
+        are those one store would have had, shifted by `base` (their offsets by
+        `stream_base`). Callers must be done with the old rows (listed, exported,
+        published, counted) and tell every consumer that numbers rows (see
+        `sniffer.capture.LiveCapture.cut`)."""
+        if not self.settled():
+            return False
+        pipeline = self.pipeline
+        store = self.store
+        store.sync()
+        kinds = store.kind.tobytes()
+        self.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
+        for number, stream in store.streams.items():
+            self.stream_base[number] = self.stream_base.get(number, 0) + len(stream)
+        self._place_contradiction()
         rows = len(store)
         fresh = FrameStore(store.streams)  # the same bytearrays, emptied below
         fresh.stamps, fresh.resolution = store.stamps, store.resolution
@@ -156,6 +184,36 @@ class Session:
         pipeline.pairer.store = fresh
         pipeline.pairer.next = 0
         pipeline._hint_checked = 0
+        self.forget_annotation()
+        self.stats.store = fresh
+        self.stats.next = 0
+        self.describer = Describer(fresh, self.annotator, self.describer.size)
+        self.store = fresh
+        self.base += rows
+        return True
+
+    def _place_contradiction(self) -> None:
+        """The row a source warning names (the first frame labelled against its
+        content), numbered in the whole capture once its segment ends."""
+        pipeline = self.pipeline
+        if pipeline.first_contradiction >= 0 and not self._contradiction_placed:
+            pipeline.first_contradiction += self.base
+            self._contradiction_placed = True
+
+    def _timed(self) -> bool:
+        """Whether the rows framed so far may be counted for good: not while the host
+        reads' resolution is still unknown (`Pipeline` estimates it from the first
+        reads), since the statistics count an answer faster than the stamps resolve as
+        such only once it is known. A whole store counts its rows at the end, or at the
+        first progress (0.25 s in, the resolution long known), and a windowed replay must
+        count them alike; one whose reads never come close enough to tell (a slow poll,
+        a read a second) keeps every row, as before windows."""
+        store = self.store
+        return store.stamps != Stamp.READ_END or store.resolution > 0
+
+    def forget_annotation(self) -> None:
+        """The annotator's state carried into an emptied store (a new segment): what it
+        learnt stays, the rows it learnt it from are gone."""
         self.annotator.next = 0
         for track in self.annotator.tracks.values():  # the parameter selected last
             if track.rows:
@@ -164,12 +222,6 @@ class Session:
             for history in unit.scale.values():
                 if history.rows:
                     history.rows, history.values = [-1], history.values[-1:]
-        self.stats.store = fresh
-        self.stats.next = 0
-        self.describer = Describer(fresh, self.annotator, self.describer.size)
-        self.store = fresh
-        self.base += rows
-        return True
 
     def ingest(
         self,
@@ -180,6 +232,8 @@ class Session:
         *,
         shown: bool = False,
         index: bool = True,
+        window: int | None = None,
+        segment: Callable[[Session], None] | None = None,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds.
 
@@ -187,7 +241,17 @@ class Session:
         block at a time, with progress after each block. `shown`: another thread shows
         the rows reported to `progress`, so they are never taken back: a sidecar found
         damaged after some raises `sniffer.index.DamagedError` (else the capture is indexed
-        again). `index` False: the sidecar is neither read nor written."""
+        again). `index` False: the sidecar is neither read nor written.
+
+        `window`: rows the store may hold before they are dropped (at the next settled
+        moment, `new_segment`): memory stays bounded whatever the size of the capture.
+        `segment(session)` is called with each segment's rows in `session.store` (row
+        `i` is row `session.base + i` of the capture) just before they are dropped, and
+        with the last segment's once every row has been read: what needs every row
+        (`sniffer.pollcycle.PollCycles`, `sniffer.baud.SpeedCheck`) counts them there.
+        The statistics carry on across segments (bound them: `Stats.bound`). The
+        sidecar is then written a segment at a time (`sniffer.index.Writer`), and read
+        back a block at a time, each block a segment."""
         if not index:
             self._sidecar = None
         if self._sidecar is not None and self.indexed_from is None and not len(self.store):
@@ -197,36 +261,74 @@ class Session:
 
             path, capture, key = self._sidecar
             self.indexed_from = sidecar.load(
-                self, capture, path, key, progress, should_stop, shown=shown
+                self,
+                capture,
+                path,
+                key,
+                progress,
+                should_stop,
+                shown=shown,
+                segment=segment if window is not None else None,
             )
         if self.indexed_from is not None:
+            if segment is not None:
+                segment(self)  # every row, or (windowed) the last block's
             return
         last = time.monotonic()
         done = 0
-        # readers may pass runs of reads as one batch (sniffer.sources.reads): the
-        # pipeline frames them read by read, so the rows are the same
-        with batching(self.batch_reads):
-            for chunk in chunks:
-                self.feed(chunk)
-                done += len(chunk.data)
-                now = time.monotonic()
-                if now - last >= every:
-                    last = now
-                    self.refresh()
-                    if progress is not None:
-                        progress(done, len(self.store))
-                    if should_stop is not None and should_stop():
-                        return
-        self.finish()
-        if self._sidecar is not None:
+        writer = None
+        if window is not None and self._sidecar is not None:
             from sniffer import index as sidecar
 
-            path, capture, key = self._sidecar
-            if capture.finished:  # read to its end
-                sidecar.save(self, capture, path, key)
-                self._sidecar = None
+            writer = sidecar.Writer(self._sidecar[0])
+        retry = window or 0  # rows in the store before the next try at a new segment
+        try:
+            # readers may pass runs of reads as one batch (sniffer.sources.reads): the
+            # pipeline frames them read by read, so the rows are the same
+            with batching(self.batch_reads):
+                for chunk in chunks:
+                    self.feed(chunk)
+                    done += len(chunk.data)
+                    now = time.monotonic()
+                    if now - last >= every:
+                        last = now
+                        self.refresh()
+                        if progress is not None:
+                            progress(done, self.base + len(self.store))
+                        if should_stop is not None and should_stop():
+                            return
+                    if window is not None and len(self.store) >= retry:
+                        self.pipeline.sync()
+                        if self._timed():
+                            self.refresh()
+                        if self._timed() and self.settled():
+                            if segment is not None:
+                                segment(self)
+                            if writer is not None:
+                                writer.add(self)
+                            self.new_segment()
+                            retry = window
+                        else:  # try again once more rows came (the test costs a scan)
+                            retry = len(self.store) + max(1, window // 8)
+            self.finish()
+            if segment is not None:
+                segment(self)
+            if self._sidecar is not None:
+                from sniffer import index as sidecar
+
+                path, capture, key = self._sidecar
+                if capture.finished:  # read to its end
+                    if writer is not None:
+                        writer.add(self)
+                        writer.close(self, capture, key)
+                    else:
+                        sidecar.save(self, capture, path, key)
+                    self._sidecar = None
+        finally:
+            if writer is not None:  # (no half-written sidecar left behind: Ctrl-C)
+                writer.abandon()
         if progress is not None:
-            progress(done, len(self.store))
+            progress(done, self.base + len(self.store))
 
 
 def open_session(

@@ -22,7 +22,7 @@ from dissectors.checks import with_crc
 from sniffer.capture import GlobalRows, LiveCapture
 from sniffer.cli.backlog import Backlog
 from sniffer.cli.filtering import Selection
-from sniffer.cli.live import stream
+from sniffer.cli.live import Summary, stream
 from sniffer.export import PcapExporter
 from sniffer.listing import Lister
 from sniffer.model import Chunk, LineSettings
@@ -310,3 +310,34 @@ def test_the_tui_keeps_every_row() -> None:
         capture.pump(0)
     capture.stop()
     assert session.base == 0 and len(session.store) == 5 and capture.segments == 0
+
+
+def _summary(batches: Sequence[list[Chunk]], window: int | None, whole: bool) -> str:
+    """What `modscope live --stats` prints on stderr when the capture ends."""
+    session = Session(FAST, source="played", merge_slack=LIVE_MERGE_SLACK)
+    capture = LiveCapture(Played(FAST, batches), session, quiet=float("inf"), window=window)
+    err = io.StringIO()
+    summary = Summary(session, err, {}, None, capture if whole else None)
+    out = io.StringIO()
+    lister = Lister(io.StringIO(), "jsonl", GlobalRows(session))
+    stream(capture, lister, None, None, Backlog(out), None, Selection(session, None, None), summary)
+    assert window is None or capture.segments >= 10
+    return err.getvalue()
+
+
+def test_the_poll_cycle_of_a_windowed_capture_covers_every_segment() -> None:
+    """With --stats the poll cycle counts each segment's requests before they go: the
+    closing table is that of one store holding every row (before, it covered only the
+    rows still in memory)."""
+    char = FAST.char_time
+    frames: list[tuple[bytes, float]] = []
+    t = 0.0
+    for k, f in enumerate(polling_frames(8_000, line=FAST)):
+        frames.append((f.raw, t))
+        t += (len(f.raw) + 3.5) * char + (0.5 if k % 2500 == 2499 else 0.0)  # gaps
+    chunks = reads(frames, 0.001)
+    batches = [chunks[k : k + 3] for k in range(0, len(chunks), 3)]
+    whole = _summary(batches, None, False)
+    assert "poll cycle" in whole and "gap at" in whole
+    assert _summary(batches, 400, True) == whole
+    assert _summary(batches, 400, False) != whole  # (without it: the last window only)

@@ -24,7 +24,7 @@ from sniffer.pollcycle import (
 )
 from sniffer.session import DEMO_CAPTURE, replay_file
 from sniffer.stats import nearest_rank
-from sniffer.store import FrameStore
+from sniffer.store import COLUMNS, FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.random_rows import random_store
 
@@ -206,3 +206,30 @@ def test_well_formed_requests_are_read_straight_from_their_bytes(function: int) 
         body = bytes([rng.randrange(256), function]) + tail
         assert _plain_what(body) is not None
         assert _plain_what(body) == _dissected_what(body)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_requests_counted_in_parts_make_the_cycle_of_the_whole(seed: int) -> None:
+    """`PollCycles` given the rows a part at a time, each in a store of its own (the
+    segments of a windowed replay), gives what `poll_cycles` of the whole store gives;
+    and so does the cycle of the parts before with the last one added on the side (a
+    live summary, its window's rows still in memory)."""
+    rng = random.Random(seed)
+    store = random_store(rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1)
+    cuts = sorted(rng.sample(range(1, len(store)), rng.randrange(1, 40)))
+    parts = [_part(store, a, b) for a, b in pairwise([0, *cuts, len(store)])]
+    found = pollcycle.PollCycles()
+    for part in parts[:-1]:
+        found.add(part)
+    assert found.cycles(parts[-1]) == poll_cycles(store) == cycles_row_by_row(store)
+    found.add(parts[-1])
+    assert found.cycles() == poll_cycles(store)
+
+
+def _part(store: FrameStore, a: int, b: int) -> FrameStore:
+    """Rows `a` to `b` of `store` in a store of their own (the same bytes)."""
+    part = FrameStore(store.streams)
+    part.stamps, part.resolution = store.stamps, store.resolution
+    for name in COLUMNS:
+        getattr(part, name).extend(getattr(store, name)[a:b])
+    return part

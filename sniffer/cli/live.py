@@ -12,7 +12,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from sniffer.capture import (
     PUMP_GATHER,
@@ -50,6 +50,9 @@ from sniffer.recorder import parse_size
 from sniffer.select import FilterJob
 from sniffer.session import Session
 from sniffer.vocab import Status
+
+if TYPE_CHECKING:
+    from sniffer.pollcycle import PollCycles
 
 RENDER_ROWS = 256  # rows rendered between two looks at the output and at Ctrl-C
 STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
@@ -183,7 +186,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             backlog,
             notify,
             selection,
-            Summary(session, err, labels, every),
+            Summary(session, err, labels, every, capture if args.stats is not None else None),
         )
     finally:
         capture.stop()
@@ -211,8 +214,22 @@ class Summary:
     capturing, and once when the capture ends."""
 
     def __init__(
-        self, session: Session, err: TextIO, labels: dict[int, str], every: float | None
+        self,
+        session: Session,
+        err: TextIO,
+        labels: dict[int, str],
+        every: float | None,
+        whole: LiveCapture | None = None,
     ) -> None:
+        """`whole`: the poll cycle covers the whole capture, not only the rows of its
+        window still in memory: the requests of each segment are counted before it goes
+        (8 bytes each: asked for with --stats)."""
+        from sniffer.pollcycle import PollCycles
+
+        self.cycles: PollCycles | None = None
+        if whole is not None:
+            cycles = self.cycles = PollCycles()
+            whole.segment = lambda s: cycles.add(s.store)
         self.session = session
         self.err = err
         self.labels = labels
@@ -233,7 +250,10 @@ class Summary:
         session.stats.update()
         self.err.write(f"\n{session.source} ({session.line.describe()})\n")
         self.err.write(session.stats.table(self.labels) + "\n")
-        self.err.write(cycle_table(poll_cycles(session.store), self.labels) + "\n")
+        found = (
+            poll_cycles(session.store) if self.cycles is None else self.cycles.cycles(session.store)
+        )
+        self.err.write(cycle_table(found, self.labels) + "\n")
         self.err.flush()
 
 
