@@ -208,6 +208,11 @@ class Pipeline:
         for chunk in chunks:
             self.feed(chunk)
 
+    @property
+    def holding(self) -> bool:
+        """Batches of reads wait to be framed (`sync` frames them)."""
+        return bool(self._held)
+
     def sync(self) -> None:
         """Bring the store up to date: complete the framers' rows, merge channels, pair.
         Readers of the store call this (Session.refresh does) before they look."""

@@ -137,6 +137,8 @@ class Session:
             return False  # network captures (several open requests) are not windowed
         if store.status.tobytes().find(bytes([Status.OPEN])) >= 0:
             return False
+        if pipeline.holding:  # bytes read but not framed yet
+            return False
         for ch in pipeline.channels.values():
             framer = ch.framer
             if framer is None or ch.held is not None or not framer.settled():
