@@ -36,6 +36,7 @@ import csv
 import json
 import struct
 from collections.abc import Iterable, Iterator
+from math import floor
 from typing import Any, BinaryIO, TextIO, cast
 
 from dissectors import mbap
@@ -52,7 +53,6 @@ from sniffer.sources.pcapng_writer import (
     LINKTYPE_WIRESHARK_UPPER_PDU,
     PcapngWriter,
     describe_interface,
-    time_ticks,
     upper_pdu_record,
 )
 from sniffer.store import NO_PARTNER
@@ -208,6 +208,7 @@ class _Blocks:
 _EPB_TIME = struct.Struct("<II")  # an enhanced packet block's time: high and low words
 _TID = struct.Struct(">H")
 _DEVICE_SLOW = int(Flag.DEVICE_SLOW)
+_REQUEST = int(Kind.REQUEST)
 TICKS = 1_000_000_000  # the writer's default resolution (nanoseconds)
 
 
@@ -269,28 +270,49 @@ class PcapExporter:
         n = 0
         describer = self.describer
         store = describer.store
+        t_end, kinds, partners, flags = store.t_end, store.kind, store.partner, store.flags
         parts = self._blocks.parts
+        append = parts.append
         key = f"pcapng {self.style} {self.interface}"
-        for i in rows:
-            shared = describer.shared(i)
-            t = max(store.t_end[i], 0.0)
-            if shared is None or store.flags[i] & _DEVICE_SLOW:
+        for i, shared in describer.contents(rows):
+            t = t_end[i]
+            if t < 0.0:
+                t = 0.0
+            if shared is None or flags[i] & _DEVICE_SLOW:
                 self._write(describer.detail(i), t)
             else:
                 template = shared.memo.get(key)
                 if template is None:
-                    d = describer.complete(describer.view(i), shared)
+                    c = shared
+                    view = describer.view(i)
+                    # what a packet says besides its time and id: no latency (not a slow answer)
+                    d = FrameDetail(
+                        view,
+                        c.name,
+                        c.summary,
+                        c.dissection,
+                        c.registers,
+                        c.problems,
+                        None,
+                        c.label,
+                    )
                     template = shared.memo[key] = self._write(d, t)
                 else:
-                    ticks = time_ticks(t, TICKS)
+                    whole = floor(t)  # `time_ticks(t, TICKS)`, inline
+                    ticks = whole * TICKS + round((t - whole) * TICKS)
                     head, middle, tail = template
-                    when = _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
                     if tail is None:
-                        parts.append(head + when + middle)
+                        append(head + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF) + middle)
                     else:
-                        kind, partner = store.kind[i], store.partner[i]
-                        tid = partner if kind != Kind.REQUEST and partner != NO_PARTNER else i
-                        parts.append(head + when + middle + _TID.pack(tid & 0xFFFF) + tail)
+                        partner = partners[i]
+                        tid = partner if kinds[i] != _REQUEST and partner != NO_PARTNER else i
+                        append(
+                            head
+                            + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
+                            + middle
+                            + _TID.pack(tid & 0xFFFF)
+                            + tail
+                        )
             n += 1
             if len(parts) >= 1024:
                 self._pass_on()
