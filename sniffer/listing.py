@@ -402,8 +402,12 @@ class Lister:
         pending: list[str] = []
         # text and JSONL lines are made from what rows of one content share, CSV records
         # from each row's details
-        contents = describer.contents(rows) if self._csv is None else ((i, None) for i in rows)
         text = self.fmt == "text"
+        contents = (
+            describer.contents(rows, values=not text)  # a text line shows no register value
+            if self._csv is None
+            else ((i, None) for i in rows)
+        )
         for i, shared in contents:
             if self.origin is None:
                 self.origin = store.t[i]
