@@ -326,25 +326,26 @@ class Describer:
                 and _valueless(raw, asked)
             ):
                 free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
-                found = valueless.get(free)
-                if found is not None:
+                alike = valueless.get(free)
+                if alike is not None:
                     self._hits += 1
                     if self._lookups >= GUARD_WINDOW:
                         self._guard()
-                    yield i, found
+                    yield i, alike
                     continue
             found = cache.get(key)
             if type(found) is Shared:
                 self._hits += 1
                 if self._lookups >= GUARD_WINDOW:
                     self._guard()
+                made = found
             else:
-                found = self._found(i, None, key, found, kind, partner, unit, asked)
+                made = self._found(i, None, key, found, kind, partner, unit, asked)
             if free is not None:
                 if len(valueless) >= self.shared_size:
                     valueless.clear()
-                valueless[free] = found
-            yield i, found
+                valueless[free] = made
+            yield i, made
 
     def _shared_of(self, i: int, view: FrameView | None) -> Shared | None:
         self._fresh = None
