@@ -283,8 +283,9 @@ class PcapExporter:
         key = f"pcapng {self.style} {self.interface}"
         # a Modbus/TCP packet reads no register value: answers that differ only in their
         # values may share a content (see Describer.contents); their bytes are spliced
-        # into the template
-        for i, shared in describer.contents(rows, values=self.style != "modbus-tcp"):
+        # into the template, or, if it cannot take them, the row is written on its own
+        alike = self.style == "modbus-tcp"
+        for i, shared in describer.contents(rows, values=not alike):
             t = t_end[i]
             if t < 0.0:
                 t = 0.0
@@ -301,27 +302,32 @@ class PcapExporter:
                     view, c.name, c.summary, c.dissection, c.registers, c.problems, None, c.label
                 )
                 shared.memo[key] = self._template(d, t)
+                n += 1
+                continue
+            first, head, middle, tail, spliced = template
+            if alike:
+                at = offsets[i]
+                raw = bytes(streams[channels[i]][at : at + lengths[i]])
+                if raw != first:
+                    if spliced is None or tail is None:
+                        self._write(describer.detail(i), t)
+                        n += 1
+                        continue
+                    tail = _splice(spliced, raw)
+            whole = floor(t)  # `time_ticks(t, TICKS)`, inline
+            ticks = whole * TICKS + round((t - whole) * TICKS)
+            if tail is None:
+                append(head + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF) + middle)
             else:
-                head, middle, tail, spliced = template
-                whole = floor(t)  # `time_ticks(t, TICKS)`, inline
-                ticks = whole * TICKS + round((t - whole) * TICKS)
-                if tail is None:
-                    append(head + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF) + middle)
-                else:
-                    partner = partners[i]
-                    tid = partner if kinds[i] != _REQUEST and partner != NO_PARTNER else i
-                    if spliced is not None:
-                        at = offsets[i]
-                        raw = bytes(streams[channels[i]][at : at + lengths[i]])
-                        if raw != spliced[0]:
-                            tail = _splice(spliced, raw)
-                    append(
-                        head
-                        + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
-                        + middle
-                        + _TID.pack(tid & 0xFFFF)
-                        + tail
-                    )
+                partner = partners[i]
+                tid = partner if kinds[i] != _REQUEST and partner != NO_PARTNER else i
+                append(
+                    head
+                    + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
+                    + middle
+                    + _TID.pack(tid & 0xFFFF)
+                    + tail
+                )
             n += 1
             if len(parts) >= 1024:
                 self._pass_on()
@@ -338,28 +344,29 @@ class PcapExporter:
 
     def _template(self, d: FrameDetail, t: float) -> _Template:
         """Write row `d`'s packet; returns its block as a template for the rows of its
-        content: the bytes before the time, those between the time and the transaction
-        id (or to the end), and those after the id (None when the packet has no id);
-        then, for an RTU frame whose bytes the block shows as they are (in the PDU and
-        as hex in the comment), where they lie in those last bytes (see `_splice`)."""
+        content: the row's bytes; the block's bytes before the time, those between the
+        time and the transaction id (or to the end), and those after the id (None when
+        the packet has no id); then, for an RTU frame whose bytes the block shows as
+        they are (in the PDU and as hex in the comment), where they lie in those last
+        bytes (see `_splice`)."""
         block, at = self._write(d, t)
+        v = d.view
         # the block: type, length, interface (12 bytes), time (8), two lengths (8), packet
         if at is None:
-            return block[:12], block[20:], None, None
+            return v.raw, block[:12], block[20:], None, None
         tail = block[28 + at + 2 :]
-        v = d.view
         spliced = None if v.flags & _MODE else _spliced(tail, v.raw)
-        return block[:12], block[20 : 28 + at], tail, spliced
+        return v.raw, block[:12], block[20 : 28 + at], tail, spliced
 
 
-_Spliced = tuple[bytes, bytes, bytes, bytes, bytes]
-_Template = tuple[bytes, bytes, bytes | None, _Spliced | None]
+_Spliced = tuple[bytes, bytes, bytes, bytes]
+_Template = tuple[bytes, bytes, bytes, bytes | None, _Spliced | None]
 
 
 def _spliced(tail: bytes, raw: bytes) -> _Spliced | None:
     """How the block's bytes after the transaction id are made of an RTU frame's bytes
-    `raw`: (`raw`, then the bytes before its PDU, before its hex in the comment, between
-    that and its CRC's hex, and after), so that `_splice` puts another frame of the
+    `raw`: (the bytes before its PDU, before its hex in the comment, between that and
+    its CRC's hex, and after), so that `_splice` puts another frame of the
     same length, unit, code and byte count in; None if the block does not show `raw`
     that way (checked by making it again).
 
@@ -375,7 +382,6 @@ def _spliced(tail: bytes, raw: bytes) -> _Spliced | None:
     hex_at = start + 4
     crc_at = hex_at + 3 * n - 1 + 6
     made = (
-        raw,
         tail[:5],
         tail[pdu_end:hex_at],
         tail[hex_at + 3 * n - 1 : crc_at],
@@ -386,7 +392,7 @@ def _spliced(tail: bytes, raw: bytes) -> _Spliced | None:
 
 def _splice(spliced: _Spliced, raw: bytes) -> bytes:
     """The bytes after the transaction id with `raw`'s bytes put in (see `_spliced`)."""
-    _, pdu, text, crc, rest = spliced
+    pdu, text, crc, rest = spliced
     return b"".join(
         (pdu, raw[1:-2], text, raw.hex(" ").encode(), crc, raw[-2:].hex(" ").encode(), rest)
     )
