@@ -91,6 +91,7 @@ class Shared:
     label: str
     timed: bool = True  # False: no latency and no slow answer (noise, events, a stub)
     memo: dict[str, Any] = field(default_factory=dict)
+    raw: bytes = b""  # the bytes of the row it was made from (`dissection` is theirs)
 
 
 @dataclass(slots=True)
@@ -246,13 +247,14 @@ class Describer:
         `view(i)` gives the view the row's description was made from, as after
         `shared(i)`.
 
-        Without `values`, for a consumer that reads a content's name, summary,
-        problems, label and `timed` but neither its dissection nor its registers (the
-        text listing): a well-formed answer to an FC 3 or 4 read of a unit with no
-        dictionary says nothing its register values decide (`_valueless`), so such
-        answers that differ only in their values are given one content, whose
-        dissection is the first one's. On the 100k-frame benchmark that leaves 5k
-        contents to describe instead of 27k."""
+        Without `values`, a well-formed answer to an FC 3 or 4 read of a unit with no
+        dictionary may be given the content of another such answer that differs from it
+        only in its values (`_valueless`): its name, summary, problems, label and
+        `timed` are the row's own, its `dissection` and `registers` those of the answer
+        whose bytes are the content's `raw`. For consumers that read no value (the text
+        listing) or put the row's own bytes and values in (the JSONL listing and the
+        Modbus/TCP export, which splice them into what they keep per content). On the
+        100k-frame benchmark that leaves 5k contents to describe instead of 27k."""
         if type(self).shared is not Describer.shared or self.shared_size <= 0:
             for i in rows:  # a subclass's own contents (the live window's numbering)
                 yield i, self.shared(i)
@@ -567,6 +569,7 @@ class Describer:
             tuple(registers),
             tuple(map(_plain_problem, problems)) if problems else (),
             label,
+            raw=view.raw,
         )
 
 
