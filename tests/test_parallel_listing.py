@@ -295,8 +295,10 @@ def _break_in_workers(monkeypatch: pytest.MonkeyPatch, act: Callable[[], None]) 
     real = Describer.contents
     parent = os.getpid()
 
-    def contents(self: Describer, rows: Iterable[int]) -> Iterator[tuple[int, object]]:
-        for i, found in real(self, rows):
+    def contents(
+        self: Describer, rows: Iterable[int], values: bool = True
+    ) -> Iterator[tuple[int, object]]:
+        for i, found in real(self, rows, values):
             if os.getpid() != parent and i == len(self.store) - 1:
                 act()
             yield i, found
