@@ -221,8 +221,10 @@ class PcapExporter:
     A packet's block is the same for every row with the same content (see
     `Describer.shared`) but for its time and, for Modbus/TCP, its transaction id: the
     first such row's block is written by the pcapng writer and kept as a template,
-    the next ones are that template with their time and id put in (2.7 us a row; over
-    the 100k-frame benchmark 19 us a row, 48 before)."""
+    the next ones are that template with their time and id put in, and, for an answer
+    with other values, its bytes (see `_spliced`). Over the 100k-frame benchmark
+    (in-process, CPU time) 4.4 us a row; 17.0 before answers with other values shared
+    a content, 48 before the content cache."""
 
     def __init__(
         self,
