@@ -33,6 +33,7 @@ _CHECK = dict(FLAGS)[Flag.CHECK_BAD]
 _CHECK_BAD, _ENVELOPE_BAD = int(Flag.CHECK_BAD), int(Flag.ENVELOPE_BAD)
 _STATUS = {int(status): m for status, m in STATUS_PROBLEMS.items()}
 _ENVELOPE = dict(FLAGS)[Flag.ENVELOPE_BAD]
+_NOISE_EVENT = (int(Kind.NOISE), int(Kind.EVENT))
 
 
 def check_text(frame: FrameView) -> str:
@@ -53,6 +54,8 @@ def _check_span(frame: FrameView) -> tuple[int, int] | None:
 
 def frame_problems(frame: FrameView, note: str = "") -> list[Problem]:
     """Every problem framing, pairing and the source found on this row."""
+    if not frame.flags and frame.status not in _STATUS and frame.kind not in _NOISE_EVENT:
+        return []  # most rows: no flag, no check to say, no status worth a word
     out: list[Problem] = []
     if frame.kind == Kind.NOISE:
         m = NOISE_MEANING

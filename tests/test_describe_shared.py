@@ -209,6 +209,9 @@ REQUESTS = [
     write1(3, 0x0D, 500),
     read(9, 3, 100, 2),
     read(9, 3, 200, 2),
+    read(9, 4, 200, 2),
+    read(9, 4, 200, 0),
+    read(0, 3, 7, 1),
 ]
 
 
@@ -223,13 +226,16 @@ def _reply(request: bytes, kind: int, words: list[int]) -> bytes | None:
     return answer(unit, fc, words)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(
     st.lists(
         st.tuples(
             st.sampled_from(REQUESTS),
             st.sampled_from([0, 1, 2, 2, 2, 2]),  # silent, exception, answer
-            st.sampled_from([[0, 250], [1, 2], [0x41, 0x42]]),
+            st.one_of(
+                st.sampled_from([[0, 250], [1, 2], [0x41, 0x42]]),
+                st.lists(st.integers(0, 0xFFFF), max_size=3),  # other values, other counts
+            ),
             st.sampled_from([0.005, 0.01, 0.15]),
             st.booleans(),  # a bit flipped in the answer
             st.binary(max_size=3),  # noise before the request
@@ -255,3 +261,38 @@ def test_random_polling_says_the_same_with_and_without_the_cache(
             s.feed(Chunk(reply, end + delay + len(reply) * LINE.char_time))
     s.finish()
     same_as_uncached(s, shared_size=4)
+
+
+def test_answers_that_differ_only_in_their_values_share_a_text_line() -> None:
+    """The text listing gives answers to the same read of a unit without dictionary
+    that differ only in their values one content (`contents(values=False)`); the lines
+    are those of an uncached Describer. Not so for a bound unit, a bad CRC, another
+    byte count, or a consumer that reads values."""
+    ask, other = read(9, 3, 100, 2), read(9, 4, 100, 2)
+
+    def bad(words: list[int]) -> bytes:
+        spoilt = bytearray(answer(9, 3, words))
+        spoilt[-1] ^= 1
+        return bytes(spoilt)
+
+    exchanges = [
+        (ask, answer(9, 3, [1, 2]), 0.01),
+        (ask, answer(9, 3, [3, 4]), 0.02),
+        (ask, bad([5, 6]), 0.01),
+        (ask, answer(9, 3, [7]), 0.01),
+        (other, answer(9, 4, [1, 2]), 0.01),
+        (other, answer(9, 4, [8, 9]), 0.01),
+        (read(3, 3, 0, 2), answer(3, 3, [1, 2]), 0.01),
+        (read(3, 3, 0, 2), answer(3, 3, [3, 4]), 0.01),
+        (ask, bad([7, 8]), 0.01),  # its CRC's sentence is not the other's
+    ]
+    s = session(exchanges)
+    same_as_uncached(s, shared_size=64)
+    d = Describer(s.store, s.annotator)
+    free = dict(d.contents(range(len(s.store)), values=False))
+    assert free[1] is free[3] and free[9] is free[11]
+    assert free[5] is not free[1] and free[7] is not free[1]  # bad CRC, one value
+    assert free[5] is not free[17]
+    assert free[13] is not free[15]  # unit 3 has a dictionary: its values are named
+    every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
+    assert every[1] is not every[3] and every[1] is not None

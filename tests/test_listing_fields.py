@@ -14,9 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.listing import Lister
+from dissectors.dissect import Role, dissect
+from sniffer.listing import Lister, _values_text
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import Session
+from sniffer.text import json_line
 
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
 T0 = 1_750_000_000.0
@@ -137,3 +139,19 @@ def test_every_file_record_asked_for_is_listed(records: list[tuple[int, int, int
         assert flat[f"sub_requests.{k}.file_number"] == str(f)
         assert flat[f"sub_requests.{k}.record_number"] == str(r)
         assert flat[f"sub_requests.{k}.record_length"] == str(n)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(0, 0xFFFF), max_size=127))
+def test_values_spliced_into_a_jsonl_line_are_written_as_the_record_writes_them(
+    words: list[int],
+) -> None:
+    """`_values_text` (the values of an answer spliced into kept JSONL parts) says what
+    `json_line` and the dissector's words field say of the same words."""
+    data = struct.pack(f">{len(words)}H", *words)
+    answer = with_crc(bytes((7, 3, len(data))) + data)
+    d = dissect(answer[:-2], Role.RESPONSE, request=bytes((7, 3, 0, 0, 0, len(words))))
+    values = d.field("values")
+    assert values is not None
+    said = json_line({"value": list(words), "text": values.text})
+    assert said == '{"value": [' + _values_text(answer) + '"}'

@@ -11,7 +11,7 @@ import signal
 import struct
 import subprocess
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import redirect_stdout
 from pathlib import Path
 
@@ -292,15 +292,18 @@ def test_ranges_are_contiguous_and_as_even_as_can_be() -> None:
 
 def _break_in_workers(monkeypatch: pytest.MonkeyPatch, act: Callable[[], None]) -> None:
     """`act` when a worker describes its range's last row (the parent never does)."""
-    real = Describer.shared
+    real = Describer.contents
     parent = os.getpid()
 
-    def shared(self: Describer, i: int) -> object:
-        if os.getpid() != parent and i == len(self.store) - 1:
-            act()
-        return real(self, i)
+    def contents(
+        self: Describer, rows: Iterable[int], values: bool = True
+    ) -> Iterator[tuple[int, object]]:
+        for i, found in real(self, rows, values):
+            if os.getpid() != parent and i == len(self.store) - 1:
+                act()
+            yield i, found
 
-    monkeypatch.setattr(Describer, "shared", shared)
+    monkeypatch.setattr(Describer, "contents", contents)
 
 
 def _fail() -> None:

@@ -6,27 +6,42 @@ meaning routine reads meaning into the fields. Whatever is wrong with the bytes 
 `Problem`; nothing here raises on bus data.
 
 Speed: what depends only on the registry, the function code and the direction is worked
-out once (a plan per code byte and direction, kept on the registry).
+out once (a plan per code byte and direction, kept on the registry). The commonest frame
+a capture has that was not seen before, a well-formed answer to an FC 3 or 4 read (the
+values change, the requests repeat), is read straight from its bytes (`_words_answer`):
+the same Dissection the schemas and the meaning routine give, which
+`tests/test_dissect_fast.py` holds to on arbitrary bytes.
 """
 
 from __future__ import annotations
 
+from dissectors.pdu.access import ADDRESS_QUANTITY, read
 from dissectors.pdu.exceptions import EXCEPTION_SCHEMA, exception
+from dissectors.pdu.registers import REGISTERS_RESPONSE
 from dissectors.pdu.registry import PUBLIC, Registry, raw
-from dissectors.pdu.schema import RAW_SCHEMA
+from dissectors.pdu.schema import RAW_SCHEMA, WORD_FORMATS
 from dissectors.pdu.work import (
     ERROR,
     SEEN,
     WARNING,
     Parsed,
     Plan,
+    WordsField,
     Work,
     check_structure,
     keep,
     pair,
     plural,
 )
-from dissectors.values import Dissection, Role, make_dissection, make_problem
+from dissectors.values import (
+    Dissection,
+    Role,
+    make_dissection,
+    make_field,
+    make_lazy_field,
+    make_problem,
+    make_register_data,
+)
 
 _REQUEST = Role.REQUEST
 
@@ -61,6 +76,14 @@ def _plan(code: int, role: Role, registry: Registry) -> Plan:
         reuse=keeps or (spec is not None and schema is spec.request_schema),
         counted=counted,
         checked=counted or bool(limits),
+        words_answer=(
+            role is Role.RESPONSE
+            and not is_exception
+            and spec is not None
+            and spec.meaning is read
+            and spec.response_schema is REGISTERS_RESPONSE
+            and spec.request_schema is ADDRESS_QUANTITY
+        ),
     )
 
 
@@ -115,6 +138,10 @@ def dissect(
     unit, code = body[0], body[1]
     table = _PUBLIC_PLANS if registry is None else plans(registry)
     plan = table[0 if role is _REQUEST else 1][code]
+    if plan.words_answer and request is not None and unit:
+        made = _words_answer(body, size, role, plan, request)
+        if made is not None:
+            return made
     parsed = SEEN.get(body) if plan.reuse else None
     if parsed is not None and parsed.schema is plan.schema:
         if plan.keep and parsed.dissection is not None:
@@ -155,3 +182,37 @@ def dissect(
     if plan.keep:
         parsed.dissection = result
     return result
+
+
+_NO_PROBLEMS: tuple[()] = ()
+
+
+def _words_answer(
+    body: bytes, size: int, role: Role, plan: Plan, request: bytes
+) -> Dissection | None:
+    """An answer to an FC 3 or 4 read (not from unit 0) whose byte count is the bytes
+    that follow and twice the quantity its request (of the same code, address and
+    quantity whole) asked for: what the schemas, `check_structure`, `pair` and `read`
+    make of it, read straight from the bytes (2 us against 8 for 10 registers). None for
+    any other answer: the full path takes it."""
+    if size < 3 or len(request) < 6 or request[1] != plan.function:
+        return None
+    byte_count = body[2]
+    quantity = request[4] << 8 | request[5]
+    if size != 3 + byte_count or byte_count != 2 * quantity:
+        return None
+    values: tuple[int, ...] = WORD_FORMATS[quantity].unpack_from(body, 3)
+    return make_dissection(
+        body[0],
+        plan.function,
+        False,
+        role,
+        plan.name,
+        "1 value" if quantity == 1 else f"{quantity} values",
+        (
+            make_field("byte_count", byte_count, str(byte_count), (2, 3)),
+            make_lazy_field(WordsField, "values", values, (3, size)),
+        ),
+        _NO_PROBLEMS,
+        (make_register_data(plan.table, request[2] << 8 | request[3], values, False),),
+    )

@@ -284,7 +284,7 @@ class BitValues(tuple[int, ...]):
     __slots__ = ()
 
 
-_WORD_FORMATS = tuple(struct.Struct(f">{n}H") for n in range(129))
+WORD_FORMATS = tuple(struct.Struct(f">{n}H") for n in range(129))
 
 
 class _Packed(Adapter):  # type: ignore[misc]  # construct is untyped
@@ -303,7 +303,7 @@ class Words(_Packed):
 
     def _decode(self, obj: Any, context: Any, path: Any) -> WordValues:
         n = len(obj) // 2
-        unpack = _WORD_FORMATS[n] if n < len(_WORD_FORMATS) else struct.Struct(f">{n}H")
+        unpack = WORD_FORMATS[n] if n < len(WORD_FORMATS) else struct.Struct(f">{n}H")
         return WordValues(unpack.unpack_from(obj))
 
     def _encode(self, obj: Any, context: Any, path: Any) -> bytes:

@@ -250,6 +250,7 @@ class Plan:
     reuse: bool  # a kept request's parse serves (a request, or an echo in the same layout)
     counted: bool  # the layout has a byte_count field
     checked: bool  # the layout has a byte_count field or quantities with limits
+    words_answer: bool = False  # an FC 3/4 answer: well-formed ones have a shortcut
 
 
 # --- the work on one frame -----------------------------------------------------------------
