@@ -14,9 +14,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import compress, repeat
 from operator import add, lt, sub
+from typing import Any
 
 from dissectors.dissect import dissect
 from dissectors.values import Role
+from sniffer import core
 from sniffer.columns import both, but_not, flag_mask, marking
 from sniffer.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
@@ -177,6 +179,10 @@ class PollCycles:
         n = len(store)
         if start >= n:
             return
+        fast = core.FAST
+        if fast is not None:
+            self._fast_add(fast, store, start, n)
+            return
         # the requests with a good check, picked out of the columns in C
         requests = but_not(
             store.kind[start:n].tobytes().translate(_IS_REQUEST),
@@ -205,6 +211,34 @@ class PollCycles:
                 for key, retry in zip(keys, compress(retried, mask), strict=True):
                     if retry:
                         found[key].retries += 1
+
+    def _fast_add(self, fast: Any, store: FrameStore, start: int, n: int) -> None:
+        """`add` with the compiled core (sniffer/_core.c: poll_block): the rows picked,
+        keyed and grouped in C a block at a time, each group one _Sent (several keys
+        may share one: writes of other values), so Python touches only a key met for
+        the first time (`_sent`, as `add` does) and each group once a block: its times
+        appended in the order of their rows, its retries counted."""
+        table = fast.poll_table()  # the keys met, as `add`'s `found`
+        groups: list[_Sent] = []
+        number: dict[int, int] = {}  # id of a _Sent (held in groups) -> its group
+
+        def resolve(key: object, i: int) -> int:
+            sent = self._sent(store, key, i)
+            group = number.get(id(sent))
+            if group is None:
+                group = number[id(sent)] = len(groups)
+                groups.append(sent)
+            return group
+
+        request = int(Kind.REQUEST)
+        for lo in range(start, n, BLOCK):
+            hi = min(lo + BLOCK, n)
+            for group, times, retries in fast.poll_block(
+                table, store, lo, hi, resolve, request, BAD_CHECK, _RETRY, _FRAMED_APART
+            ):
+                sent = groups[group]
+                sent.times.frombytes(times)
+                sent.retries += retries
 
     def _sent(self, store: FrameStore, key: object, i: int) -> _Sent:
         """Where the sendings of row `i`'s request (`key`: its bytes) are counted."""
