@@ -320,16 +320,25 @@ def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, U
             if len(sent.times) < MIN_REPEATS:
                 cycle.once += 1
                 continue
-            times = sent.times.tolist()
-            waits = list(map(sub, times[1:], times[:-1]))
-            ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
-            period = _rank(ordered, 0.5)
-            jitter = _rank(ordered, 0.95) - _rank(ordered, 0.05)
+            times = sent.times
+            picked = _picked_waits(times)
+            waits: list[float] | None = None
+            if picked is None:
+                waits = list(map(sub, times[1:], times[:-1]))
+                ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
+                low, period, high = (_rank(ordered, q) for q in (0.05, 0.5, 0.95))
+            else:
+                low, period, high, longest = picked
+            jitter = high - low
             limit = GAP_FACTOR * period
-            gaps = tuple(
-                Gap(times[k], waits[k])
-                for k in compress(range(len(waits)), map(lt, repeat(limit), waits))
-            )
+            gaps: tuple[Gap, ...] = ()
+            if waits is None and longest > limit:
+                waits = list(map(sub, times[1:], times[:-1]))
+            if waits is not None:
+                gaps = tuple(
+                    Gap(times[k], waits[k])
+                    for k in compress(range(len(waits)), map(lt, repeat(limit), waits))
+                )
             cycle.polls.append(
                 Poll(
                     unit,
@@ -346,6 +355,21 @@ def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, U
             )
         cycle.polls.sort(key=lambda p: (p.period, p.what))
     return out
+
+
+def _picked_waits(times: array[float]) -> tuple[float, float, float, float] | None:
+    """The 5th, 50th and 95th percentile (nearest rank) and the longest of the waits
+    between `times` (at least three), from the compiled core: the values sorted() would
+    put at those ranks, found by selection (sniffer/_core.c: ranked). None where only a
+    sort says (no compiled core, a NaN or a negative zero among the waits). 1M frames:
+    the poll cycle's table 0.075 -> 0.02 s."""
+    fast = core.FAST
+    if fast is None:
+        return None
+    n = len(times) - 1
+    ranks = tuple(min(n - 1, max(0, round(q * (n - 1)))) for q in (0.05, 0.5, 0.95, 1.0))
+    found: tuple[float, float, float, float] | None = fast.ranked(times, ranks, True)
+    return found
 
 
 def _rank(ordered: list[float], q: float) -> float:
