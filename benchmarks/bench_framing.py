@@ -17,8 +17,10 @@ per packet of link type 147 (as bench_tui writes).
 passes: CPU time per frame in this process of the session's passes over the indexed rows,
 with the compiled core and the pure-Python one, on the 16 ms reads and the one-frame-per-
 packet files: the whole `Session.ingest` (reading, framing, pairing, annotation with
-SunSpec's tracker, statistics) and the `--stats` table (its quantiles). The poll cycle,
-also part of `replay --stats`, is not counted here.
+SunSpec's tracker, statistics) and the `--stats` table (its quantiles); then the other
+passes of `replay --stats` over the same rows: the poll cycle (`PollCycles.add` and its
+table) and the statistics in their bounded form (`Stats.bound`: `Tallies`, as a windowed
+`replay --stats` and a live capture count them).
 """
 
 from __future__ import annotations
@@ -36,9 +38,11 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from benchmarks.common import LINE, file_reads, peak_rss_mb, timed, usb_reads, workload
 from sniffer import core
 from sniffer.pipeline import Pipeline
+from sniffer.pollcycle import cycle_table, poll_cycles
 from sniffer.session import open_session
 from sniffer.sources import open_capture
 from sniffer.sources.reads import batching
+from sniffer.stats import Stats
 from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind
 
@@ -105,14 +109,23 @@ def _indexing(path: Path) -> tuple[float, int]:
     return time.process_time() - t, len(session.store)
 
 
-def _session_passes(path: Path) -> tuple[float, float, int]:
+def _session_passes(path: Path) -> tuple[float, float, float, float, int]:
     session, capture = open_session(path, index=False)
     t = time.process_time()
     session.ingest(capture.chunks())
     ingest = time.process_time() - t
     t = time.process_time()
     session.stats.table()
-    return ingest, time.process_time() - t, len(session.store)
+    table = time.process_time() - t
+    t = time.process_time()
+    cycle_table(poll_cycles(session.store))
+    poll = time.process_time() - t
+    t = time.process_time()
+    bounded = Stats(session.store)
+    bounded.bound()
+    bounded.update()
+    bounded.table()
+    return ingest, table, poll, time.process_time() - t, len(session.store)
 
 
 def compare_passes(folder: Path, n: int, runs: int) -> None:
@@ -123,7 +136,10 @@ def compare_passes(folder: Path, n: int, runs: int) -> None:
     if compiled is None:
         print("  the compiled core is not built here: nothing to compare")
         return
-    print(f"  {'file':<28} {'core':<10} {'whole ingest':>14} {'stats table':>13}")
+    print(
+        f"  {'file':<28} {'core':<10} {'whole ingest':>14} {'stats table':>13} "
+        f"{'poll cycle':>13} {'bounded stats':>14}"
+    )
     for name, path in list(files.items())[:2]:
         for label, module in (("pure", None), ("compiled", compiled)):
             core.FAST = module
@@ -131,12 +147,14 @@ def compare_passes(folder: Path, n: int, runs: int) -> None:
                 measured = [_session_passes(path) for _ in range(runs)]
             finally:
                 core.FAST = compiled
-            rows = measured[0][2]
-            ingest = statistics.median(m[0] for m in measured)
-            table = statistics.median(m[1] for m in measured)
+            rows = measured[0][4]
+            ingest, table, poll, bounded = (
+                statistics.median(m[k] for m in measured) for k in range(4)
+            )
             print(
                 f"  {name:<28} {label:<10} {ingest / rows * 1e6:11.2f} us "
-                f"{table / rows * 1e6:10.3f} us"
+                f"{table / rows * 1e6:10.3f} us {poll / rows * 1e6:10.3f} us "
+                f"{bounded / rows * 1e6:11.3f} us"
             )
 
 

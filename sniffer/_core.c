@@ -11,7 +11,11 @@
  *  - stats_scan, ranked: the per-unit statistics and their nearest-rank quantiles
  *    (sniffer/stats.py: Stats.update, nearest_rank, median_gap);
  *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/sunspec.py);
- *  - join_reads: batches of reads held by the pipeline, as one (sniffer/pipeline.py).
+ *  - join_reads: batches of reads held by the pipeline, as one (sniffer/pipeline.py);
+ *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped
+ *    (sniffer/pollcycle.py: PollCycles.add);
+ *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
+ *    (sniffer/stats.py: Tallies.add_latencies, Tallies.add_requests).
  *
  * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
@@ -1297,6 +1301,12 @@ done:
     return result;
 }
 
+/* defined below, with the poll cycle's and the tallies' loops */
+static PyObject *py_poll_table(PyObject *self, PyObject *unused);
+static PyObject *py_poll_block(PyObject *self, PyObject *args);
+static PyObject *py_tally_latencies(PyObject *self, PyObject *args);
+static PyObject *py_tally_gaps(PyObject *self, PyObject *args);
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
@@ -1308,6 +1318,10 @@ static PyMethodDef methods[] = {
     {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
     {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
     {"ranked", py_ranked, METH_VARARGS, "Values at ranks of the sorted values, by selection."},
+    {"poll_table", py_poll_table, METH_NOARGS, "A table of the distinct keys of PollCycles.add."},
+    {"poll_block", py_poll_block, METH_VARARGS, "PollCycles.add's requests of a block, grouped."},
+    {"tally_latencies", py_tally_latencies, METH_VARARGS, "Tallies.add_latencies' counting."},
+    {"tally_gaps", py_tally_gaps, METH_VARARGS, "Tallies.add_requests' counting."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1341,4 +1355,477 @@ PyMODINIT_FUNC PyInit__core(void) {
         return NULL;
     }
     return m;
+}
+
+/* ---- the poll cycle's requests and the bounded statistics' tallies -------------------- */
+
+/* poll_table() -> a table of the distinct request keys met by one PollCycles.add
+ * (sniffer/pollcycle.py): a key is a row's bytes, with its framing (flags & the `apart`
+ * bits: ASCII, Modbus TCP) where it has any, and each maps to the group Python gave it
+ * (one group per _Sent). The bytes are kept in an arena, the slots point into it. */
+typedef struct {
+    uint64_t hash;
+    Py_ssize_t at, size, group; /* group -1: an empty slot */
+    uint32_t framing;
+} PollKey;
+
+typedef struct {
+    PollKey *slots;
+    Py_ssize_t cap, used;
+    Buf arena;
+} PollTable;
+
+static void poll_table_free(PyObject *capsule) {
+    PollTable *pt = PyCapsule_GetPointer(capsule, "modscope.poll_table");
+    if (pt == NULL) return;
+    PyMem_Free(pt->slots);
+    buf_free(&pt->arena);
+    PyMem_Free(pt);
+}
+
+static PyObject *py_poll_table(PyObject *self, PyObject *unused) {
+    PollTable *pt = PyMem_Calloc(1, sizeof(PollTable));
+    if (pt == NULL) return PyErr_NoMemory();
+    PyObject *capsule = PyCapsule_New(pt, "modscope.poll_table", poll_table_free);
+    if (capsule == NULL) PyMem_Free(pt);
+    return capsule;
+}
+
+static uint64_t poll_hash(const unsigned char *p, Py_ssize_t n, uint32_t framing) {
+    uint64_t h = 1469598103934665603ull ^ framing; /* FNV-1a */
+    for (Py_ssize_t k = 0; k < n; k++) h = (h ^ p[k]) * 1099511628211ull;
+    return h ^ (h >> 29);
+}
+
+/* The slot of a key: its own, or the empty one where it goes. */
+static PollKey *poll_slot(PollTable *pt, uint64_t h, const char *p, Py_ssize_t n,
+                          uint32_t framing) {
+    Py_ssize_t mask = pt->cap - 1, k = (Py_ssize_t)(h & (uint64_t)mask);
+    for (;;) {
+        PollKey *s = &pt->slots[k];
+        if (s->group < 0) return s;
+        if (s->hash == h && s->size == n && s->framing == framing &&
+            memcmp(pt->arena.p + s->at, p, (size_t)n) == 0)
+            return s;
+        k = (k + 1) & mask;
+    }
+}
+
+/* Room for one more key (at most half the slots used). 0, or -1 with MemoryError. */
+static int poll_grow(PollTable *pt) {
+    if (2 * (pt->used + 1) <= pt->cap) return 0;
+    Py_ssize_t cap = pt->cap ? 2 * pt->cap : 1024;
+    PollKey *slots = PyMem_Malloc(sizeof(PollKey) * (size_t)cap), *old = pt->slots;
+    if (slots == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (Py_ssize_t k = 0; k < cap; k++) slots[k].group = -1;
+    Py_ssize_t old_cap = pt->cap;
+    pt->slots = slots;
+    pt->cap = cap;
+    for (Py_ssize_t k = 0; k < old_cap; k++) {
+        if (old[k].group < 0) continue;
+        Py_ssize_t j = (Py_ssize_t)(old[k].hash & (uint64_t)(cap - 1));
+        while (slots[j].group >= 0) j = (j + 1) & (cap - 1);
+        slots[j] = old[k];
+    }
+    PyMem_Free(old);
+    return 0;
+}
+
+typedef struct {
+    Buf times;
+    Py_ssize_t retries;
+    int touched;
+} PollGroup;
+
+/* poll_block(table, store, lo, hi, resolve, request, bad, retry, apart)
+ *     -> [(group, times, retries), ...]
+ * PollCycles.add over rows lo..hi (sniffer/pollcycle.py: the requests of a block, their
+ * keys as _keys makes them, grouped): the rows of kind `request` with none of the `bad`
+ * flags, each keyed by its bytes (as FrameStore slices them; the one stream for every row
+ * when the store has one, as _keys reads it) and, where it has any of the `apart` flags,
+ * those flags: the key is then the tuple (flags & apart, bytes). A key not in `table`
+ * yet is handed to `resolve(key, row)`, which says its group (an int >= 0: the _Sent it
+ * is counted in); the times (float64 bytes, in the order of their rows) and the retries
+ * (rows with a `retry` flag) of each group met in the block come back, in the order the
+ * groups were first met. */
+static PyObject *py_poll_block(PyObject *self, PyObject *args) {
+    PyObject *capsule, *store, *resolve;
+    Py_ssize_t lo, hi;
+    int request;
+    unsigned int bad, retry, apart;
+    if (!PyArg_ParseTuple(args, "OOnnOiIII", &capsule, &store, &lo, &hi, &resolve, &request,
+                          &bad, &retry, &apart))
+        return NULL;
+    PollTable *pt = PyCapsule_GetPointer(capsule, "modscope.poll_table");
+    if (pt == NULL) return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0},   {"flags", 'I', 0},  {"t", 'd', 0},
+        {"offset", 'Q', 0}, {"length", 'H', 0}, {"channel", 'B', 0},
+    };
+    Py_buffer c[6];
+    if (columns(store, specs, 6, c) < 0) return NULL;
+    PyObject *result = NULL, *streams = NULL, *single = NULL;
+    PollGroup *acc = NULL;
+    Py_ssize_t n_acc = 0;
+    Buf met = {0}; /* the groups met, in order */
+    const unsigned char *kind = c[0].buf, *channel = c[5].buf;
+    const uint32_t *flags = c[1].buf;
+    const double *t = c[2].buf;
+    const uint64_t *offset = c[3].buf;
+    const uint16_t *length = c[4].buf;
+    Py_ssize_t rows = c[0].len;
+    if (c[1].len != 4 * rows || c[2].len != 8 * rows || c[3].len != 8 * rows ||
+        c[4].len != 2 * rows || c[5].len != rows) {
+        PyErr_SetString(PyExc_ValueError, "poll_block: columns of different lengths (sync)");
+        goto done;
+    }
+    if (lo < 0 || hi > rows || lo > hi) {
+        PyErr_SetString(PyExc_ValueError, "poll_block: rows out of range");
+        goto done;
+    }
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto done;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "poll_block: a store's streams are a dict");
+        goto done;
+    }
+    if (PyDict_Size(streams) == 1) {
+        Py_ssize_t pos = 0;
+        PyObject *k, *v;
+        PyDict_Next(streams, &pos, &k, &v);
+        if (!PyByteArray_Check(v)) {
+            PyErr_SetString(PyExc_TypeError, "a store's streams are bytearrays");
+            goto done;
+        }
+        single = v;
+        Py_INCREF(single);
+    }
+    for (Py_ssize_t i = lo; i < hi; i++) {
+        if (kind[i] != request || (flags[i] & bad)) continue;
+        const char *p;
+        Py_ssize_t n;
+        if (single != NULL) {
+            Py_ssize_t size = PyByteArray_GET_SIZE(single);
+            uint64_t start = offset[i], stop = start + length[i];
+            if (start > (uint64_t)size) start = (uint64_t)size;
+            if (stop > (uint64_t)size) stop = (uint64_t)size;
+            p = PyByteArray_AS_STRING(single) + start;
+            n = (Py_ssize_t)(stop - start);
+        } else if (row_bytes(streams, channel, offset, length, i, &p, &n) < 0) {
+            goto done;
+        }
+        uint32_t framing = flags[i] & apart;
+        uint64_t h = poll_hash((const unsigned char *)p, n, framing);
+        Py_ssize_t group;
+        PollKey *slot = pt->cap ? poll_slot(pt, h, p, n, framing) : NULL;
+        if (slot != NULL && slot->group >= 0) {
+            group = slot->group;
+        } else {
+            /* a new key: its group from Python (which may run any code: the key's bytes
+             * are copied first, and looked up again after) */
+            PyObject *raw = PyBytes_FromStringAndSize(p, n), *key = raw;
+            if (raw == NULL) goto done;
+            if (framing) {
+                key = Py_BuildValue("(IO)", framing, raw);
+                Py_DECREF(raw);
+                if (key == NULL) goto done;
+                raw = PyTuple_GET_ITEM(key, 1);
+            }
+            PyObject *got = PyObject_CallFunction(resolve, "On", key, i);
+            if (got == NULL) {
+                Py_DECREF(key);
+                goto done;
+            }
+            group = PyLong_AsSsize_t(got);
+            Py_DECREF(got);
+            if (group < 0) {
+                if (!PyErr_Occurred())
+                    PyErr_SetString(PyExc_ValueError, "poll_block: a group is an int >= 0");
+                Py_DECREF(key);
+                goto done;
+            }
+            const char *kp = PyBytes_AS_STRING(raw);
+            if (poll_grow(pt) < 0) {
+                Py_DECREF(key);
+                goto done;
+            }
+            slot = poll_slot(pt, h, kp, n, framing);
+            if (slot->group < 0) {
+                slot->hash = h;
+                slot->at = pt->arena.n;
+                slot->size = n;
+                slot->framing = framing;
+                if (buf_put(&pt->arena, kp, n) < 0) {
+                    Py_DECREF(key);
+                    goto done;
+                }
+                pt->used += 1;
+            }
+            slot->group = group;
+            Py_DECREF(key);
+        }
+        if (group >= n_acc) {
+            Py_ssize_t more = n_acc ? n_acc : 64;
+            while (more <= group) more *= 2;
+            PollGroup *grown = PyMem_Realloc(acc, sizeof(PollGroup) * (size_t)more);
+            if (grown == NULL) {
+                PyErr_NoMemory();
+                goto done;
+            }
+            memset(grown + n_acc, 0, sizeof(PollGroup) * (size_t)(more - n_acc));
+            acc = grown;
+            n_acc = more;
+        }
+        PollGroup *g = &acc[group];
+        if (!g->touched) {
+            g->touched = 1;
+            if (buf_put(&met, &group, sizeof group) < 0) goto done;
+        }
+        if (buf_put(&g->times, &t[i], 8) < 0) goto done;
+        if (flags[i] & retry) g->retries += 1;
+    }
+    {
+        Py_ssize_t count = met.n / (Py_ssize_t)sizeof(Py_ssize_t);
+        const Py_ssize_t *order = (const Py_ssize_t *)met.p;
+        PyObject *list = PyList_New(count);
+        if (list == NULL) goto done;
+        for (Py_ssize_t j = 0; j < count; j++) {
+            PollGroup *g = &acc[order[j]];
+            PyObject *times = buf_bytes(&g->times), *item = NULL;
+            if (times != NULL) item = Py_BuildValue("(nOn)", order[j], times, g->retries);
+            Py_XDECREF(times);
+            if (item == NULL) {
+                Py_DECREF(list);
+                goto done;
+            }
+            PyList_SET_ITEM(list, j, item);
+        }
+        result = list;
+    }
+done:
+    for (Py_ssize_t j = 0; j < n_acc; j++) buf_free(&acc[j].times);
+    PyMem_Free(acc);
+    buf_free(&met);
+    Py_XDECREF(single);
+    Py_XDECREF(streams);
+    release_all(c, 6);
+    return result;
+}
+
+/* The tallies of sniffer/stats.py: Tallies (a Counter: printed figure -> how many).
+ * The figures of one call are counted here first, each distinct one (by ==, so 0.0 and
+ * -0.0 are one, the first met kept as the Counter would keep it) once, in the order they
+ * were first met, then added to the Counter as `counter[key] += count`. */
+typedef struct {
+    double key;
+    Py_ssize_t count;
+} Figure;
+
+typedef struct {
+    Figure *figures; /* in the order first met */
+    Py_ssize_t n, cap;
+    Py_ssize_t *index; /* hash -> figure + 1, 0 empty */
+    Py_ssize_t index_cap;
+    Py_ssize_t last; /* the figure counted last, + 1 (0: none) */
+} Figures;
+
+static void figures_free(Figures *f) {
+    PyMem_Free(f->figures);
+    PyMem_Free(f->index);
+    memset(f, 0, sizeof *f);
+}
+
+static Py_ssize_t figure_slot(const Figures *f, double x) {
+    double z = x == 0.0 ? 0.0 : x; /* -0.0 hashes as 0.0 */
+    uint64_t bits;
+    memcpy(&bits, &z, 8);
+    bits ^= bits >> 31;
+    bits *= 0x9E3779B97F4A7C15ull;
+    Py_ssize_t mask = f->index_cap - 1, k = (Py_ssize_t)((bits >> 20) & (uint64_t)mask);
+    while (f->index[k] && f->figures[f->index[k] - 1].key != x) k = (k + 1) & mask;
+    return k;
+}
+
+/* Count one figure (never NaN). 0, or -1 with MemoryError. */
+static int figures_count(Figures *f, double x) {
+    if (f->last && f->figures[f->last - 1].key == x) { /* the same as the last: common */
+        f->figures[f->last - 1].count += 1;
+        return 0;
+    }
+    if (2 * (f->n + 1) > f->index_cap) {
+        Py_ssize_t cap = f->index_cap ? 2 * f->index_cap : 256;
+        Py_ssize_t *index = PyMem_Calloc((size_t)cap, sizeof(Py_ssize_t));
+        if (index == NULL) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        PyMem_Free(f->index);
+        f->index = index;
+        f->index_cap = cap;
+        for (Py_ssize_t j = 0; j < f->n; j++) f->index[figure_slot(f, f->figures[j].key)] = j + 1;
+    }
+    Py_ssize_t k = figure_slot(f, x);
+    if (f->index[k]) {
+        f->last = f->index[k];
+        f->figures[f->last - 1].count += 1;
+        return 0;
+    }
+    if (f->n == f->cap) {
+        Py_ssize_t cap = f->cap ? 2 * f->cap : 64;
+        Figure *grown = PyMem_Realloc(f->figures, sizeof(Figure) * (size_t)cap);
+        if (grown == NULL) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        f->figures = grown;
+        f->cap = cap;
+    }
+    f->figures[f->n].key = x;
+    f->figures[f->n].count = 1;
+    f->n += 1;
+    f->index[k] = f->last = f->n;
+    return 0;
+}
+
+/* counter[key] += count, as a Counter does it (a missing key counts from 0). */
+static int counter_add(PyObject *counter, PyObject *key, Py_ssize_t count) {
+    PyObject *old = PyDict_GetItemWithError(counter, key); /* borrowed */
+    if (old == NULL && PyErr_Occurred()) return -1;
+    PyObject *add = PyLong_FromSsize_t(count);
+    if (add == NULL) return -1;
+    PyObject *sum = old == NULL ? add : PyNumber_Add(old, add);
+    if (old != NULL) Py_DECREF(add);
+    if (sum == NULL) return -1;
+    int r = PyDict_SetItem(counter, key, sum);
+    Py_DECREF(sum);
+    return r;
+}
+
+/* The figures counted so far into the Counter (ints with `whole`, floats otherwise),
+ * and forgotten. 0, or -1 with an exception set. */
+static int figures_flush(Figures *f, PyObject *counter, int whole) {
+    for (Py_ssize_t j = 0; j < f->n; j++) {
+        PyObject *key = whole ? PyLong_FromDouble(f->figures[j].key)
+                              : PyFloat_FromDouble(f->figures[j].key);
+        if (key == NULL) return -1;
+        int r = counter_add(counter, key, f->figures[j].count);
+        Py_DECREF(key);
+        if (r < 0) return -1;
+    }
+    f->n = f->last = 0;
+    if (f->index) memset(f->index, 0, sizeof(Py_ssize_t) * (size_t)f->index_cap);
+    return 0;
+}
+
+/* A figure C does not round (see below): the ones so far into the Counter, then this one
+ * rounded by Python itself (round(x) or round(x, 1)), raising what it raises. */
+static int figure_by_python(Figures *f, PyObject *counter, int whole, double x) {
+    if (figures_flush(f, counter, whole) < 0) return -1;
+    PyObject *value = PyFloat_FromDouble(x);
+    if (value == NULL) return -1;
+    PyObject *rounded = whole ? PyObject_CallMethod(value, "__round__", NULL)
+                              : PyObject_CallMethod(value, "__round__", "i", 1);
+    Py_DECREF(value);
+    if (rounded == NULL) return -1;
+    int r = counter_add(counter, rounded, 1);
+    Py_DECREF(rounded);
+    return r;
+}
+
+/* round(y, 1) as Python rounds a float: y's exact binary value to the nearest tenth,
+ * half to even (CPython's double_round: a correctly rounded decimal string, read back),
+ * which is the nearest double to q / 10 for the integer q nearest 10 * y. Here y = m *
+ * 2^-s exactly (m < 2^53), so 10 * y = 10m * 2^-s: q and the remainder in integers,
+ * and q / 10.0 one correctly rounded division. 0 and the figure, or -1 where this does
+ * not apply (not finite, |y| >= 2^49): Python rounds those. */
+static int round_tenth(double y, double *out) {
+    if (!isfinite(y)) return -1;
+    int e;
+    double f = frexp(fabs(y), &e); /* |y| = f * 2^e, 0.5 <= f < 1 (or y == 0) */
+    int s = 53 - e;
+    if (s < 4) return -1; /* |y| >= 2^49: q might not be exact as a double */
+    uint64_t m = (uint64_t)ldexp(f, 53), q;
+    if (s > 60) {
+        q = 0; /* 10m < 2^57 <= 2^(s-4): under a sixteenth */
+    } else {
+        uint64_t v = 10 * m, half = (uint64_t)1 << (s - 1), rem = v & ((half << 1) - 1);
+        q = v >> s;
+        if (rem > half || (rem == half && (q & 1))) q += 1;
+    }
+    double r = (double)q / 10.0;
+    *out = signbit(y) ? -r : r;
+    return 0;
+}
+
+/* tally_latencies(counter, values) -> how many were counted
+ * Tallies.add_latencies' counting: for each latency x (float64, seconds) that is not
+ * NaN, counter[round(x * 1000, 1)] += 1. */
+static PyObject *py_tally_latencies(PyObject *self, PyObject *args) {
+    PyObject *counter;
+    Py_buffer vv;
+    if (!PyArg_ParseTuple(args, "O!y*", &PyDict_Type, &counter, &vv)) return NULL;
+    PyObject *result = NULL;
+    Figures f = {0};
+    const double *x = vv.buf;
+    Py_ssize_t n = vv.len / 8, kept = 0;
+    if (vv.len % 8) {
+        PyErr_SetString(PyExc_TypeError, "tally_latencies: float64 values");
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (isnan(x[i])) continue;
+        kept += 1;
+        double y = x[i] * 1000.0, r;
+        if (round_tenth(y, &r) == 0) {
+            if (figures_count(&f, r) < 0) goto done;
+        } else if (figure_by_python(&f, counter, 0, y) < 0) {
+            goto done;
+        }
+    }
+    if (figures_flush(&f, counter, 0) < 0) goto done;
+    result = PyLong_FromSsize_t(kept);
+done:
+    figures_free(&f);
+    PyBuffer_Release(&vv);
+    return result;
+}
+
+/* tally_gaps(counter, times, start, last) -> the last time
+ * Tallies.add_requests' counting: for each request time t (float64, seconds) from
+ * `start` on, counter[round((t - last) * 1000)] += 1, then last = t. Python's round of
+ * a float is its nearest integer, half to even: nearbyint's (the default rounding
+ * mode), then the int of that double. NaN and infinities go to Python, which raises. */
+static PyObject *py_tally_gaps(PyObject *self, PyObject *args) {
+    PyObject *counter;
+    Py_buffer vv;
+    Py_ssize_t start;
+    double last;
+    if (!PyArg_ParseTuple(args, "O!y*nd", &PyDict_Type, &counter, &vv, &start, &last))
+        return NULL;
+    PyObject *result = NULL;
+    Figures f = {0};
+    const double *t = vv.buf;
+    Py_ssize_t n = vv.len / 8;
+    if (vv.len % 8 || start < 0) {
+        PyErr_SetString(PyExc_TypeError, "tally_gaps: float64 values, a start >= 0");
+        goto done;
+    }
+    for (Py_ssize_t i = start; i < n; i++) {
+        double gap = (t[i] - last) * 1000.0;
+        if (isfinite(gap)) {
+            if (figures_count(&f, nearbyint(gap)) < 0) goto done;
+        } else if (figure_by_python(&f, counter, 1, gap) < 0) {
+            goto done;
+        }
+        last = t[i];
+    }
+    if (figures_flush(&f, counter, 1) < 0) goto done;
+    result = PyFloat_FromDouble(last);
+done:
+    figures_free(&f);
+    PyBuffer_Release(&vv);
+    return result;
 }

@@ -5,8 +5,10 @@ The compiled core runs the loops that cost once a packet or a frame: the pcapng 
 walk over link type 250 data records (`sniffer.sources.pcap`), the RTU framer's fast
 paths with its timeline of reads (`sniffer.framing`), and the passes over the indexed
 rows: pairing (`sniffer.pairing.Pairer.update`, `FrameStore.pair_rows`), the per-unit
-statistics and their quantiles (`sniffer.stats`), SunSpec's first look at FC 3 answers
-(`sniffer.sunspec`) and the joining of held batches of reads (`sniffer.pipeline`). Each
+statistics, their bounded tallies and their quantiles (`sniffer.stats`), the poll
+cycle's requests (`sniffer.pollcycle.PollCycles.add`), SunSpec's first look at FC 3
+answers (`sniffer.sunspec`) and the joining of held batches of reads
+(`sniffer.pipeline`). Each
 is a copy of Python code that stays, runs where the extension is missing, and takes over
 wherever the compiled loop meets anything else, so both cores give the same rows,
 pairs and tables, bit for bit.

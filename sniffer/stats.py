@@ -56,9 +56,19 @@ class Tallies:
 
     def add_latencies(self, values: Sequence[float]) -> None:
         """Count latencies (seconds)."""
+        fast = core.FAST
+        if fast is not None and isinstance(values, array) and values.typecode == "d":
+            # the counting in C (sniffer/_core.c: tally_latencies), the figures rounded
+            # exactly as round(x * 1000, 1) rounds them
+            kept = fast.tally_latencies(self.latency_ms, values)
+            self.latencies += kept
+            if kept < len(values):  # NaN among them
+                values = [x for x in values if not isnan(x)]
+            self.recent_latencies.extend(_tail(values))
+            return
         values = [x for x in values if not isnan(x)]
         self.latencies += len(values)
-        self.recent_latencies.extend(values)
+        self.recent_latencies.extend(_tail(values))
         self.latency_ms.update(round(x * 1000, 1) for x in values)
 
     def add_requests(self, times: Sequence[float]) -> None:
@@ -66,16 +76,26 @@ class Tallies:
         if not times:
             return
         self.requests += len(times)
-        self.recent_requests.extend(times)
+        self.recent_requests.extend(_tail(times))
         last = self.last_request
         start = 0
         if last is None:
             last, start = times[0], 1
+        fast = core.FAST
+        if fast is not None and isinstance(times, array) and times.typecode == "d":
+            # the counting in C (sniffer/_core.c: tally_gaps), rounded as round() rounds
+            self.last_request = fast.tally_gaps(self.gap_ms, times, start, last)
+            return
         gaps = self.gap_ms
         for t in islice(times, start, None):
             gaps[round((t - last) * 1000)] += 1  # as median_gap: b - a
             last = t
         self.last_request = last
+
+
+def _tail(values: Sequence[float]) -> Iterable[float]:
+    """The newest RECENT of `values`: what a deque of that length keeps of them all."""
+    return islice(values, max(0, len(values) - RECENT), None)
 
 
 def _tally_ranked(tally: Counter[Any], q: float) -> Any:
