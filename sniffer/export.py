@@ -286,7 +286,7 @@ class PcapExporter:
         # a Modbus/TCP packet reads no register value: answers that differ only in their
         # values may share a content (see Describer.contents); their bytes are spliced
         # into the template, or, if it cannot take them, the row is written on its own
-        alike = self.style == "modbus-tcp" and type(describer).shared is Describer.shared
+        alike = self.style == "modbus-tcp"
         for i, shared in describer.contents(rows, values=not alike):
             t = t_end[i]
             if t < 0.0:

@@ -454,8 +454,6 @@ class Lister:
             if self._csv is None
             else ((i, None) for i in rows)
         )
-        # only Describer's own contents share them (a live window's numbering does not)
-        alike = type(describer).shared is Describer.shared
         for i, shared in contents:
             if self.origin is None:
                 self.origin = store.t[i]
@@ -467,7 +465,7 @@ class Lister:
                 line = (
                     self._text_line(i, shared, peer)
                     if text
-                    else self._json_line(i, shared, peer, alike)
+                    else self._json_line(i, shared, peer)
                 )
             if line is None:
                 line = self._line(describer.detail(i), peer)
@@ -516,7 +514,7 @@ class Lister:
             return f"{when}{parts[0]} {'<' + format(measured.seconds * 1000, '.0f'):>7}ms{parts[1]}"
         return f"{when}{parts[0]} {measured.seconds * 1000:7.1f}ms{parts[1]}"
 
-    def _json_line(self, i: int, shared: Shared, peer: str, alike: bool = True) -> str | None:
+    def _json_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s JSONL line from what rows with its content share, with the row's
         index, times, channel and transaction put in. None for a gateway's row, whose
         line says more: `_line` makes it.
@@ -538,11 +536,9 @@ class Lister:
         memo = shared.memo
         json_parts = memo.get("jsonl")
         raw = b""
-        if alike and shared.raw:  # the row's bytes, to tell an answer with other values
+        if shared.raw:  # the row's bytes, to tell an answer with other values
             at = store.offset[i]
             raw = bytes(store.streams[store.channel[i]][at : at + store.length[i]])
-        if not alike:
-            raw = shared.raw
         if json_parts is None:
             if raw != shared.raw:
                 return None  # the content of an answer with other values (not its own)
