@@ -463,9 +463,7 @@ class Lister:
             line = None
             if shared is not None and not store.flags[i] & _DEVICE_SLOW:
                 line = (
-                    self._text_line(i, shared, peer)
-                    if text
-                    else self._json_line(i, shared, peer)
+                    self._text_line(i, shared, peer) if text else self._json_line(i, shared, peer)
                 )
             if line is None:
                 line = self._line(describer.detail(i), peer)
