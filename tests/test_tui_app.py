@@ -20,6 +20,7 @@ from sniffer.tui.app import ModscopeApp
 from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.screens.register import RegisterScreen
 from sniffer.tui.widgets.detail import DetailPane, FieldTree, HexView
+from sniffer.tui.widgets.frame_list import FrameList
 from sniffer.tui.widgets.units import UnitsPanel
 from sniffer.tui.widgets.watch import WatchPanel
 from tests.test_tui_support import (
@@ -164,6 +165,24 @@ async def test_the_detail_pane_shows_fields_registers_and_highlights_bytes() -> 
         assert "03 03 06 00 73" in hexview.render().plain
         await pilot.press("escape")
         assert app.frames.has_focus
+
+
+async def test_a_cursor_message_for_a_row_not_published_shows_no_detail() -> None:
+    # a restart (a damaged sidecar, `R`) empties the rows while a cursor message sent
+    # for the old ones may still be on its way: it must not reach into the new store
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=SIZE) as pilot:
+        await ready(pilot, app)
+        await pilot.press("down")
+        await pilot.pause()
+        pane = app.main.query_one("#detail", DetailPane)
+        assert pane.detail is not None
+        app.frames.post_message(FrameList.CursorMoved(app.model.published + 5))
+        await pilot.pause()
+        assert pane.detail is None
+        await pilot.press("down")  # and the next move shows its row again
+        await pilot.pause()
+        assert pane.detail is not None and pane.detail.view.index == 2
 
 
 async def test_p_jumps_to_the_paired_frame_and_shows_hidden_answers() -> None:

@@ -514,10 +514,12 @@ class ModscopeApp(App[int]):
         if not self.main.alive or self.main.lower.current != "detail":
             return
         pane = self.main.detail
-        if row is None:
+        model = self.model
+        if row is None or row >= model.published:
+            # nothing under the cursor, or a cursor message sent before the rows started
+            # over (a restart) and handled after: its row is not one of these yet
             pane.show(None)
             return
-        model = self.model
         j = model.partner(row)
         d = model.detail(row)
         other = model.detail(j) if j is not None else None
