@@ -28,23 +28,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
-from sniffer import core, pollcycle, stats
+from sniffer import pollcycle, stats
 from sniffer.pollcycle import PollCycles, cycle_table
 from sniffer.stats import Tallies
 from sniffer.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.test_core import _compiled
-
-
-@contextmanager
-def running(module: ModuleType | None) -> Iterator[None]:
-    """Run the block with the compiled core (a module) or the pure-Python one (None)."""
-    saved = core.FAST
-    core.FAST = module
-    try:
-        yield
-    finally:
-        core.FAST = saved
+from tests.test_core_rows import running
 
 
 @contextmanager

@@ -14,8 +14,9 @@ import pytest
 from sniffer import capture as capture_module
 from sniffer.capture import GATHER_READS, LiveCapture
 from sniffer.model import Chunk, LineSettings
-from sniffer.serial_source import ChunkFeed, PortSpec, PortStats
 from sniffer.session import Session
+from tests.test_live_memory import Batches, Played
+from tests.test_live_memory import Clock as FixedClock
 
 LINE = LineSettings(baud=921600, parity="N", stopbits=1, mode="rtu")
 T0 = 1768464000.0
@@ -23,7 +24,9 @@ GATHER = 0.010
 READ = bytes.fromhex("010300000002c40b")  # a read of two holding registers, unit 1
 
 
-class Clock:
+class Clock(FixedClock):
+    """The reader's clock, set by the test."""
+
     def __init__(self) -> None:
         self.t = T0
 
@@ -31,51 +34,25 @@ class Clock:
         return self.t
 
 
-class Scripted(ChunkFeed):
+class Scripted(Batches):
     """Hands out one prepared batch per `get` and counts the calls."""
 
     def __init__(self, batches: list[list[Chunk]]) -> None:
-        super().__init__()
-        self.batches = batches
+        super().__init__(batches)
         self.calls = 0
 
     def get(self, timeout: float | None = None) -> list[Chunk]:
         self.calls += 1
-        return self.batches.pop(0) if self.batches else []
-
-    @property
-    def closed(self) -> bool:
-        return not self.batches
+        return super().get(timeout)
 
 
-class Reader:
+class Reader(Played):
+    """A reader of one scripted feed, on a clock the test sets."""
+
     def __init__(self, feed: Scripted, clock: Clock) -> None:
-        self.specs = [PortSpec("/dev/scripted", LINE)]
+        super().__init__(LINE, [])
         self.clock = clock
-        self.stats: list[PortStats] = []
-        self.warnings: list[str] = []
-        self.failure: str | None = None
-        self.error: Exception | None = None
         self.feed = feed
-
-    @property
-    def running(self) -> bool:
-        return True
-
-    def subscribe(self, maxsize: int = 0) -> ChunkFeed:
-        return self.feed
-
-    def attach(self, maxsize: int = 0) -> ChunkFeed:
-        raise AssertionError("no recording here")
-
-    def detach(self, feed: ChunkFeed) -> None:
-        pass
-
-    def start(self) -> None:
-        pass
-
-    def stop(self, timeout: float = 2.0) -> None:
-        pass
 
 
 class _Time:
