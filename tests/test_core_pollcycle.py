@@ -63,11 +63,14 @@ def _request_body(rng: random.Random) -> bytes:
         fc = rng.choice((5, 6))
         value = rng.choice((b"\xff\x00", b"\x00\x00", b"\x12\x34", bytes([rng.getrandbits(8)] * 2)))
         return bytes([unit, fc, 0, rng.choice((4, 5))]) + value
-    if what < 0.8:  # a multiple write, its values changing
-        count = rng.choice((1, 2, 3))
-        data = bytes(rng.getrandbits(8) for _ in range(2 * count))
+    if what < 0.8:  # a multiple write, its values changing; a quantity out of range
+        fc = rng.choice((15, 16))
+        most = 123 if fc == 16 else 1968
+        count = rng.choice((1, 2, 3, 17, 0, most, most + 1))
+        need = 2 * count if fc == 16 else (count + 7) // 8
+        data = bytes(rng.getrandbits(8) for _ in range(need % 256))
         size = len(data) if rng.random() < 0.9 else len(data) + 1
-        return bytes([unit, 16, 0, 9, 0, count, size]) + data
+        return bytes([unit, fc, 0, 9, count >> 8, count & 0xFF, size % 256]) + data
     if what < 0.9:
         return bytes([unit, 8, 0, 0, rng.getrandbits(8), rng.getrandbits(8)])
     return bytes([unit, rng.choice((3, 16, 0x41))]) + bytes(rng.randrange(0, 5))  # damaged
@@ -377,3 +380,56 @@ def test_the_compiled_tallies_round_ties_to_even_and_keep_the_first_zero() -> No
     assert list(gaps.items()) == [(0, 2), (2, 2), (-2, 1)]
     with pytest.raises(ValueError, match="NaN"):
         fast.tally_gaps(gaps, array("d", [math.nan]), 0, 1.0)
+
+
+def test_poll_block_hands_over_a_write_once_whatever_values_it_writes() -> None:
+    """A well-formed write (FC 5 of FF00 or 0000, FC 6, FC 15/16 with a quantity in range
+    and a byte count that fits) is one key whatever it writes: `resolve` sees its first
+    row only. A write `_plain_what` does not read (FC 5 of another value) keeps its own
+    bytes as its key."""
+    fast = _compiled()
+    store = FrameStore()
+    bodies = [
+        bytes([1, 6, 0, 4, 0, 1]),
+        bytes([1, 6, 0, 4, 0, 2]),  # the same register, another value
+        bytes([1, 5, 0, 4, 0xFF, 0]),
+        bytes([1, 5, 0, 4, 0, 0]),
+        bytes([1, 5, 0, 4, 0x12, 0x34]),  # not a coil value: its own key
+        bytes([1, 16, 0, 9, 0, 1, 2, 0, 1]),
+        bytes([1, 16, 0, 9, 0, 1, 2, 0, 2]),
+        bytes([1, 15, 0, 9, 0, 3, 1, 5]),
+        bytes([1, 15, 0, 9, 0, 3, 1, 2]),
+        bytes([2, 6, 0, 4, 0, 1]),  # another unit
+        bytes([1, 6, 0, 4, 0, 1]),
+    ]
+    _grow(
+        store,
+        [(0, with_crc(b), int(Kind.REQUEST), 0, float(k), 0) for k, b in enumerate(bodies)],
+    )
+    met: list[int] = []
+
+    def resolve(key: object, i: int) -> int:
+        assert key == with_crc(bodies[i])
+        met.append(i)
+        return len(met) - 1
+
+    got = fast.poll_block(
+        fast.poll_table(),
+        store,
+        0,
+        len(store),
+        resolve,
+        int(Kind.REQUEST),
+        BAD_CHECK,
+        int(Flag.RETRY),
+        pollcycle._FRAMED_APART,
+    )
+    assert met == [0, 2, 4, 5, 7, 9]
+    assert [(g, array("d", times).tolist()) for g, times, _ in got] == [
+        (0, [0.0, 1.0, 10.0]),
+        (1, [2.0, 3.0]),
+        (2, [4.0]),
+        (3, [5.0, 6.0]),
+        (4, [7.0, 8.0]),
+        (5, [9.0]),
+    ]

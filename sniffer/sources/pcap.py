@@ -894,9 +894,33 @@ def _bulk_blocks(
     """
     size = _file_size(handle)
     handle.seek(0)
-    buf = b""
+    # the file from offset `base` is in buf[:end]; each refill keeps what is left from
+    # `pos` and reads into the same buffer (readinto) rather than into a new bytes object
+    # then joined into another: no fresh memory to fault in per read (1M frames one per
+    # packet, --stats: system time about 0.07 -> 0.03 s)
+    buf = bytearray(BULK_READ)
+    view = memoryview(buf)
+    end = 0
     base = 0  # file offset of buf[0]
     pos = 0  # position in buf of the next block
+
+    def refill(want: int) -> int:
+        """Move buf[pos:end] to the front and read up to `want` bytes after it; the
+        bytes read (0 at the end of the file)."""
+        nonlocal buf, view, end, base, pos
+        keep = end - pos
+        if keep + want > len(buf):
+            grown = bytearray(keep + want)
+            grown[:keep] = view[pos:end]
+            view.release()
+            buf, view = grown, memoryview(grown)
+        elif keep and pos:
+            view[:keep] = bytes(view[pos:end])
+        base, pos = base + pos, 0
+        got = handle.readinto(view[keep : keep + want]) or 0
+        end = keep + got
+        return got
+
     order = "<"
     head = struct.Struct(order + "II")
     epb = struct.Struct(order + "IIIII")  # type, length, interface, time high, low
@@ -929,10 +953,8 @@ def _bulk_blocks(
         return reads
 
     while True:
-        if pos + 12 > len(buf):
-            more = handle.read(BULK_READ)
-            if more:
-                buf, base, pos = buf[pos:] + more, base + pos, 0
+        if pos + 12 > end:
+            if refill(BULK_READ):
                 continue
             if parts:
                 yield batch()
@@ -942,7 +964,7 @@ def _bulk_blocks(
             # does not take (that block is then looked at here, as without it)
             pos, cut, b_index, direction_value, b_bytes, b_first, data, e, ts, te = (
                 fast.bulk_epbs(
-                    buf, pos, size - base, order == ">", fast_ifaces, b_index, int(b_dir),
+                    view[:end], pos, size - base, order == ">", fast_ifaces, b_index, int(b_dir),
                     b_bytes, b_first,
                 )
             )  # fmt: skip
@@ -957,12 +979,12 @@ def _bulk_blocks(
             if cut:
                 yield batch()
                 continue
-            if pos + 12 > len(buf):
+            if pos + 12 > end:
                 continue
         block_type, total = head.unpack_from(buf, pos)
         offset = base + pos
         if block_type == BLOCK_SHB:
-            magic = buf[pos + 8 : pos + 12]
+            magic = bytes(buf[pos + 8 : pos + 12])
             if magic not in (b"\x4d\x3c\x2b\x1a", b"\x1a\x2b\x3c\x4d"):
                 if parts:
                     yield batch()
@@ -979,10 +1001,12 @@ def _bulk_blocks(
             if parts:
                 yield batch()
             return offset, order
-        if pos + total > len(buf):
-            more = handle.read(max(BULK_READ, total))
-            buf, base, pos = buf[pos:] + more, base + pos, 0
-            continue
+        if pos + total > end:
+            if refill(max(BULK_READ, total)):
+                continue
+            if parts:  # the file is shorter than when it was opened
+                yield batch()
+            return offset, order
         if flags_value.unpack_from(buf, pos + total - 4)[0] != total:
             if parts:
                 yield batch()
@@ -1033,7 +1057,7 @@ def _bulk_blocks(
                         lead = t - seconds
                         if 0.0 < lead < RTAC_MAX_LEAD:
                             t_start = seconds
-                    parts.append(buf[data_at + skip : data_at + caplen])
+                    parts.append(bytes(buf[data_at + skip : data_at + caplen]))
                     b_bytes += caplen - skip
                     ends.append(b_bytes)
                     t_starts.append(t_start)
@@ -1042,7 +1066,7 @@ def _bulk_blocks(
                     continue
         if parts:
             yield batch()
-        block = _Block(offset, block_type, buf[pos + 8 : pos + total - 4], order)
+        block = _Block(offset, block_type, bytes(buf[pos + 8 : pos + total - 4]), order)
         pos += total
         if not (yield from _one_block(block, section, decoder, info, warnings)):
             return None
