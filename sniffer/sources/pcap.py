@@ -50,6 +50,7 @@ import struct
 from array import array
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass, field
+from io import BufferedReader
 from pathlib import Path
 from typing import BinaryIO
 
@@ -873,7 +874,7 @@ PLAIN_HEADER = {LINKTYPE_RTAC_SERIAL: RTAC_HEADER_LEN, LINKTYPE_USER0: 0}
 
 
 def _bulk_blocks(
-    handle: BinaryIO,
+    handle: BufferedReader,
     section: _Section,
     decoder: _PacketDecoder,
     info: SourceInfo,
