@@ -36,18 +36,27 @@ typedef struct {
     Py_ssize_t n, cap;
 } Buf;
 
-static int buf_put(Buf *b, const void *src, Py_ssize_t n) {
-    if (b->n + n > b->cap) {
-        Py_ssize_t cap = b->cap ? b->cap : 256;
-        while (cap < b->n + n) cap *= 2;
-        char *p = PyMem_Realloc(b->p, (size_t)cap);
-        if (p == NULL) {
-            PyErr_NoMemory();
-            return -1;
-        }
-        b->p = p;
-        b->cap = cap;
+static int buf_grow(Buf *b, Py_ssize_t n) {
+    Py_ssize_t cap = b->cap ? b->cap : 256;
+    while (cap < b->n + n) cap *= 2;
+    char *p = PyMem_Realloc(b->p, (size_t)cap);
+    if (p == NULL) {
+        PyErr_NoMemory();
+        return -1;
     }
+    b->p = p;
+    b->cap = cap;
+    return 0;
+}
+
+/* Inlined where it is called, so that the copy of a value of a size known there (an
+ * 8-byte time or offset) is a move, not a call to memcpy: reading 1M packets, the calls
+ * were 3 % of replay --stats' whole profile. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline int buf_put(Buf *b, const void *src, Py_ssize_t n) {
+    if (b->n + n > b->cap && buf_grow(b, n) < 0) return -1;
     memcpy(b->p + b->n, src, (size_t)n);
     b->n += n;
     return 0;
