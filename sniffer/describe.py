@@ -43,7 +43,7 @@ _RESPONSE = int(Kind.RESPONSE)
 # flags that make a read answer's description depend on its bytes or on more than its
 # content: the check's verdict (its sentence has the CRC in it), the other framings, the
 # slow answer's latency
-_VALUED_FLAGS = int(BAD_CHECK | Flag.ASCII | Flag.MBAP | Flag.DEVICE_SLOW | Flag.LINE_EVENT)
+VALUED_FLAGS = int(BAD_CHECK | Flag.ASCII | Flag.MBAP | Flag.DEVICE_SLOW | Flag.LINE_EVENT)
 _READS = (3, 4)
 
 
@@ -327,7 +327,7 @@ class Describer:
                 and kind == _RESPONSE
                 and unit
                 and unit not in bound
-                and not (flags[i] | flags[partner]) & _VALUED_FLAGS
+                and not (flags[i] | flags[partner]) & VALUED_FLAGS
                 and _valueless(raw, asked)
             ):
                 free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
@@ -443,6 +443,16 @@ class Describer:
         if self._lookups >= GUARD_WINDOW:
             self._guard()
         return made
+
+    def count_found(self, found: int) -> None:
+        """Count `found` rows whose content a consumer found in a table of its own (the
+        compiled export's, see PcapExporter) as found here: the hit rate the guard looks
+        at is then the whole walk's, not only that of the rows it asked about."""
+        if found:
+            self._lookups += found
+            self._hits += found
+            if self._lookups >= GUARD_WINDOW:
+                self._guard()
 
     def _guard(self) -> None:
         """After GUARD_WINDOW lookups: rest the cache if it found too few of them."""
