@@ -1450,6 +1450,93 @@ static int ex_put_u32(Buf *b, uint32_t v) {
     return buf_put(b, &v, 4);
 }
 
+/* Whether `unit` is a key of the dict `units`: 1, 0, or -1 with an exception set. */
+static int ex_in(PyObject *units, unsigned unit) {
+    if (!PyDict_GET_SIZE(units)) return 0;
+    PyObject *u = PyLong_FromLong((long)unit);
+    if (u == NULL) return -1;
+    int in = PyDict_Contains(units, u);
+    Py_DECREF(u);
+    return in;
+}
+
+/* ... of any of the dicts of the tuple `apart`. */
+static int ex_in_any(PyObject *apart, unsigned unit) {
+    for (Py_ssize_t a = 0; a < PyTuple_GET_SIZE(apart); a++) {
+        int in = ex_in(PyTuple_GET_ITEM(apart, a), unit);
+        if (in) return in;
+    }
+    return 0;
+}
+
+/* The "W" key of an RTU row of a unit with no dictionary (not a SunSpec unit), none of
+ * whose flags (nor its request's) is one of describe.py's VALUED_FLAGS: what decides its
+ * Modbus/TCP packet (PcapExporter._tcp_packet) but for the bytes the splice puts in (its
+ * unit and PDU, its hex and CRC in the comment), for the rows whose other bytes decide
+ * nothing else in it. Such a packet holds the row's bytes and the problems
+ * `Describer._content` finds, and with no dictionary those are the dissector's
+ * (dissectors/pdu; public codes, which a dictionary cannot redefine), which for these
+ * rows read no other bytes than the key's (an address is only ever said in the summary,
+ * which the packet does not hold; a unit only as "the broadcast address 0"):
+ *  - FC 1-6 requests (8 bytes): the quantity (its limits) or, for FC 5, the value (FF00
+ *    or 0000); FC 6's value is not checked;
+ *  - FC 15, 16 requests: quantity (its limits), byte count (checked against the quantity
+ *    and the bytes that follow) and, for FC 15 with a byte count that is the bytes that
+ *    follow, the last byte (the padding bits after the quantity must be zero);
+ *  - FC 5, 6 echoes, byte for byte their request's: as their request;
+ *  - FC 15, 16 answers (8 bytes) whose unit, code, address and quantity are their
+ *    request's (the echo compares these): the quantity, the request's byte count and
+ *    length (what parsing it reads; its values are not read);
+ *  - FC 1-4 answers whose byte count is the bytes that follow and what the quantity
+ *    asked needs (request: 8 bytes, same code): the byte count and, for bits, the last
+ *    byte (padding bits);
+ *  - exceptions (5 bytes): the exception code, the request's code (another code than
+ *    the answer's is a problem) and length.
+ * Kind, flags, status, length, code and whether the unit is 0 are in every key.
+ * 1: made; 0: none; -1: no memory. */
+static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const unsigned char *r,
+                         Py_ssize_t rn, const unsigned char *q, Py_ssize_t qn) {
+    w->n = 0;
+    if (rn < 5) return 0;
+    unsigned code = r[1];
+    const unsigned char *last = r + rn - 3; /* the last byte before the CRC */
+    Py_ssize_t quantity = qn >= 6 ? (q[4] << 8 | q[5]) : 0;
+    int made = 0; /* 1: a key of this row's kind is being made */
+    if (buf_put(w, "W", 1) < 0 || ex_put_u8(w, k) < 0 || ex_put_u32(w, fl) < 0 ||
+        ex_put_u8(w, st) < 0 || ex_put_u16(w, rn) < 0 || ex_put_u8(w, r[0] == 0) < 0 ||
+        ex_put_u8(w, code) < 0)
+        return -1;
+    if (k == K_REQUEST) {
+        if (code >= 1 && code <= 6 && rn == 8) {
+            made = 1;
+            if (code != 6 && buf_put(w, r + 4, 2) < 0) return -1;
+        } else if ((code == 15 || code == 16) && rn >= 9) {
+            made = 1;
+            if (buf_put(w, r + 4, 3) < 0) return -1;
+            if (code == 15 && rn == 9 + r[6] && buf_put(w, last, 1) < 0) return -1;
+        }
+    } else if (code & 0x80) {
+        made = rn == 5 && qn >= 2;
+        if (made && (buf_put(w, r + 2, 1) < 0 || buf_put(w, q + 1, 1) < 0 ||
+                     ex_put_u16(w, qn) < 0))
+            return -1;
+    } else if (code == 5 || code == 6) {
+        made = rn == 8 && qn == 8 && memcmp(r, q, 8) == 0;
+        if (made && code == 5 && buf_put(w, r + 4, 2) < 0) return -1;
+    } else if (code == 15 || code == 16) {
+        made = rn == 8 && qn >= 7 && memcmp(r, q, 6) == 0;
+        if (made && (buf_put(w, r + 4, 2) < 0 || buf_put(w, q + 6, 1) < 0 ||
+                     ex_put_u16(w, qn) < 0))
+            return -1;
+    } else if (code >= 1 && code <= 4) {
+        Py_ssize_t need = code <= 2 ? (quantity + 7) / 8 : 2 * quantity;
+        made = qn == 8 && q[1] == code && rn == 5 + r[2] && r[2] == need;
+        if (made && (buf_put(w, r + 2, 1) < 0 || (code <= 2 && buf_put(w, last, 1) < 0)))
+            return -1;
+    }
+    return made;
+}
+
 /* export_rows(table, store, rows, notes, apart, bound, alike, slow, mode, valued, miss,
  *             limit) -> (blocks, rows, found, more)
  * PcapExporter.write's loop (sniffer/export.py) over up to `limit` rows taken from the
@@ -1460,7 +1547,8 @@ static int ex_put_u32(Buf *b, uint32_t v) {
  * other row is handed to `miss(row)`, which returns (its block, the template of its
  * content or None): the template is kept under the row's keys unless the row is one
  * Describer.contents shares no content for (an event, a row with a note, a unit of
- * `apart` (SunSpec units, units with parameter windows), an exception to a request) or
+ * `apart` (the SunSpec units, then the units with parameter windows), an exception its
+ * request may explain (a unit of `bound`, or a request of a SunSpec unit)) or
  * one whose packet says more than its content (the `slow` flag). `bound`: the units
  * with a dictionary (no "F" key); `mode`, `valued`: the flags of _MODE, VALUED_FLAGS.
  * `blocks` are the rows' blocks in order; `found` how many rows the table gave; `more`
@@ -1478,6 +1566,10 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     if (et == NULL) return NULL;
     if (!PyIter_Check(rows)) {
         PyErr_SetString(PyExc_TypeError, "export_rows: rows must be an iterator");
+        return NULL;
+    }
+    if (PyTuple_GET_SIZE(apart) < 1) {
+        PyErr_SetString(PyExc_TypeError, "export_rows: apart starts with the SunSpec units");
         return NULL;
     }
     for (Py_ssize_t k = 0; k < PyTuple_GET_SIZE(apart); k++) {
@@ -1511,7 +1603,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     if (c[8].len < n) n = c[8].len;
     if (c[9].len < n) n = c[9].len;
     PyObject *result = NULL, *streams = NULL;
-    Buf out = {0}, exact = {0}, free_key = {0};
+    Buf out = {0}, exact = {0}, free_key = {0}, packet_key = {0};
     Py_ssize_t done = 0, found = 0;
     int more = 1;
     streams = PyObject_GetAttrString(store, "streams");
@@ -1528,7 +1620,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             break;
         }
         done += 1;
-        int keyed = 0; /* 1: the exact key is made; 2: the "F" key too */
+        int keyed = 0; /* the keys made: 1 the exact one, 2 the "F" one, 4 the "W" one */
         Py_ssize_t i = PyLong_Check(item) ? PyLong_AsSsize_t(item) : -1;
         if (i == -1 && PyErr_Occurred()) PyErr_Clear(); /* Python says what is wrong */
         if (i < 0 || i >= n) goto slow_path;
@@ -1548,18 +1640,20 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
         int32_t p = partner[i];
         if (p != -1 && (p < 0 || p >= n)) goto slow_path;
         if (k != K_NOISE) {
-            if ((fc[i] & 0x80) && p != -1) goto slow_path;
-            for (Py_ssize_t a = 0; a < PyTuple_GET_SIZE(apart); a++) {
-                PyObject *units = PyTuple_GET_ITEM(apart, a);
-                if (!PyDict_GET_SIZE(units)) continue;
-                PyObject *u = PyLong_FromLong(unit[i]);
-                if (u == NULL) goto fail_item;
-                int in = PyDict_Contains(units, u);
-                Py_DECREF(u);
-                if (in < 0) goto fail_item;
-                if (in) goto slow_path;
+            int in = ex_in_any(apart, unit[i]);
+            if (in) goto in_or_fail;
+            if ((fc[i] & 0x80) && p != -1) {
+                /* an exception its request may explain (describe.py: _explained) */
+                if ((in = ex_in(bound, unit[i])) || (in = ex_in(bound, unit[p])) ||
+                    (in = ex_in(PyTuple_GET_ITEM(apart, 0), unit[p])))
+                    goto in_or_fail;
             }
+            goto placed;
+        in_or_fail:
+            if (in < 0) goto fail_item;
+            goto slow_path;
         }
+    placed:;
         const char *raw, *asked = NULL;
         Py_ssize_t raw_n, asked_n = 0;
         if (row_bytes(streams, channel, offset, length, i, &raw, &raw_n) < 0) goto fail_item;
@@ -1578,36 +1672,45 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             goto fail_item;
         keyed = 1;
         const unsigned char *r = (const unsigned char *)raw, *q = (const unsigned char *)asked;
-        if (alike && answer && k == K_RESPONSE && unit[i] && !((flags[i] | flags[p]) & valued) &&
-            raw_n >= 5 && (r[1] == 3 || r[1] == 4) && asked_n >= 8 && q[1] == r[1] &&
-            raw_n == 5 + r[2] && r[2] == 2 * (q[4] << 8 | q[5])) {
-            PyObject *u = PyLong_FromLong(unit[i]);
-            if (u == NULL) goto fail_item;
-            int in = PyDict_Contains(bound, u);
-            Py_DECREF(u);
+        if (alike && (k == K_REQUEST || answer) &&
+            !((flags[i] | (answer ? flags[p] : 0)) & valued)) {
+            int in = ex_in(bound, unit[i]);
             if (in < 0) goto fail_item;
-            if (!in) {
+            if (!in && answer && k == K_RESPONSE && unit[i] && raw_n >= 5 && (r[1] == 3 || r[1] == 4) &&
+                asked_n >= 8 && q[1] == r[1] && raw_n == 5 + r[2] &&
+                r[2] == 2 * (q[4] << 8 | q[5])) { /* describe.py: _valueless */
                 free_key.n = 0;
                 if (buf_put(&free_key, "F", 1) < 0 || buf_put(&free_key, raw, 3) < 0 ||
                     ex_put_u16(&free_key, raw_n) < 0 || ex_put_u32(&free_key, flags[i]) < 0 ||
                     ex_put_u8(&free_key, status[i]) < 0 || ex_put_u16(&free_key, asked_n) < 0 ||
                     buf_put(&free_key, asked, asked_n) < 0)
                     goto fail_item;
-                keyed = 2;
+                keyed |= 2;
+            }
+            if (!in) {
+                int got = ex_packet_key(&packet_key, k, flags[i], status[i], r, raw_n, q, asked_n);
+                if (got < 0) goto fail_item;
+                if (got) keyed |= 4;
             }
         }
         ExSlot *s = ex_slot(et, ex_hash((const unsigned char *)exact.p, exact.n), exact.p,
                             exact.n);
-        if (s->template == NULL && keyed == 2)
+        if (s->template == NULL && (keyed & 2))
             s = ex_slot(et, ex_hash((const unsigned char *)free_key.p, free_key.n),
                         free_key.p, free_key.n);
+        if (s->template == NULL && (keyed & 4))
+            s = ex_slot(et, ex_hash((const unsigned char *)packet_key.p, packet_key.n),
+                        packet_key.p, packet_key.n);
         if (s->template == NULL) goto slow_path;
         PyObject *tp = s->template;
         PyObject *first = PyTuple_GET_ITEM(tp, 0), *tail = PyTuple_GET_ITEM(tp, 3);
         PyObject *spliced = PyTuple_GET_ITEM(tp, 4);
         int same = !alike || (PyBytes_GET_SIZE(first) == raw_n &&
                               memcmp(PyBytes_AS_STRING(first), raw, (size_t)raw_n) == 0);
-        if (!same && (tail == Py_None || spliced == Py_None || PyBytes_GET_SIZE(first) != raw_n))
+        /* a splice: the bytes _splice puts in, and the unit, the last byte of the MBAP
+         * header before them (the "W" keys leave it out) */
+        if (!same && (tail == Py_None || spliced == Py_None || PyBytes_GET_SIZE(first) != raw_n ||
+                      PyBytes_GET_SIZE(PyTuple_GET_ITEM(spliced, 0)) != 5))
             goto slow_path;
         /* the block: `time_ticks(t, TICKS)` as PcapExporter.write inlines it */
         double whole = floor(t);
@@ -1622,8 +1725,8 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             if (buf_put(&out, id, 2) < 0) goto fail_item;
             if (same) {
                 if (ex_put_bytes(&out, tail) < 0) goto fail_item;
-            } else if (ex_put_bytes(&out, PyTuple_GET_ITEM(spliced, 0)) < 0 ||
-                       buf_put(&out, raw + 1, raw_n - 3) < 0 ||
+            } else if (buf_put(&out, PyBytes_AS_STRING(PyTuple_GET_ITEM(spliced, 0)), 4) < 0 ||
+                       buf_put(&out, raw, raw_n - 2) < 0 ||
                        ex_put_bytes(&out, PyTuple_GET_ITEM(spliced, 1)) < 0 ||
                        ex_put_hex(&out, r, raw_n) < 0 ||
                        ex_put_bytes(&out, PyTuple_GET_ITEM(spliced, 2)) < 0 ||
@@ -1658,7 +1761,8 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
                 goto fail;
             }
             if (ex_keep(et, &exact, template) < 0 ||
-                (keyed == 2 && ex_keep(et, &free_key, template) < 0)) {
+                ((keyed & 2) && ex_keep(et, &free_key, template) < 0) ||
+                ((keyed & 4) && ex_keep(et, &packet_key, template) < 0)) {
                 Py_DECREF(got);
                 goto fail;
             }
@@ -1683,6 +1787,7 @@ done_:
     buf_free(&out);
     buf_free(&exact);
     buf_free(&free_key);
+    buf_free(&packet_key);
     Py_XDECREF(streams);
     release_all(c, 10);
     return result;
