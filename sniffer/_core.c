@@ -1480,16 +1480,16 @@ static int ex_in_any(PyObject *apart, unsigned unit) {
  * which the packet does not hold; a unit only as "the broadcast address 0"):
  *  - FC 1-6 requests (8 bytes): the quantity (its limits) or, for FC 5, the value (FF00
  *    or 0000); FC 6's value is not checked;
- *  - FC 15, 16 requests: quantity (its limits), byte count (checked against the quantity
- *    and the bytes that follow) and, for FC 15 with a byte count that is the bytes that
- *    follow, the last byte (the padding bits after the quantity must be zero);
+ *  - FC 15, 16 requests whose byte count is the bytes that follow (and, for FC 15, what
+ *    the quantity needs): quantity (its limits), byte count (checked against the
+ *    quantity) and, for FC 15, the last byte (the padding bits after the quantity);
  *  - FC 5, 6 echoes, byte for byte their request's: as their request;
  *  - FC 15, 16 answers (8 bytes) whose unit, code, address and quantity are their
  *    request's (the echo compares these): the quantity, the request's byte count and
  *    length (what parsing it reads; its values are not read);
  *  - FC 1-4 answers whose byte count is the bytes that follow and what the quantity
  *    asked needs (request: 8 bytes, same code): the byte count and, for bits, the last
- *    byte (padding bits);
+ *    byte and the quantity (which of its bits are padding, which must be zero);
  *  - exceptions (5 bytes): the exception code, the request's code (another code than
  *    the answer's is a problem) and length.
  * Kind, flags, status, length, code and whether the unit is 0 are in every key.
@@ -1510,10 +1510,10 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
         if (code >= 1 && code <= 6 && rn == 8) {
             made = 1;
             if (code != 6 && buf_put(w, r + 4, 2) < 0) return -1;
-        } else if ((code == 15 || code == 16) && rn >= 9) {
-            made = 1;
-            if (buf_put(w, r + 4, 3) < 0) return -1;
-            if (code == 15 && rn == 9 + r[6] && buf_put(w, last, 1) < 0) return -1;
+        } else if ((code == 15 || code == 16) && rn >= 9 && rn == 9 + r[6]) {
+            made = code == 16 || r[6] == ((r[4] << 8 | r[5]) + 7) / 8;
+            if (made && (buf_put(w, r + 4, 3) < 0 || (code == 15 && buf_put(w, last, 1) < 0)))
+                return -1;
         }
     } else if (code & 0x80) {
         made = rn == 5 && qn >= 2;
@@ -1531,7 +1531,8 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
     } else if (code >= 1 && code <= 4) {
         Py_ssize_t need = code <= 2 ? (quantity + 7) / 8 : 2 * quantity;
         made = qn == 8 && q[1] == code && rn == 5 + r[2] && r[2] == need;
-        if (made && (buf_put(w, r + 2, 1) < 0 || (code <= 2 && buf_put(w, last, 1) < 0)))
+        if (made && (buf_put(w, r + 2, 1) < 0 ||
+                     (code <= 2 && (buf_put(w, last, 1) < 0 || buf_put(w, q + 4, 2) < 0))))
             return -1;
     }
     return made;
