@@ -1689,13 +1689,16 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             goto fail_item;
         keyed = 1;
         const unsigned char *r = (const unsigned char *)raw, *q = (const unsigned char *)asked;
-        if (alike && (k == K_REQUEST || answer) &&
+        ExSlot *s = ex_slot(et, ex_hash((const unsigned char *)exact.p, exact.n), exact.p,
+                            exact.n);
+        /* the other keys, made only when the exact one is not found (0.36 -> 0.33 us a row) */
+        if (s->template == NULL && alike && (k == K_REQUEST || answer) &&
             !((flags[i] | (answer ? flags[p] : 0)) & valued)) {
             int in = ex_in(bound, unit[i]);
             if (in < 0) goto fail_item;
-            if (!in && answer && k == K_RESPONSE && unit[i] && raw_n >= 5 && (r[1] == 3 || r[1] == 4) &&
-                asked_n >= 8 && q[1] == r[1] && raw_n == 5 + r[2] &&
-                r[2] == 2 * (q[4] << 8 | q[5])) { /* describe.py: _valueless */
+            if (!in && answer && k == K_RESPONSE && unit[i] && raw_n >= 5 &&
+                (r[1] == 3 || r[1] == 4) && asked_n >= 8 && q[1] == r[1] &&
+                raw_n == 5 + r[2] && r[2] == 2 * (q[4] << 8 | q[5])) { /* describe.py: _valueless */
                 free_key.n = 0;
                 if (buf_put(&free_key, "F", 1) < 0 || buf_put(&free_key, raw, 3) < 0 ||
                     ex_put_u16(&free_key, raw_n) < 0 || ex_put_u32(&free_key, flags[i]) < 0 ||
@@ -1703,21 +1706,19 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
                     buf_put(&free_key, asked, asked_n) < 0)
                     goto fail_item;
                 keyed |= 2;
+                s = ex_slot(et, ex_hash((const unsigned char *)free_key.p, free_key.n),
+                            free_key.p, free_key.n);
             }
-            if (!in) {
+            if (!in && s->template == NULL) {
                 int got = ex_packet_key(&packet_key, k, flags[i], status[i], r, raw_n, q, asked_n);
                 if (got < 0) goto fail_item;
-                if (got) keyed |= 4;
+                if (got) {
+                    keyed |= 4;
+                    s = ex_slot(et, ex_hash((const unsigned char *)packet_key.p, packet_key.n),
+                                packet_key.p, packet_key.n);
+                }
             }
         }
-        ExSlot *s = ex_slot(et, ex_hash((const unsigned char *)exact.p, exact.n), exact.p,
-                            exact.n);
-        if (s->template == NULL && (keyed & 2))
-            s = ex_slot(et, ex_hash((const unsigned char *)free_key.p, free_key.n),
-                        free_key.p, free_key.n);
-        if (s->template == NULL && (keyed & 4))
-            s = ex_slot(et, ex_hash((const unsigned char *)packet_key.p, packet_key.n),
-                        packet_key.p, packet_key.n);
         if (s->template == NULL) goto slow_path;
         PyObject *tp = s->template;
         PyObject *first = PyTuple_GET_ITEM(tp, 0), *tail = PyTuple_GET_ITEM(tp, 3);
