@@ -33,7 +33,7 @@ from tests.test_core_rows import running
 from tests.test_describe_shared import session
 
 FAST = core.FAST
-pytestmark = pytest.mark.skipif(FAST is None, reason="the compiled core is not built")
+compiled = pytest.mark.skipif(FAST is None, reason="the compiled core is not built")
 
 LINE = LineSettings(baud=19200, bytesize=8, parity="E", stopbits=1, mode="rtu")
 BINDINGS = load_bindings(DEMO_BUS)  # 1 ved903b, 2 dcrl (parameter windows), 3 rvs-dn
@@ -190,6 +190,7 @@ def rows_orders(n: int) -> list[Iterable[int]]:
     return [range(n), reversed(range(n)), (i for i in range(0, n, 3)), [n - 1, 0, 0, n - 1]]
 
 
+@compiled
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), odd=st.booleans(), run=st.sampled_from((1, 7, 4096)))
 def test_both_cores_export_the_same_bytes(seed: int, odd: bool, run: int) -> None:
@@ -209,6 +210,7 @@ def test_both_cores_export_the_same_bytes(seed: int, odd: bool, run: int) -> Non
         export.EXPORT_RUN = saved
 
 
+@compiled
 def test_many_rows_share_templates_and_say_what_the_python_export_says() -> None:
     store, annotator = random_capture(11, 20_000, False)
     for style in STYLES:
@@ -218,6 +220,7 @@ def test_many_rows_share_templates_and_say_what_the_python_export_says() -> None
         )
 
 
+@compiled
 def test_the_demo_exports_the_same_with_either_core() -> None:
     s = replay_file(DEMO_CAPTURE, bindings=BINDINGS)
     n = len(s.store)
@@ -253,6 +256,7 @@ def test_the_listings_say_the_same_with_and_without_shared_contents() -> None:
     assert exceptions and all(fresh.shared(i) is not None for i in exceptions[:100])
 
 
+@compiled
 def test_a_row_number_the_store_does_not_hold_fails_as_in_python() -> None:
     store, annotator = random_capture(3, 50, False)
     for fast in (None, FAST):
@@ -303,6 +307,7 @@ ALIKE_BUT_NOT_THE_SAME = [
 ]
 
 
+@compiled
 def test_rows_whose_packets_look_alike_but_say_other_problems() -> None:
     """Each pair of rows here shares all but a byte or two with a row before it, and
     says another problem (or none): neither core lets them share a packet."""
