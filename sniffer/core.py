@@ -7,11 +7,13 @@ paths with its timeline of reads (`sniffer.framing`), and the passes over the in
 rows: pairing (`sniffer.pairing.Pairer.update`, `FrameStore.pair_rows`), the per-unit
 statistics, their bounded tallies and their quantiles (`sniffer.stats`), the poll
 cycle's requests (`sniffer.pollcycle.PollCycles.add`), SunSpec's first look at FC 3
-answers (`sniffer.sunspec`) and the joining of held batches of reads
-(`sniffer.pipeline`). Each
-is a copy of Python code that stays, runs where the extension is missing, and takes over
-wherever the compiled loop meets anything else, so both cores give the same rows,
-pairs and tables, bit for bit.
+answers (`sniffer.sunspec`), the joining of held batches of reads (`sniffer.pipeline`)
+and the pcapng export's packets from the templates it keeps
+(`sniffer.export.PcapExporter`). Each is a copy of Python code that stays, runs where
+the extension is missing, and takes over wherever the compiled loop meets anything else,
+so both cores give the same rows, pairs, tables and packets, bit for bit (the export's
+loop lets more rows share a packet template than the Python one, only rows whose packets
+are the same but for the bytes it splices in: see `ex_packet_key` in sniffer/_core.c).
 
 `MODSCOPE_PURE_PYTHON=1` forces the pure-Python core. `modscope --version` says which
 runs, and why not the compiled one.

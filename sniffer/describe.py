@@ -15,7 +15,7 @@ values one content where what they write lets it (text, JSONL, Modbus/TCP packet
 from __future__ import annotations
 
 from collections import OrderedDict, deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Container, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,7 +43,7 @@ _RESPONSE = int(Kind.RESPONSE)
 # flags that make a read answer's description depend on its bytes or on more than its
 # content: the check's verdict (its sentence has the CRC in it), the other framings, the
 # slow answer's latency
-_VALUED_FLAGS = int(BAD_CHECK | Flag.ASCII | Flag.MBAP | Flag.DEVICE_SLOW | Flag.LINE_EVENT)
+VALUED_FLAGS = int(BAD_CHECK | Flag.ASCII | Flag.MBAP | Flag.DEVICE_SLOW | Flag.LINE_EVENT)
 _READS = (3, 4)
 
 
@@ -65,6 +65,15 @@ def _valueless(raw: bytes, asked: bytes) -> bool:
         and size == 5 + raw[2]
         and raw[2] == 2 * (asked[4] << 8 | asked[5])
     )
+
+
+def _explained(unit: int, asked_unit: int, bound: Container[int], sunspec: Container[int]) -> bool:
+    """Whether an exception of `unit` to a request of `asked_unit` may be explained by
+    its request (`Describer._content`: the problems of the request's registers), which
+    makes its description depend on more than its content: only where a dictionary or
+    SunSpec names the request's registers (a unit with neither has none); a bound unit's
+    own exceptions are left out too."""
+    return unit in bound or asked_unit in bound or asked_unit in sunspec
 
 
 _EVENT = int(Kind.EVENT)
@@ -295,7 +304,14 @@ class Describer:
                 continue
             partner = partners[i]
             unit = units[i]
-            if kind != _NOISE and (unit in sunspec or (fcs[i] & 0x80 and partner != NO_PARTNER)):
+            if kind != _NOISE and (
+                unit in sunspec
+                or (
+                    fcs[i] & 0x80
+                    and partner != NO_PARTNER
+                    and _explained(unit, units[partner], bound, sunspec)
+                )
+            ):
                 last = -1
                 yield i, None
                 continue
@@ -327,7 +343,7 @@ class Describer:
                 and kind == _RESPONSE
                 and unit
                 and unit not in bound
-                and not (flags[i] | flags[partner]) & _VALUED_FLAGS
+                and not (flags[i] | flags[partner]) & VALUED_FLAGS
                 and _valueless(raw, asked)
             ):
                 free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
@@ -368,8 +384,14 @@ class Describer:
         partner = store.partner[i]
         unit = store.unit[i]
         annotator = self.annotator
+        sunspec = annotator.sunspec.units
         if kind != _NOISE and (
-            unit in annotator.sunspec.units or (store.fc[i] & 0x80 and partner != NO_PARTNER)
+            unit in sunspec
+            or (
+                store.fc[i] & 0x80
+                and partner != NO_PARTNER
+                and _explained(unit, store.unit[partner], annotator.bindings, sunspec)
+            )
         ):
             return None
         streams, offset, length, channel = store.streams, store.offset, store.length, store.channel
@@ -443,6 +465,16 @@ class Describer:
         if self._lookups >= GUARD_WINDOW:
             self._guard()
         return made
+
+    def count_found(self, found: int) -> None:
+        """Count `found` rows whose content a consumer found in a table of its own (the
+        compiled export's, see PcapExporter) as found here: the hit rate the guard looks
+        at is then the whole walk's, not only that of the rows it asked about."""
+        if found:
+            self._lookups += found
+            self._hits += found
+            if self._lookups >= GUARD_WINDOW:
+                self._guard()
 
     def _guard(self) -> None:
         """After GUARD_WINDOW lookups: rest the cache if it found too few of them."""

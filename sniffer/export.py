@@ -41,8 +41,8 @@ from typing import Any, BinaryIO, TextIO, cast
 
 from dissectors import mbap
 from dissectors.envelope import open_ascii, open_rtu, rtu_frame
-from sniffer import __version__
-from sniffer.describe import Describer, FrameDetail
+from sniffer import __version__, core
+from sniffer.describe import VALUED_FLAGS, Describer, FrameDetail, Shared
 from sniffer.listing import FORMATS, KIND_NAMES
 from sniffer.model import LineSettings
 from sniffer.sources.linktypes import MBTCP_PORT, TcpEnds, build_mbtcp_pdu
@@ -55,7 +55,7 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     upper_pdu_record,
 )
-from sniffer.store import NO_PARTNER
+from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.tcpframing import MBAP
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind
@@ -211,6 +211,7 @@ _DEVICE_SLOW = int(Flag.DEVICE_SLOW)
 _REQUEST = int(Kind.REQUEST)
 _MODE = int(Flag.ASCII | Flag.MBAP)
 TICKS = 1_000_000_000  # the writer's default resolution (nanoseconds)
+EXPORT_RUN = 4096  # rows a call of the compiled loop takes at most (see _write_compiled)
 
 
 class PcapExporter:
@@ -224,7 +225,8 @@ class PcapExporter:
     the next ones are that template with their time and id put in, and, for an answer
     with other values, its bytes (see `_spliced`). Over the 100k-frame benchmark
     (in-process, CPU time) 4.4 us a row; 17.0 before answers with other values shared
-    a content, 48 before the content cache."""
+    a content, 48 before the content cache. With the compiled core, 0.87 us (see
+    `_write_compiled`)."""
 
     def __init__(
         self,
@@ -253,6 +255,9 @@ class PcapExporter:
             self._blocks.parts.clear()
         self._pass_on()
         self.packets = 0
+        self._key = f"pcapng {self.style} {self.interface}"  # its templates' key in a memo
+        self._last: Shared | None = None  # see `_rows`
+        self._table: object | None = None  # the compiled core's templates (export_table)
 
     @staticmethod
     def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
@@ -270,6 +275,69 @@ class PcapExporter:
         self.stream.flush()
 
     def write(self, rows: Iterable[int]) -> int:
+        """Write the packets of `rows`, in order; returns how many."""
+        describer = self.describer
+        fast = core.FAST
+        if (
+            fast is not None
+            and type(describer).contents is Describer.contents
+            and type(describer).shared is Describer.shared
+            and describer.shared_size > 0
+            and type(describer.store) is FrameStore
+        ):
+            n = self._write_compiled(fast, rows)
+        else:
+            n = self._rows(rows)
+        self._pass_on()
+        self.packets += n
+        return n
+
+    def _write_compiled(self, fast: Any, rows: Iterable[int]) -> int:
+        """`write` with the compiled core (sniffer/_core.c: export_rows): the blocks of the
+        rows it holds a template for made there, every other row by `_rows` (`miss`),
+        whose template it keeps under the row's keys. Its keys are the contents' (see
+        `Describer.contents`) and, for a Modbus/TCP packet, keys of rows whose packet
+        differs only in the bytes spliced in (`ex_packet_key` says which), so that most
+        writes, echoes and exceptions of a polling capture take no new template. The rows
+        it finds count as found for the describer's guard. On the 100k-frame benchmark
+        (in-process, CPU time) 0.87 us a row against 5.8 with `_rows` alone: 0.33 in the
+        compiled loop and 409 rows left to `_rows` at about 60 us each."""
+        describer = self.describer
+        store = describer.store
+        store.sync()  # no column grows while the compiled loop holds them
+        annotator = describer.annotator
+        alike = self.style == "modbus-tcp"
+        key = self._key
+        parts = self._blocks.parts
+        self._pass_on()
+
+        def miss(i: int) -> tuple[bytes, _Template | None]:
+            self._rows((i,))
+            block = parts.pop()
+            shared = self._last
+            return block, None if shared is None else shared.memo.get(key)
+
+        table = self._table
+        if table is None:
+            table = self._table = fast.export_table()
+        apart = (annotator.sunspec.units, annotator.windows_of)
+        it = iter(rows)
+        n = 0
+        more = True
+        while more:
+            blocks, count, found, more = fast.export_rows(
+                table, store, it, store.notes, apart, annotator.bindings, alike,
+                _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, EXPORT_RUN,
+            )  # fmt: skip
+            self.stream.write(blocks)
+            describer.count_found(found)
+            n += count
+        return n
+
+    def _rows(self, rows: Iterable[int]) -> int:
+        """The blocks of `rows`, in order, into the writer's blocks (the pure-Python core,
+        and the compiled core's rows it has no template for); `_last` is the content of
+        the last row (None if it had none)."""
         n = 0
         describer = self.describer
         store = describer.store
@@ -282,7 +350,8 @@ class PcapExporter:
         )
         parts = self._blocks.parts
         append = parts.append
-        key = f"pcapng {self.style} {self.interface}"
+        key = self._key
+        shared: Shared | None = None
         # a Modbus/TCP packet reads no register value: answers that differ only in their
         # values may share a content (see Describer.contents); their bytes are spliced
         # into the template, or, if it cannot take them, the row is written on its own
@@ -333,8 +402,7 @@ class PcapExporter:
             n += 1
             if len(parts) >= 1024:
                 self._pass_on()
-        self._pass_on()
-        self.packets += n
+        self._last = shared if n else None
         return n
 
     def _write(self, d: FrameDetail, t: float) -> tuple[bytes, int | None]:
