@@ -15,7 +15,9 @@
  *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped
  *    (sniffer/pollcycle.py: PollCycles.add);
  *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
- *    (sniffer/stats.py: Tallies.add_latencies, Tallies.add_requests).
+ *    (sniffer/stats.py: Tallies.add_latencies, Tallies.add_requests);
+ *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
+ *    content it has a template for (sniffer/export.py: PcapExporter.write, _rows).
  *
  * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
