@@ -4,6 +4,7 @@ CSV/JSONL tables of frames, transactions or register values."""
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -90,6 +91,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     )
     told = line_warnings(options, capture.info.recorded_line, str(source))
     progress = Progress(err, source.name, source)
+    gc.freeze()  # start-up's objects out of the collector's way (see cli/replay.py)
     session.ingest(capture.chunks(), progress.reading)
     progress.done()
     session.warnings.extend(capture.warnings)

@@ -4,6 +4,7 @@ statistics or the TUI."""
 from __future__ import annotations
 
 import argparse
+import gc
 import shutil
 import sys
 import tempfile
@@ -109,6 +110,10 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 
         return run_tui(session, capture, reopen=reopen)
     progress = Progress(err, shown or path.name, None if shown else path)
+    # what start-up built (modules, schemas, dictionaries) lives as long as the process:
+    # frozen, the collector's passes during the read walk only what the read makes
+    # (1M frames one per packet, --stats: 4 ms of collections while reading, against 19)
+    gc.freeze()
     cycles = speed = None
     if args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
