@@ -23,6 +23,7 @@ from sniffer.cli import (
     dictcmd,
     diff,
     export,
+    heap,
     live,
     manual,
     ports,
@@ -81,6 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    if argv is None:
+        heap.as_program()
     parser = build_parser()
     args = parser.parse_args(argv)
     out, err = sys.stdout, sys.stderr

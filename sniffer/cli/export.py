@@ -4,12 +4,12 @@ CSV/JSONL tables of frames, transactions or register values."""
 from __future__ import annotations
 
 import argparse
-import gc
 import sys
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
+from sniffer.cli import heap
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.options import (
     READ_EPILOG,
@@ -91,7 +91,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     )
     told = line_warnings(options, capture.info.recorded_line, str(source))
     progress = Progress(err, source.name, source)
-    gc.freeze()  # start-up's objects out of the collector's way (see cli/replay.py)
+    heap.settle()
     session.ingest(capture.chunks(), progress.reading)
     progress.done()
     session.warnings.extend(capture.warnings)
