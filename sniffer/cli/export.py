@@ -9,8 +9,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
-from sniffer.cli import heap
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
+from sniffer.cli.heap import settle
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -91,7 +91,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     )
     told = line_warnings(options, capture.info.recorded_line, str(source))
     progress = Progress(err, source.name, source)
-    heap.settle()
+    settle()
     session.ingest(capture.chunks(), progress.reading)
     progress.done()
     session.warnings.extend(capture.warnings)

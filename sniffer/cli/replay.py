@@ -12,8 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from sniffer.cli import heap
 from sniffer.cli.filtering import Selection, add_filter_options
+from sniffer.cli.heap import settle
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -110,7 +110,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 
         return run_tui(session, capture, reopen=reopen)
     progress = Progress(err, shown or path.name, None if shown else path)
-    heap.settle()
+    settle()
     cycles = speed = None
     if args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
