@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from sniffer.model import Chunk, LineSettings
 from sniffer.session import Session, open_session
-from sniffer.sources import open_capture
+from sniffer.sources import open_capture, pcap
 from sniffer.sources.linktypes import (
     LINKTYPE_RTAC_SERIAL,
     LINKTYPE_USER0,
@@ -179,6 +179,63 @@ def test_bulk_walk_gives_the_chunks_and_warnings_of_the_block_walk(
     assert batched == plain
 
 
+@settings(
+    max_examples=60,
+    deadline=None,
+    # the monkeypatch is undone after every example (its context below)
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(
+    order=st.sampled_from(["<", ">"]),
+    linktypes=st.sampled_from(LINKTYPE_MIXES),
+    packets=st.lists(packet, min_size=1, max_size=30),
+    piece=st.sampled_from([12, 13, 40, 64, 100, 333]),
+    hurt=damage,
+)
+def test_bulk_walk_reads_the_same_in_small_pieces(
+    tmp_path_factory: pytest.TempPathFactory,
+    monkeypatch: pytest.MonkeyPatch,
+    order: str,
+    linktypes: list[int],
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    piece: int,
+    hurt: tuple[object, ...] | None,
+) -> None:
+    """Read in pieces smaller than a block (`BULK_READ`), so that every refill keeps the
+    rest of a block and reads behind it, and some blocks need a bigger buffer: the
+    chunks and warnings are those of the block walk."""
+    data = hurt_file(_capture(order, linktypes, packets, -1), hurt)
+    path = tmp_path_factory.mktemp("pieces") / "c.pcapng"
+    path.write_bytes(data)
+    plain = _chunks(path, False)
+    with monkeypatch.context() as m:
+        m.setattr(pcap, "BULK_READ", piece)
+        batched = _chunks(path, True)
+    assert batched == plain
+
+
+def test_bulk_walk_ends_when_the_file_is_shorter_than_it_was(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A file that shrinks while it is read (its size was taken when it was opened) and
+    now ends inside a block: the bulk walk stops at that block rather than waiting for
+    bytes that will not come, and the block walk reads what is there, as without the
+    bulk walk."""
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]] = [
+        (0, "data", None, "", k, 1, 0.004, 0.01) for k in range(20)
+    ]
+    data = _capture("<", [LINKTYPE_RTAC_SERIAL], packets, -1)
+    path = tmp_path / "c.pcapng"
+    path.write_bytes(data[:-10])  # the last block cut
+    real = pcap._file_size
+    monkeypatch.setattr(pcap, "_file_size", lambda handle: real(handle) + 4096)
+    monkeypatch.setattr(pcap, "BULK_READ", 64)
+    chunks, warnings, _ = _chunks(path, True)
+    assert b"".join(c.data for c in chunks) == b"".join(FRAMES[:19])
+    assert any("the file shrank while it was read" in w for w in warnings)
+    assert (chunks, warnings) == _chunks(path, False)[:2]
+
+
 PCAP_MAGIC = {(False, False): 0xA1B2C3D4, (True, False): 0xA1B23C4D, (False, True): 0xA1B2CD34}
 
 
@@ -232,6 +289,59 @@ def test_bulk_pcap_walk_gives_the_chunks_and_warnings_of_the_record_walk(
     plain = _chunks(path, False)
     batched = _chunks(path, True)
     assert batched == plain
+
+
+@settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(
+    order=st.sampled_from(["<", ">"]),
+    layout=st.sampled_from(list(PCAP_MAGIC)),
+    linktype=st.sampled_from([LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0]),
+    packets=st.lists(packet, min_size=1, max_size=30),
+    piece=st.sampled_from([16, 17, 40, 64, 100, 333]),
+    hurt=damage,
+)
+def test_bulk_pcap_walk_reads_the_same_in_small_pieces(
+    tmp_path_factory: pytest.TempPathFactory,
+    monkeypatch: pytest.MonkeyPatch,
+    order: str,
+    layout: tuple[bool, bool],
+    linktype: int,
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]],
+    piece: int,
+    hurt: tuple[object, ...] | None,
+) -> None:
+    """As `test_bulk_walk_reads_the_same_in_small_pieces`, for a classic pcap file."""
+    data = hurt_file(pcap_capture(order, *layout, linktype, packets), hurt)
+    path = tmp_path_factory.mktemp("pcappieces") / "c.pcap"
+    path.write_bytes(data)
+    plain = _chunks(path, False)
+    with monkeypatch.context() as m:
+        m.setattr(pcap, "BULK_READ", piece)
+        batched = _chunks(path, True)
+    assert batched == plain
+
+
+@pytest.mark.parametrize("batched", [True, False])
+def test_pcap_walks_end_when_the_file_is_shorter_than_it_was(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, batched: bool
+) -> None:
+    """As `test_bulk_walk_ends_when_the_file_is_shorter_than_it_was`, for a classic pcap
+    file: the record cut short is said, not read as a shorter packet."""
+    packets: list[tuple[int, str, int | None, str, int, int, float, float]] = [
+        (0, "data", None, "", k, 1, 0.004, 0.01) for k in range(20)
+    ]
+    path = tmp_path / "c.pcap"
+    path.write_bytes(pcap_capture("<", False, False, LINKTYPE_RTAC_SERIAL, packets)[:-3])
+    real = pcap._file_size
+    monkeypatch.setattr(pcap, "_file_size", lambda handle: real(handle) + 4096)
+    monkeypatch.setattr(pcap, "BULK_READ", 64)
+    chunks, warnings, _ = _chunks(path, batched)
+    assert b"".join(c.data for c in chunks) == b"".join(FRAMES[:19])
+    assert any("the file shrank while it was read" in w for w in warnings)
 
 
 def test_data_packets_of_every_shape_come_in_batches(tmp_path: Path) -> None:
