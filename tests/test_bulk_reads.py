@@ -179,6 +179,16 @@ def test_bulk_walk_gives_the_chunks_and_warnings_of_the_block_walk(
     assert batched == plain
 
 
+def _read_the_same_in_pieces(path: Path, piece: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bulk walk reading `path` `piece` bytes at a time (`BULK_READ`) gives the
+    chunks and warnings of the block or record walk (the patch undone after)."""
+    plain = _chunks(path, False)
+    with monkeypatch.context() as m:
+        m.setattr(pcap, "BULK_READ", piece)
+        batched = _chunks(path, True)
+    assert batched == plain
+
+
 @settings(
     max_examples=60,
     deadline=None,
@@ -207,11 +217,7 @@ def test_bulk_walk_reads_the_same_in_small_pieces(
     data = hurt_file(_capture(order, linktypes, packets, -1), hurt)
     path = tmp_path_factory.mktemp("pieces") / "c.pcapng"
     path.write_bytes(data)
-    plain = _chunks(path, False)
-    with monkeypatch.context() as m:
-        m.setattr(pcap, "BULK_READ", piece)
-        batched = _chunks(path, True)
-    assert batched == plain
+    _read_the_same_in_pieces(path, piece, monkeypatch)
 
 
 def test_bulk_walk_ends_when_the_file_is_shorter_than_it_was(
@@ -318,11 +324,7 @@ def test_bulk_pcap_walk_reads_the_same_in_small_pieces(
     data = hurt_file(pcap_capture(order, *layout, linktype, packets), hurt)
     path = tmp_path_factory.mktemp("pcappieces") / "c.pcap"
     path.write_bytes(data)
-    plain = _chunks(path, False)
-    with monkeypatch.context() as m:
-        m.setattr(pcap, "BULK_READ", piece)
-        batched = _chunks(path, True)
-    assert batched == plain
+    _read_the_same_in_pieces(path, piece, monkeypatch)
 
 
 @pytest.mark.parametrize("batched", [True, False])

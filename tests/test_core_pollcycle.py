@@ -22,6 +22,7 @@ from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import ModuleType
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -195,6 +196,21 @@ def test_the_poll_cycle_of_many_rows_is_the_same_with_either_core() -> None:
     assert "retries" in states[0][-1] and "write holding" in states[0][-1]
 
 
+def _poll(fast: ModuleType, table: object, store: FrameStore, hi: int, resolve: Any) -> Any:
+    """`poll_block` over rows 0..hi with the flags `PollCycles.add` gives it."""
+    return fast.poll_block(
+        table,
+        store,
+        0,
+        hi,
+        resolve,
+        int(Kind.REQUEST),
+        BAD_CHECK,
+        int(Flag.RETRY),
+        pollcycle._FRAMED_APART,
+    )
+
+
 def test_poll_block_keys_rows_as_the_python_keys_do() -> None:
     """The keys handed to `resolve`: the row's bytes, or the tuple of its framing and
     bytes for ASCII and Modbus TCP rows; each distinct key once, at its first row."""
@@ -222,17 +238,7 @@ def test_poll_block_keys_rows_as_the_python_keys_do() -> None:
         return 0 if isinstance(key, bytes) else 1
 
     table = fast.poll_table()
-    got = fast.poll_block(
-        table,
-        store,
-        0,
-        len(store),
-        resolve,
-        int(Kind.REQUEST),
-        BAD_CHECK,
-        int(Flag.RETRY),
-        pollcycle._FRAMED_APART,
-    )
+    got = _poll(fast, table, store, len(store), resolve)
     assert met == [(rtu, 0), ((int(Flag.ASCII), ascii_raw), 1), ((int(Flag.MBAP), mbap_raw), 3)]
     assert [(g, array("d", times).tolist(), r) for g, times, r in got] == [
         (0, [1.0, 3.0], 1),
@@ -240,17 +246,7 @@ def test_poll_block_keys_rows_as_the_python_keys_do() -> None:
     ]
     # a key met before (in the same table) is not handed over again
     met.clear()
-    again = fast.poll_block(
-        table,
-        store,
-        0,
-        3,
-        resolve,
-        int(Kind.REQUEST),
-        BAD_CHECK,
-        int(Flag.RETRY),
-        pollcycle._FRAMED_APART,
-    )
+    again = _poll(fast, table, store, 3, resolve)
     assert met == [] and [g for g, _, _ in again] == [0, 1]
 
 
@@ -413,17 +409,7 @@ def test_poll_block_hands_over_a_write_once_whatever_values_it_writes() -> None:
         met.append(i)
         return len(met) - 1
 
-    got = fast.poll_block(
-        fast.poll_table(),
-        store,
-        0,
-        len(store),
-        resolve,
-        int(Kind.REQUEST),
-        BAD_CHECK,
-        int(Flag.RETRY),
-        pollcycle._FRAMED_APART,
-    )
+    got = _poll(fast, fast.poll_table(), store, len(store), resolve)
     assert met == [0, 2, 4, 5, 7, 9]
     assert [(g, array("d", times).tolist()) for g, times, _ in got] == [
         (0, [0.0, 1.0, 10.0]),
