@@ -95,6 +95,12 @@ class Annotator:
         self.bindings = dict(bindings)
         self.registry = registry_of(self.bindings)  # what frames and dissects this bus
         self.next = 0
+        # the rows it records (selections, scale factors) are numbered `base + i`, `i` a
+        # row of the store it follows: 0, unless a windowed session that keeps them for
+        # good (`Session.forget_annotation` with `keep_rows`) moves it on each segment, so
+        # that they are numbered in the whole capture (the TUI's paged rows)
+        self.base = 0
+        self.keep_rows = False
         self.tracks: dict[tuple[int, int], _WindowTrack] = {}
         self.last_write: dict[int, tuple[float, int]] = {}  # unit -> (time, fc) of a write
         self.windows_of: dict[int, list[_WindowTrack]] = {}
@@ -152,7 +158,7 @@ class Annotator:
                 for track in tracks:
                     k = track.window.select - data.address
                     if 0 <= k < len(data.values):
-                        track.rows.append(i)
+                        track.rows.append(self.base + i)
                         track.numbers.append(data.values[k])
 
     def _answer(self, store: FrameStore, i: int, unit: int) -> None:

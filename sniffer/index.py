@@ -353,6 +353,7 @@ class Writer:
             self.out, self.tmp, self.target = os.fdopen(fd, "wb"), tmp, target
             break
         self.blocks: list[Any] = []
+        self.first_block = len(MAGIC) + _PREFIX.size + RESERVE  # where the blocks start
         self.notes: dict[str, str] = {}
         self.rows = 0
         self.streams: dict[int, int] = {}
@@ -567,6 +568,7 @@ def load(
     should_stop: Callable[[], bool] | None = None,
     shown: bool = False,
     segment: Callable[[Session], None] | None = None,
+    opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
 ) -> Path | None:
     """Fill `session` and `capture` from a sidecar of `path` that still fits; its path,
     or None (nothing was changed) when there is none.
@@ -585,7 +587,12 @@ def load(
     `shown`). The statistics, warnings and notes come after the last block. A damaged
     block takes back the rows before it, unless `shown` (another thread may be showing
     them): then `DamagedError` is raised. `should_stop()` true between blocks: return with
-    the rows read so far."""
+    the rows read so far.
+
+    `opened(path, fd, start, header)`: the sidecar found to fit, before its first block
+    is read: an open descriptor of it (valid during the call: `os.dup` it to keep it),
+    where its first block starts, and its header (`sniffer.paged.PagedStore` reads its
+    rows from there)."""
     who = identity(path)
     if who is None:
         return None
@@ -603,6 +610,8 @@ def load(
             if found is None:
                 continue
             header, counts = found
+            if opened is not None:
+                opened(candidate, handle.fileno(), handle.tell(), header)
             filling = _Filling(
                 session, capture, header, handle, progress, shown, who["size"], segment
             )

@@ -9,7 +9,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sniffer.annotate import Annotator, Binding
 from sniffer.describe import Describer
@@ -20,6 +20,9 @@ from sniffer.sources.reads import Reads, batching
 from sniffer.stats import Stats
 from sniffer.store import FrameStore
 from sniffer.vocab import Kind, Status
+
+if TYPE_CHECKING:
+    from sniffer.index import Writer
 
 
 def _demo_file(name: str) -> Path:
@@ -215,8 +218,15 @@ class Session:
 
     def forget_annotation(self) -> None:
         """The annotator's state carried into an emptied store (a new segment): what it
-        learnt stays, the rows it learnt it from are gone."""
-        self.annotator.next = 0
+        learnt stays, the rows it learnt it from are gone. With `annotator.keep_rows` the
+        rows it recorded stay too, numbered in the whole capture (the rows before the new
+        store's first are `self.base + len(self.store)` here: `new_segment` calls this
+        before it moves `base` on, `sniffer.index` after it emptied the store)."""
+        annotator = self.annotator
+        annotator.next = 0
+        if annotator.keep_rows:
+            annotator.base = annotator.sunspec.base = self.base + len(self.store)
+            return
         for track in self.annotator.tracks.values():  # the parameter selected last
             if track.rows:
                 track.rows, track.numbers = [-1], track.numbers[-1:]
@@ -236,6 +246,8 @@ class Session:
         index: bool = True,
         window: int | None = None,
         segment: Callable[[Session], None] | None = None,
+        written: Callable[[Session, Writer | None], None] | None = None,
+        opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds.
 
@@ -253,7 +265,13 @@ class Session:
         (`sniffer.pollcycle.PollCycles`, `sniffer.baud.SpeedCheck`) counts them there.
         The statistics carry on across segments (bound them: `Stats.bound`). The
         sidecar is then written a segment at a time (`sniffer.index.Writer`), and read
-        back a block at a time, each block a segment."""
+        back a block at a time, each block a segment.
+
+        `written(session, writer)` (with `window`): called once each segment's rows are
+        in the sidecar being written (`writer`, None when none is: the rows are only in
+        `session.store`), before they are dropped, and once with the last segment's.
+        `opened(path, fd, start, header)`: the sidecar being read back (see
+        `sniffer.index.load`). Both feed `sniffer.paged.PagedStore`."""
         if not index:
             self._sidecar = None
         if self._sidecar is not None and self.indexed_from is None and not len(self.store):
@@ -271,6 +289,7 @@ class Session:
                 should_stop,
                 shown=shown,
                 segment=segment if window is not None else None,
+                opened=opened,
             )
         if self.indexed_from is not None:
             if segment is not None:
@@ -308,6 +327,8 @@ class Session:
                                 segment(self)
                             if writer is not None:
                                 writer.add(self)
+                            if written is not None:
+                                written(self, _open(writer))
                             self.new_segment()
                             retry = window
                         else:  # try again once more rows came (the test costs a scan)
@@ -322,15 +343,25 @@ class Session:
                 if capture.finished:  # read to its end
                     if writer is not None:
                         writer.add(self)
+                        if written is not None:
+                            written(self, _open(writer))
+                            written = None
                         writer.close(self, capture, key)
                     else:
                         sidecar.save(self, capture, path, key)
                     self._sidecar = None
+            if written is not None and window is not None:
+                written(self, None)  # the last segment, not in a sidecar
         finally:
             if writer is not None:  # (no half-written sidecar left behind: Ctrl-C)
                 writer.abandon()
         if progress is not None:
             progress(done, self.base + len(self.store))
+
+
+def _open(writer: Writer | None) -> Writer | None:
+    """The writer, if it still writes its sidecar (not abandoned: a folder filled up)."""
+    return writer if writer is not None and writer.out is not None else None
 
 
 def open_session(

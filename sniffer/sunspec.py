@@ -119,6 +119,8 @@ class SunSpecTracker:
         self.library = library if library is not None else default_library()
         self.skip = skip
         self.units: dict[int, SunSpecUnit] = {}
+        # rows are recorded as row `base + i` of the capture (see Annotator.base)
+        self.base = 0
 
     # -- following the capture -------------------------------------------------------
 
@@ -190,7 +192,7 @@ class SunSpecTracker:
             if len(data) != 2 * count:
                 continue
             words = [int.from_bytes(data[k : k + 2], "big") for k in range(0, len(data), 2)]
-            self.take(unit, i, start, words)
+            self.take(unit, self.base + i, start, words)
 
     def take(self, unit: int, row: int, start: int, words: Sequence[int]) -> None:
         """Registers `start`.. of `unit` as row `row` read them."""

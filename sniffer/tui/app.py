@@ -28,6 +28,8 @@ from textual.worker import get_current_worker
 from sniffer.describe import Describer
 from sniffer.listing import FORMATS, Lister
 from sniffer.model import Chunk
+from sniffer.paged import PagedStore
+from sniffer.paged import wanted as paged_wanted
 from sniffer.query import Query, QueryError, parse_query, parse_time_point
 from sniffer.recorder import RecordError
 from sniffer.select import FilterJob, resolve_time, time_bounds
@@ -125,7 +127,7 @@ class ModscopeApp(App[int]):
         self.capture = capture
         self.live = live
         self.reopen = reopen
-        self.model = ViewModel(session)
+        self.model = ViewModel(session, _paged(session, live, speed))
         self.main = MainScreen(self.model, blink=blink)
         self.pacing = Pacing(speed)
         self.generation = 0
@@ -207,8 +209,11 @@ class ModscopeApp(App[int]):
                     yield chunk
 
             chunks: Iterable[Chunk] = counted(capture.chunks())
+            paged = self.model.paged
             self.run_worker(
-                lambda: feed_capture(session, chunks, pacing, publish, warnings=capture.warnings),
+                lambda: feed_capture(
+                    session, chunks, pacing, publish, warnings=capture.warnings, paged=paged
+                ),
                 thread=True,
                 group="feed",
             )
@@ -840,7 +845,7 @@ class ModscopeApp(App[int]):
         old = self.model
         self.generation += 1
         self.session, self.capture = session, capture
-        self.model = ViewModel(session)
+        self.model = ViewModel(session, _paged(session, None, speed))
         self.model.absolute, self.model.transactions = old.absolute, old.transactions
         self.model.problems_only, self.model.query = old.problems_only, old.query
         self.watch_model = None
@@ -896,7 +901,7 @@ class ModscopeApp(App[int]):
             source=Path(session.source).name if live is None else session.source,
             line=line,
             rows=model.published,
-            bytes=session.store.bytes_total,
+            bytes=model.reader.bytes_total,
             errors=errors,
             rate=rate,
             indexing=not model.done and live is None and self.pacing.speed is None,
@@ -1098,6 +1103,12 @@ def reopen_file(session: Session) -> tuple[Session, Capture]:
         bindings=session.annotator.bindings,
         timeout=session.pipeline.pairer.timeout,
     )
+
+
+def _paged(session: Session, live: LiveSource | None, speed: float | None) -> PagedStore | None:
+    """A store for the rows of a capture big enough to have a sidecar index, paged from
+    it (see `sniffer.paged`); None: the session's store is shown as it is."""
+    return PagedStore() if paged_wanted(session, live is not None, speed) else None
 
 
 def where_text(store: FrameStore, row: int) -> str:

@@ -14,9 +14,10 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 from sniffer.model import Chunk
+from sniffer.paged import PagedStore
 from sniffer.recorder import Recorder
 from sniffer.session import Session
 
@@ -150,9 +151,14 @@ def feed_capture(
     first: float = 0.05,
     warnings: list[str] | None = None,
     breather: float = 0.005,
+    paged: PagedStore | None = None,
 ) -> None:
     """Ingest a capture in this thread, publishing progress after `first` seconds, then
     every `every` seconds, and once at the end.
+
+    `paged`: the rows go there instead, a segment at a time (a windowed ingest writing
+    the sidecar, or the sidecar read back a block at a time), and only those rows are
+    published; the session's store holds one segment (see `sniffer.paged`).
 
     After each publication the thread sleeps `breather` seconds: Python runs one thread
     at a time, and this lets the UI take the new rows and draw them at once instead of
@@ -163,6 +169,9 @@ def feed_capture(
 
     def progress(done: int, rows: int) -> None:
         nonlocal bytes_done, good_rows, last
+        if paged is not None:
+            paged.reach(rows)  # (a sidecar read back: its blocks up to `rows`)
+            rows = len(paged)
         bytes_done, good_rows = done, rows
         now = time.monotonic()
         interval = every if pacing.speed is None else min(every, 0.1)  # replays look live
@@ -171,8 +180,19 @@ def feed_capture(
             publish(FeedProgress(rows, done))
             time.sleep(breather)
 
+    from sniffer import index
     from sniffer.index import DamagedError
 
+    paging: dict[str, Any] = {}
+    if paged is not None:
+        session.annotator.keep_rows = True  # what it records numbered as `paged` numbers rows
+        paging = {
+            # segments that fit a sidecar block: one block each
+            "window": max(1, index.BLOCK * 15 // 16),
+            "segment": _ignore,
+            "written": paged.take,
+            "opened": paged.attach,
+        }
     try:
         session.ingest(
             pacing.pace(chunks),
@@ -181,6 +201,7 @@ def feed_capture(
             should_stop=pacing.stopped,
             shown=True,
             index=pacing.speed is None,  # a replay at the original speed reads the capture
+            **paging,
         )
     except DamagedError as exc:
         publish(FeedProgress(good_rows, bytes_done, True, str(exc), reopen=True))
@@ -192,7 +213,12 @@ def feed_capture(
     if warnings:
         session.warnings.extend(warnings)
     if not pacing.stopped():
-        publish(FeedProgress(len(session.store), bytes_done, done=True))
+        rows = len(paged) if paged is not None else len(session.store)
+        publish(FeedProgress(rows, bytes_done, done=True))
+
+
+def _ignore(session: Session) -> None:
+    """A windowed ingest's segments, taken by `PagedStore.take` instead."""
 
 
 def feed_live(

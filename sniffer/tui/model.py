@@ -10,6 +10,7 @@ from __future__ import annotations
 from rich.text import Text
 
 from sniffer.describe import Describer, FrameDetail
+from sniffer.paged import PagedStore
 from sniffer.query import Query
 from sniffer.select import FilterJob, Options
 from sniffer.session import Session
@@ -22,9 +23,15 @@ from sniffer.vocab import Kind
 class ViewModel:
     """What the frame list shows and how, over one session."""
 
-    def __init__(self, session: Session) -> None:
+    def __init__(self, session: Session, paged: PagedStore | None = None) -> None:
         self.session = session
-        self.reader = StoreReader(session.store)
+        # a big capture's rows come paged from its sidecar (see `sniffer.paged`): the
+        # feeding thread fills `paged` a segment at a time; else the store is read as
+        # it is filled
+        self.paged = paged
+        self.reader: StoreReader | PagedStore = (
+            paged if paged is not None else StoreReader(session.store)
+        )
         self.describer = Describer(self.reader, session.annotator, size=4096)
         self.published = 0  # rows below this are complete and may be read
         self.shown = 0  # rows the list shows (lags `published` while paused)
