@@ -88,6 +88,40 @@ def test_rows_arriving_in_pieces_give_the_same_cycle() -> None:
     assert pieces.summaries() == whole.summaries()
 
 
+def test_a_bounded_follow_leaves_rows_for_later_and_ends_with_the_same_cycle(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sniffer.tui.widgets.units as units
+
+    monkeypatch.setattr(units, "CHUNK", 16)
+    session = troubled_bus()
+    n = len(session.store)
+    whole = PollWatch()
+    assert not whole.update(session.store, n)
+    bounded = PollWatch()
+    calls = 0
+    while bounded.update(session.store, n, budget=0.0):  # one chunk a call
+        calls += 1
+        assert bounded.next == 16 * calls
+    assert calls + 1 == -(-n // 16) > 3 and bounded.next == n
+    assert bounded.summaries() == whole.summaries()
+
+
+def test_a_request_sent_again_is_one_poll_with_the_frames_remembered_or_not(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sniffer.tui.widgets.units as units
+
+    session = troubled_bus()
+    remembered = PollWatch()
+    remembered.update(session.store, len(session.store))
+    monkeypatch.setattr(units, "SEEN", 0)  # every frame keyed again
+    forgotten = PollWatch()
+    forgotten.update(session.store, len(session.store))
+    assert forgotten.summaries() == remembered.summaries()
+    assert not forgotten._seen and remembered._seen
+
+
 def test_writes_are_one_poll_whatever_they_write() -> None:
     a = with_crc(bytes([4, 16, 0, 5, 0, 1, 2, 0, 7]))[:-2]
     b = with_crc(bytes([4, 16, 0, 5, 0, 1, 2, 0, 9]))[:-2]

@@ -4,9 +4,12 @@ unit's main poll); units that stopped answering stand out."""
 
 from __future__ import annotations
 
+import operator
+import time
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from itertools import compress
 from typing import ClassVar
 
 from rich.style import Style
@@ -14,6 +17,7 @@ from rich.text import Text
 from textual.widgets import DataTable
 
 from dissectors.envelope import ascii_body
+from sniffer.columns import marking
 from sniffer.pollcycle import GAP_FACTOR, MIN_REPEATS
 from sniffer.stats import UnitStats
 from sniffer.store import FrameStore
@@ -208,6 +212,17 @@ def request_key(body: bytes) -> bytes:
     return body
 
 
+# rows a PollWatch takes in at a time, and request frames it remembers the poll of
+CHUNK = 4096
+SEEN = 1 << 16
+# the pane's share of the UI thread while it follows a big capture: at most this long a
+# call (1M rows, 500k requests: 1.1 s in all), then again after a pause for keys
+FOLLOW_BUDGET = 0.04
+FOLLOW_AGAIN = 0.04
+_SKIPPED = int(Flag.CHECK_BAD | Flag.NON_HEX)
+_REQUESTS = marking((int(Kind.REQUEST),))
+
+
 class PollWatch:
     """Each unit's repeating requests, followed incrementally over a store.
 
@@ -220,27 +235,65 @@ class PollWatch:
         self.store: FrameStore | None = None
         self.next = 0
         self.polls: dict[int, dict[bytes, _Poll]] = {}
+        # each request's frame as sent -> its poll: a polling master sends the same
+        # bytes all day, so most rows skip the key (up to SEEN frames)
+        self._seen: dict[tuple[int, bytes], _Poll] = {}
 
-    def update(self, store: FrameStore, upto: int) -> None:
-        """Take in rows below `upto` (rows another thread has finished writing)."""
+    def update(self, store: FrameStore, upto: int, budget: float | None = None) -> bool:
+        """Take in rows below `upto` (rows another thread has finished writing), in
+        chunks of `CHUNK` rows, for about `budget` seconds at most (None: all of them);
+        True if rows are left for the next call. A bounded call keeps the UI thread
+        answering keys while a day's capture is indexed (30M rows, 15M requests)."""
         if store is not self.store or upto < self.next:
             self.store, self.next, self.polls = store, 0, {}
-        kind, flags, unit, t = store.kind, store.flags, store.unit, store.t
-        for i in range(self.next, upto):
-            if kind[i] != Kind.REQUEST or flags[i] & (Flag.CHECK_BAD | Flag.NON_HEX):
+            self._seen = {}
+        deadline = None if budget is None else time.monotonic() + budget
+        while self.next < upto:
+            hi = min(upto, self.next + CHUNK)
+            self._chunk(store, self.next, hi)
+            self.next = hi
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+        return self.next < upto
+
+    def _chunk(self, store: FrameStore, lo: int, hi: int) -> None:
+        """The requests among rows `lo`..`hi`: each column read once for the chunk (a
+        slice: an array, or a paged store's block), the bytes of each channel once."""
+        mask = store.kind[lo:hi].tobytes().translate(_REQUESTS)
+        if 1 not in mask:
+            return
+        flags, unit, times = store.flags[lo:hi], store.unit[lo:hi], store.t[lo:hi]
+        offsets, lengths, channels = store.offset[lo:hi], store.length[lo:hi], store.channel[lo:hi]
+        spans: dict[int, tuple[int, bytes]] = {}
+        for ch in set(channels.tobytes()):
+            picked = channels.tobytes().translate(marking((ch,)))
+            first = min(compress(offsets, picked))
+            end = max(compress(map(operator.add, offsets, lengths), picked))
+            spans[ch] = (first, bytes(store.streams[ch][first:end]))
+        seen = self._seen
+        for k in compress(range(hi - lo), mask):
+            f = flags[k]
+            if f & _SKIPPED:
                 continue
-            raw = store.raw(i)
-            if flags[i] & Flag.ASCII:
-                decoded = ascii_body(raw)
-                body = decoded[:-1] if decoded else b""
-            else:
-                body = raw[:-2]
-            mine = self.polls.setdefault(unit[i], {})
-            poll = mine.get(request_key(body))
+            first, data = spans[channels[k]]
+            at = offsets[k] - first
+            raw = data[at : at + lengths[k]]
+            u = unit[k]
+            poll = seen.get((u, raw))
             if poll is None:
-                poll = mine[request_key(body)] = _Poll()
-            poll.send(t[i])
-        self.next = max(self.next, upto)
+                if f & Flag.ASCII:
+                    decoded = ascii_body(raw)
+                    body = decoded[:-1] if decoded else b""
+                else:
+                    body = raw[:-2]
+                mine = self.polls.setdefault(u, {})
+                key = request_key(body)
+                poll = mine.get(key)
+                if poll is None:
+                    poll = mine[key] = _Poll()
+                if len(seen) < SEEN:  # (a write of ever new values is not worth keeping)
+                    seen[(u, raw)] = poll
+            poll.send(times[k])
 
     def summary(self, unit: int) -> CycleSummary:
         """The unit's main poll (the request sent most often) and all its polls' gaps."""
@@ -291,6 +344,7 @@ class UnitsPanel(DataTable[Text]):
         self.shown: list[str] = []
         self.last: tuple[list[UnitRow], float] = ([], 0.0)
         self.polls = PollWatch()
+        self._again = False  # a call to catch up with the rows is due
         self._columns(fit_columns(COLUMNS, PRIORITY, 200))
 
     def _columns(self, names: list[str]) -> None:
@@ -318,8 +372,17 @@ class UnitsPanel(DataTable[Text]):
         upto = getattr(model, "published", None)
         if not isinstance(reader, FrameStore) or not isinstance(upto, int):
             return rows
-        self.polls.update(reader, upto)
+        if self.polls.update(reader, upto, budget=FOLLOW_BUDGET) and not self._again:
+            # rows left (a big capture): on again soon, between keys, not at the next tick
+            self._again = True
+            self.set_timer(FOLLOW_AGAIN, self._catch_up)
         return with_cycles(rows, self.polls.summaries())
+
+    def _catch_up(self) -> None:
+        self._again = False
+        rows, now = self.last
+        if self.is_mounted:
+            self._fill(self._follow(rows), now)
 
     def show(self, rows: list[UnitRow], now: float) -> None:
         self._fill(self._follow(rows), now)
