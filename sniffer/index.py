@@ -43,7 +43,7 @@ from itertools import compress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sniffer import __version__
+from sniffer import __version__, core
 from sniffer.columns import marking
 from sniffer.model import Stamp
 from sniffer.store import COLUMNS, NO_PARTNER
@@ -485,11 +485,24 @@ def _renumber(
             offset.typecode,
             (o + bases.get(ch, 0) for o, ch in zip(offset, channels, strict=True)),
         ).tobytes()
-    partner = store.partner[a:b]
     parts[COLUMNS.index("offset")] = memoryview(shifted)
     if base:
-        partner = array(partner.typecode, (p if p < 0 else p + base for p in partner))
-        parts[COLUMNS.index("partner")] = memoryview(partner).cast("B")
+        partner = shifted_partners(memoryview(store.partner)[a:b], 0, base)
+        parts[COLUMNS.index("partner")] = memoryview(partner)
+
+
+def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
+    """The bytes of a block's partner column (int32) with each partner `p` at or above
+    `at_least` made `p + by`, and every other one none (-1): `at_least` 0 moves rows
+    numbered in a segment into the whole capture (`by` its base), `at_least` the base
+    and `by` minus it the other way, a partner in a block dropped before becoming none.
+    In the compiled core where it runs (5 ms a block of 65,536 rows here, 0.05 ms
+    there: some 2 s of a 30M-row day, written or read back windowed)."""
+    fast = core.FAST
+    if fast is not None:
+        return bytes(fast.shift_partners(partner, at_least, by))
+    shifted = array("i", (p + by if p >= at_least else NO_PARTNER for p in partner))
+    return shifted.tobytes()
 
 
 def _plus(column: array[int] | memoryview, by: int) -> bytes:
@@ -860,10 +873,10 @@ def _local(
         shifted = local.tobytes()
     # a partner in a block dropped before (a request at the end of the block before, its
     # answer here) is given as none: the rows a partner points at must exist
-    partner = array("i", (p - base if p >= base else NO_PARTNER for p in columns["partner"]))
+    partner = shifted_partners(columns["partner"], base, -base) if base else columns["partner"]
     out = dict(columns)  # (the typecodes the header was checked for)
     out["offset"] = memoryview(shifted).cast("Q")
-    out["partner"] = memoryview(partner)
+    out["partner"] = memoryview(partner).cast("i")
     return out
 
 

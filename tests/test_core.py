@@ -16,6 +16,7 @@ import random
 import struct
 import subprocess
 import sys
+from array import array
 from fractions import Fraction
 from pathlib import Path
 from types import ModuleType
@@ -25,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import crc16_py, with_crc
-from sniffer import core, framing
+from sniffer import core, framing, index
 from sniffer.model import Chunk
 from sniffer.session import Session, open_session
 from sniffer.sources import open_capture
@@ -426,3 +427,28 @@ def test_version_says_the_compiled_core_runs(compiled: ModuleType) -> None:
     assert _run(VERSION, MODSCOPE_PURE_PYTHON="0").endswith("(compiled core)")
     said = _run("from sniffer import core; print(core.FAST is not None)", MODSCOPE_PURE_PYTHON="")
     assert said == "True"
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.one_of(st.just(-1), st.integers(0, 3_000_000)), max_size=300),
+    st.integers(0, 2_000_000),
+)
+def test_partners_shift_alike_with_either_core(partners: list[int], base: int) -> None:
+    fast = _compiled()
+    column = memoryview(array("i", partners))
+    saved = core.FAST
+    try:
+        for at_least, by in ((0, base), (base, -base)):
+            core.FAST = None
+            pure = index.shifted_partners(column, at_least, by)
+            core.FAST = fast
+            assert index.shifted_partners(column, at_least, by) == pure
+            shifted = array("i")
+            shifted.frombytes(pure)
+            expected = [p + by if p >= at_least else -1 for p in partners]
+            assert list(shifted) == expected
+    finally:
+        core.FAST = saved
+    with pytest.raises(OverflowError):
+        fast.shift_partners(memoryview(array("i", [2**31 - 5])), 0, 10)
