@@ -32,8 +32,9 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from sniffer.index import shifted_partners
 from sniffer.model import Stamp
-from sniffer.store import COLUMNS, NO_PARTNER, FrameStore
+from sniffer.store import COLUMNS, FrameStore
 
 if TYPE_CHECKING:
     from sniffer.index import Writer
@@ -180,7 +181,12 @@ class PagedStore(FrameStore):
         self._starts: list[int] = []  # each block's first row
         self._rows = 0
         self._fds: list[int] = []
-        self._file: tuple[int, int, list[Any]] | None = None  # fd, first block, blocks
+        # a sidecar read back (`attach`): its descriptor, first block and blocks; or one
+        # being written (`take`): the writer and a descriptor of its file
+        self._file: tuple[int, int, list[Any]] | None = None
+        self._writer: Writer | None = None
+        self._writer_fd = -1
+        self._taken = 0  # blocks of either taken in
         self._next_pos = 0
         self._cache: OrderedDict[tuple[int, str | int], Any] = OrderedDict()  # (block, what)
         self._cached = 0
@@ -216,6 +222,7 @@ class PagedStore(FrameStore):
         own = os.dup(fd)
         self._fds.append(own)
         self._file = (own, start, list(header["blocks"]))
+        self._taken = 0
         self._next_pos = start
         self.notes.update({int(i): str(text) for i, text in header["notes"].items()})
         self.stamps = Stamp[header["stamps"]]
@@ -229,9 +236,10 @@ class PagedStore(FrameStore):
         if self._file is None:
             return
         fd, _start, blocks = self._file
-        while self._rows < rows and len(self._blocks) < len(blocks):
-            count, pieces, _crc = blocks[len(self._blocks)]
-            self._from_file(fd, int(count), [(int(ch), int(size)) for ch, size in pieces])
+        while self._rows < rows and self._taken < len(blocks):
+            count, pieces, _crc = blocks[self._taken]
+            self._place(fd, int(count), [(int(ch), int(size)) for ch, size in pieces])
+            self._taken += 1
 
     # -- filling: as a windowed ingest writes the sidecar ------------------------------------
 
@@ -248,18 +256,40 @@ class PagedStore(FrameStore):
             raise ValueError(f"rows {base:,} onwards given after {self._rows:,}")
         for i, text in store.notes.items():
             self.notes[base + i] = text
-        if writer is not None:
-            writer.out.flush()
-            if self._file is None or self._file[2] is not writer.blocks:
-                if self._file is not None and self._rows:
-                    raise ValueError("a paged store takes one sidecar")
-                own = os.open(writer.tmp, os.O_RDONLY)
-                self._fds.append(own)
-                self._file = (own, writer.first_block, writer.blocks)
-                self._next_pos = writer.first_block
-            self.reach(writer.rows)
+        if writer is None:
+            self._in_memory(session)
             return
-        self._in_memory(session)
+        writer.out.flush()
+        if self._writer is not writer:
+            if self._rows:
+                raise ValueError("a paged store takes one sidecar")
+            self._file = None  # (one read back and found damaged before its first block)
+            self._writer, self._taken = writer, 0
+            self._writer_fd = os.open(writer.tmp, os.O_RDONLY)
+            self._fds.append(self._writer_fd)
+            self._next_pos = writer.first_block
+        # the segment's columns as they are in memory now (not read back from the file)
+        n = len(store)
+        hot = self._hot_of(store, n, base)
+        at = 0
+        for count, pieces, _crc in writer.blocks[self._taken :]:
+            count = int(count)
+            part = {name: values[at : at + count] for name, values in hot.items()}
+            self._place(self._writer_fd, count, [(int(c), int(z)) for c, z in pieces], part)
+            self._taken += 1
+            at += count
+        if at != n:
+            raise ValueError(f"the sidecar took {at:,} rows of a segment of {n:,}")
+
+    @staticmethod
+    def _hot_of(store: FrameStore, n: int, base: int) -> dict[str, array[Any]]:
+        """The hot columns of a segment's `n` rows, partners numbered in the capture."""
+        hot = {name: getattr(store, name)[:n] for name in HOT}
+        if base:
+            partner = array("i")
+            partner.frombytes(shifted_partners(memoryview(store.partner)[:n], 0, base))
+            hot["partner"] = partner
+        return hot
 
     def _in_memory(self, session: Session) -> None:
         """The session's store's rows, a block, kept here (no sidecar took them)."""
@@ -284,27 +314,33 @@ class PagedStore(FrameStore):
             kept[ch] = bytes(data)
             pieces.append((ch, at, len(data)))
         block = _Block(self._rows, n, -1, -1, pieces, columns, kept)
-        self._add_hot(block, {name: getattr(store, name)[:n] for name in HOT}, base)
+        self._add_hot(block, self._hot_of(store, n, base))
 
-    def _from_file(self, fd: int, count: int, pieces: list[tuple[int, int]]) -> None:
+    def _place(
+        self,
+        fd: int,
+        count: int,
+        pieces: list[tuple[int, int]],
+        hot: Mapping[str, Any] | None = None,
+    ) -> None:
+        """The next block of the file `fd`, `count` rows carrying `pieces` (channel,
+        bytes); its hot columns `hot`, or read from the file."""
         pos = self._next_pos
         placed = []
         for ch, size in pieces:
             stream = self._stream(ch)
             placed.append((ch, stream.size, size))
         block = _Block(self._rows, count, fd, pos, placed)
-        hot = {name: self._read_column(block, name) for name in HOT}
-        self._add_hot(block, hot, 0)
+        if hot is None:
+            hot = {name: self._read_column(block, name) for name in HOT}
+        self._add_hot(block, hot)
         self._next_pos = pos + count * _ROW_BYTES + sum(size for _ch, size in pieces)
 
-    def _add_hot(self, block: _Block, hot: Mapping[str, Any], base: int) -> None:
-        """Append a block's hot columns (`base`: added to partners, numbered in their
-        segment) and publish its rows."""
+    def _add_hot(self, block: _Block, hot: Mapping[str, Any]) -> None:
+        """Append a block's hot columns (partners numbered in the capture) and publish
+        its rows."""
         for name in HOT:
-            values = hot[name]
-            if name == "partner" and base:
-                values = array("i", (p if p == NO_PARTNER else p + base for p in values))
-            getattr(self, name).extend(values)
+            getattr(self, name).extend(hot[name])
         for ch, start, size in block.pieces:
             if size:
                 self._stream(ch).add(block, start, size)

@@ -243,6 +243,9 @@ async def test_the_app_pages_a_capture_with_a_sidecar_and_shows_every_row(demo: 
         await pilot.pause()
         assert app.model.paged is not None
         assert app.model.published == len(full.store)
+        # the estimate from the file's size counts each read of a batch as its packet
+        progress = app._index_progress()
+        assert progress is not None and 0.9 < progress <= 0.99
         await pilot.press("end")
         await pilot.pause()
         last = app.model.describer.detail(len(full.store) - 1)
@@ -255,3 +258,31 @@ async def test_the_app_pages_a_capture_with_a_sidecar_and_shows_every_row(demo: 
 
 def test_a_store_is_a_frame_store() -> None:
     assert isinstance(PagedStore(), FrameStore) and len(PagedStore()) == 0
+
+
+@pytest.mark.parametrize("pages", [True, False])
+def test_the_feed_says_how_far_it_is_through_the_file_or_its_sidecar(
+    demo: Path, pages: bool
+) -> None:
+    size = demo.stat().st_size
+    for read in ("the capture", "its sidecar"):
+        session, capture = open_session(demo)
+        session.batch_reads = False
+        published: list[FeedProgress] = []
+        feed_capture(
+            session,
+            capture.chunks(),
+            Pacing(),
+            published.append,
+            paged=PagedStore() if pages else None,
+            size=size,
+            first=0.0,
+            every=0.0,
+            breather=0.0,
+        )
+        shares = [p.share for p in published]
+        assert all(s is not None for s in shares), shares
+        assert shares == sorted(shares)  # type: ignore[type-var]
+        # (the sidecar's share is of its blocks: its header and the demo's are as big)
+        assert (0.9 if read == "the capture" else 0.5) < (shares[-1] or 0) <= 0.99
+    assert session.indexed_from is not None  # the second pass read the sidecar back

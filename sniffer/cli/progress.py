@@ -14,22 +14,11 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TextIO
 
+from sniffer.procio import bytes_read as _bytes_read
 from sniffer.text import plain
 
 SHOW_AFTER = 1.0  # seconds before the line appears
 EVERY = 0.25  # seconds between updates
-
-
-def _bytes_read() -> int | None:
-    """Bytes this process has read from files so far (Linux), else None."""
-    try:
-        with open("/proc/self/io", encoding="ascii") as handle:
-            for line in handle:
-                if line.startswith("rchar:"):
-                    return int(line.split()[1])
-    except (OSError, ValueError):
-        return None
-    return None
 
 
 def _left(elapsed: float, share: float) -> str:

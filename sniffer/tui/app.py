@@ -35,6 +35,7 @@ from sniffer.recorder import RecordError
 from sniffer.select import FilterJob, resolve_time, time_bounds
 from sniffer.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
+from sniffer.sources.reads import Reads
 from sniffer.store import FrameStore
 from sniffer.tui.feed import (
     FeedProgress,
@@ -149,6 +150,7 @@ class ModscopeApp(App[int]):
         self.search_from: tuple[int, int] | None = None  # (step, row) a cut-short scan reached
         self._file_size: int | None = None  # of the capture file, for indexing progress
         self._bytes_done = 0
+        self._share: float | None = None  # how far the feed said it is
         self._chunks_done = [0]
 
     # -- layout ----------------------------------------------------------------------------
@@ -204,15 +206,21 @@ class ModscopeApp(App[int]):
             counter = self._chunks_done = [0]
 
             def counted(chunks: Iterable[Chunk]) -> Iterator[Chunk]:
-                for chunk in chunks:
-                    counter[0] += 1
+                for chunk in chunks:  # (packets: a batch of reads is one per read)
+                    counter[0] += len(chunk) if isinstance(chunk, Reads) else 1
                     yield chunk
 
             chunks: Iterable[Chunk] = counted(capture.chunks())
             paged = self.model.paged
             self.run_worker(
                 lambda: feed_capture(
-                    session, chunks, pacing, publish, warnings=capture.warnings, paged=paged
+                    session,
+                    chunks,
+                    pacing,
+                    publish,
+                    warnings=capture.warnings,
+                    paged=paged,
+                    size=self._file_size,
                 ),
                 thread=True,
                 group="feed",
@@ -230,6 +238,7 @@ class ModscopeApp(App[int]):
             self._restart(self.pacing.speed)
             return
         self._bytes_done = p.bytes_done
+        self._share = p.share
         self.model.publish(p.rows)
         if p.done:
             self.model.done = True
@@ -921,7 +930,10 @@ class ModscopeApp(App[int]):
             self.screen.status.show(info)
 
     def _index_progress(self) -> float | None:
-        """How far indexing got, estimated from the file's size (pcap formats, raw)."""
+        """How far indexing got: as the feed says (`FeedProgress.share`), else estimated
+        from the file's size (pcap formats, raw)."""
+        if self._share is not None:
+            return self._share
         capture = self.capture
         overhead = RECORD_OVERHEAD.get(capture.info.format) if capture is not None else None
         if overhead is None or self._file_size is None or not self._file_size:

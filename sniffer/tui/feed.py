@@ -18,6 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from sniffer.model import Chunk
 from sniffer.paged import PagedStore
+from sniffer.procio import bytes_read
 from sniffer.recorder import Recorder
 from sniffer.session import Session
 
@@ -87,6 +88,8 @@ class FeedProgress:
     # the sidecar index whose rows were being shown is damaged: open the capture again
     # (its rows start over from none; the sidecar is not read again)
     reopen: bool = False
+    # how far through the capture (0-0.99), if the feed can tell (see feed_capture)
+    share: float | None = None
 
 
 Publish = Callable[[FeedProgress], None]
@@ -152,6 +155,7 @@ def feed_capture(
     warnings: list[str] | None = None,
     breather: float = 0.005,
     paged: PagedStore | None = None,
+    size: int | None = None,
 ) -> None:
     """Ingest a capture in this thread, publishing progress after `first` seconds, then
     every `every` seconds, and once at the end.
@@ -160,12 +164,35 @@ def feed_capture(
     the sidecar, or the sidecar read back a block at a time), and only those rows are
     published; the session's store holds one segment (see `sniffer.paged`).
 
+    `size`: the capture file's, to publish how far the feed is (`FeedProgress.share`):
+    the share of the sidecar read back, or of the file's bytes this process has read
+    (Linux: `sniffer.procio`; not the data bytes, which leave out each format's
+    overhead per packet).
+
     After each publication the thread sleeps `breather` seconds: Python runs one thread
     at a time, and this lets the UI take the new rows and draw them at once instead of
     waiting for its turn."""
 
     bytes_done = good_rows = 0
     last = float("-inf")
+    from_sidecar = False
+    read_before = bytes_read()
+
+    def share(done: int) -> float | None:
+        if not size:
+            return None
+        if from_sidecar:  # `done`: the share of the sidecar read, in the capture's bytes
+            return min(0.99, done / size)
+        now = bytes_read()
+        if now is None or read_before is None:
+            return None
+        return min(0.99, max(0.0, (now - read_before) / size))
+
+    def opened(path: Path, fd: int, start: int, header: dict[str, Any]) -> None:
+        nonlocal from_sidecar
+        from_sidecar = True
+        if paged is not None:
+            paged.attach(path, fd, start, header)
 
     def progress(done: int, rows: int) -> None:
         nonlocal bytes_done, good_rows, last
@@ -177,13 +204,13 @@ def feed_capture(
         interval = every if pacing.speed is None else min(every, 0.1)  # replays look live
         if now - last >= interval and not pacing.stopped():
             last = now
-            publish(FeedProgress(rows, done))
+            publish(FeedProgress(rows, done, share=share(done)))
             time.sleep(breather)
 
     from sniffer import index
     from sniffer.index import DamagedError
 
-    paging: dict[str, Any] = {}
+    paging: dict[str, Any] = {"opened": opened}
     if paged is not None:
         session.annotator.keep_rows = True  # what it records numbered as `paged` numbers rows
         paging = {
@@ -191,7 +218,7 @@ def feed_capture(
             "window": max(1, index.BLOCK * 15 // 16),
             "segment": _ignore,
             "written": paged.take,
-            "opened": paged.attach,
+            "opened": opened,
         }
     try:
         session.ingest(
@@ -214,7 +241,7 @@ def feed_capture(
         session.warnings.extend(warnings)
     if not pacing.stopped():
         rows = len(paged) if paged is not None else len(session.store)
-        publish(FeedProgress(rows, bytes_done, done=True))
+        publish(FeedProgress(rows, bytes_done, done=True, share=share(bytes_done)))
 
 
 def _ignore(session: Session) -> None:
