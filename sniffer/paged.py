@@ -47,7 +47,13 @@ _T = TypeVar("_T", bytes, "array[Any]")
 HOT: tuple[str, ...] = ("kind", "unit", "fc", "flags", "channel", "partner", "status")
 # read from the sidecar for the rows looked at
 COLD: tuple[str, ...] = ("offset", "length", "t", "t_end")
-# bytes of read blocks' columns and bytes kept (a sidecar block is about 4 MB)
+# what is read from the sidecar at a time: a page of a column (4096 rows: 32 KiB of
+# times) or of a block's bytes (64 KiB). Whole blocks (512 KiB of times, some 2 MB of
+# bytes) made the screen following the newest rows of a day's indexing read a quarter
+# as much again as the capture itself.
+PAGE = 4096
+BYTES_PAGE = 1 << 16
+# bytes of pages kept
 CACHE_BYTES = 32 << 20
 
 _TYPECODES = {name: getattr(FrameStore(), name).typecode for name in COLUMNS}
@@ -115,10 +121,10 @@ class PagedColumn:
             at = lo
             while at < hi:
                 block = store.block_of(at)
-                values = store.column(block, self.name)
-                end = min(hi, block.start + block.count)
-                out.extend(values[at - block.start : end - block.start])
-                at = end
+                values, first = store.column(block, self.name, at - block.start)
+                end = min(hi - block.start, first + len(values))
+                out.extend(values[at - block.start - first : end - first])
+                at = block.start + end
             return out if step == 1 else out[::step]
         i = key.__index__()
         if i < 0:
@@ -126,7 +132,8 @@ class PagedColumn:
         if not 0 <= i < n:
             raise IndexError("row out of range")
         block = self.store.block_of(i)
-        return self.store.column(block, self.name)[i - block.start]
+        values, first = self.store.column(block, self.name, i - block.start)
+        return values[i - block.start - first]
 
 
 class PagedStream:
@@ -154,10 +161,12 @@ class PagedStream:
         while lo < hi and 0 <= k < len(self.starts):
             start = self.starts[k]
             block, size = self.where[k]
-            piece = self.store.piece(block, self.channel)
-            out.append(piece[lo - start : min(hi, start + size) - start])
-            lo = start + size
-            k += 1
+            data, first = self.store.piece(block, self.channel, lo - start)
+            end = min(hi - start, size, first + len(data))
+            out.append(data[lo - start - first : end - first])
+            lo = start + end
+            if end == size:
+                k += 1
         return b"".join(out)
 
 
@@ -188,7 +197,9 @@ class PagedStore(FrameStore):
         self._writer_fd = -1
         self._taken = 0  # blocks of either taken in
         self._next_pos = 0
-        self._cache: OrderedDict[tuple[int, str | int], Any] = OrderedDict()  # (block, what)
+        self._cache: OrderedDict[tuple[int, str | int, int], Any] = (
+            OrderedDict()
+        )  # block, what, page
         self._cached = 0
         self._lock = threading.Lock()
         self._last: _Block | None = None
@@ -332,7 +343,7 @@ class PagedStore(FrameStore):
             placed.append((ch, stream.size, size))
         block = _Block(self._rows, count, fd, pos, placed)
         if hot is None:
-            hot = {name: self._read_column(block, name) for name in HOT}
+            hot = {name: self._read_column(block, name, 0, count) for name in HOT}
         self._add_hot(block, hot)
         self._next_pos = pos + count * _ROW_BYTES + sum(size for _ch, size in pieces)
 
@@ -366,20 +377,32 @@ class PagedStore(FrameStore):
         self._last = block
         return block
 
-    def column(self, block: _Block, name: str) -> array[Any]:
-        """A cold column's values for the rows of `block`."""
+    def column(self, block: _Block, name: str, row: int) -> tuple[array[Any], int]:
+        """Values of a cold column around row `row` of `block` (counted from its first):
+        an array, and the row of the block its first value is (a page of `PAGE` rows
+        read from the file, or all of a block kept in memory)."""
         if block.columns is not None:
-            return block.columns[name]
-        return self._through_cache(block, name, lambda: self._read_column(block, name))
+            return block.columns[name], 0
+        page = row // PAGE
+        first = page * PAGE
+        values = self._through_cache(
+            (id(block), name, page),
+            lambda: self._read_column(block, name, first, min(PAGE, block.count - first)),
+        )
+        return values, first
 
-    def piece(self, block: _Block, channel: int) -> bytes:
-        """The bytes of `channel` that `block` carries."""
+    def piece(self, block: _Block, channel: int, at: int) -> tuple[bytes, int]:
+        """Bytes of `channel` that `block` carries, around its `at`-th: the bytes, and
+        where they start among the block's (a page of `BYTES_PAGE`, or all of them)."""
         if block.kept is not None:
-            return block.kept.get(channel, b"")
-        return self._through_cache(block, channel, lambda: self._read_piece(block, channel))
+            return block.kept.get(channel, b""), 0
+        page = at // BYTES_PAGE
+        data = self._through_cache(
+            (id(block), -1 - channel, page), lambda: self._read_piece(block, channel, page)
+        )
+        return data, page * BYTES_PAGE
 
-    def _through_cache(self, block: _Block, key: str | int, read: Callable[[], _T]) -> _T:
-        whose = (id(block), key)
+    def _through_cache(self, whose: tuple[int, str | int, int], read: Callable[[], _T]) -> _T:
         with self._lock:
             found: _T | None = self._cache.get(whose)
             if found is not None:
@@ -396,20 +419,23 @@ class PagedStore(FrameStore):
                     self._cached -= len(old) * getattr(old, "itemsize", 1)
         return value
 
-    def _read_column(self, block: _Block, name: str) -> array[Any]:
+    def _read_column(self, block: _Block, name: str, first: int, count: int) -> array[Any]:
+        """Rows `first`.. (`count` of them) of `block`'s column `name`."""
         size = _SIZES[name]
-        data = _pread(block.fd, block.count * size, block.pos + block.count * _BEFORE[name])
+        at = block.pos + block.count * _BEFORE[name] + first * size
+        data = _pread(block.fd, count * size, at)
         values = array(_TYPECODES[name])
         values.frombytes(data[: len(data) - len(data) % size])
-        if len(values) < block.count:  # the file was cut short under us: zeros, not a crash
-            values.frombytes(bytes(size * (block.count - len(values))))
+        if len(values) < count:  # the file was cut short under us: zeros, not a crash
+            values.frombytes(bytes(size * (count - len(values))))
         return values
 
-    def _read_piece(self, block: _Block, channel: int) -> bytes:
+    def _read_piece(self, block: _Block, channel: int, page: int) -> bytes:
         at = block.pos + block.count * _ROW_BYTES
         for ch, _start, size in block.pieces:
             if ch == channel:
-                return _pread(block.fd, size, at)
+                first = page * BYTES_PAGE
+                return _pread(block.fd, min(BYTES_PAGE, size - first), at + first)
             at += size
         return b""
 

@@ -286,3 +286,24 @@ def test_the_feed_says_how_far_it_is_through_the_file_or_its_sidecar(
         # (the sidecar's share is of its blocks: its header and the demo's are as big)
         assert (0.9 if read == "the capture" else 0.5) < (shares[-1] or 0) <= 0.99
     assert session.indexed_from is not None  # the second pass read the sidecar back
+
+
+def test_pages_smaller_than_a_block_read_the_same_rows_and_bytes(
+    demo: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Columns and bytes are read a page at a time; pages that end inside a frame, a
+    block or a slice give the same values."""
+    import sniffer.paged as paged_module
+
+    monkeypatch.setattr(paged_module, "PAGE", 7)
+    monkeypatch.setattr(paged_module, "BYTES_PAGE", 13)
+    monkeypatch.setattr(paged_module, "CACHE_BYTES", 200)  # pages come and go
+    full = whole(demo)
+    for _pass in ("written", "read back"):
+        session, store, _published = paged(demo)
+        assert_same_rows(full, session, store)
+        n = len(store)
+        assert store.t[3 : n - 3 : 5] == full.store.t[3 : n - 3 : 5]
+        stream = store.streams[0]
+        assert stream[5 : len(stream) - 5] == bytes(full.store.streams[0][5:-5])
+        assert store._cached <= 200 + 13 * 8
