@@ -873,10 +873,10 @@ def _local(
         shifted = local.tobytes()
     # a partner in a block dropped before (a request at the end of the block before, its
     # answer here) is given as none: the rows a partner points at must exist
-    partner = shifted_partners(columns["partner"], base, -base) if base else columns["partner"]
     out = dict(columns)  # (the typecodes the header was checked for)
     out["offset"] = memoryview(shifted).cast("Q")
-    out["partner"] = memoryview(partner).cast("i")
+    if base:
+        out["partner"] = memoryview(shifted_partners(columns["partner"], base, -base)).cast("i")
     return out
 
 
