@@ -307,3 +307,19 @@ def test_pages_smaller_than_a_block_read_the_same_rows_and_bytes(
         stream = store.streams[0]
         assert stream[5 : len(stream) - 5] == bytes(full.store.streams[0][5:-5])
         assert store._cached <= 200 + 13 * 8
+
+
+def test_the_first_rows_are_published_once_written_not_at_the_next_progress(
+    demo: Path,
+) -> None:
+    for _pass in ("written", "read back"):
+        session, capture = open_session(demo)
+        session.batch_reads = False
+        store = PagedStore()
+        published: list[FeedProgress] = []
+        # progress as good as never: only the first rows and the end are published
+        feed_capture(
+            session, capture.chunks(), Pacing(), published.append, paged=store, first=3600
+        )
+        assert [p.done for p in published] == [False, True]
+        assert 0 < published[0].rows < published[1].rows == len(store)

@@ -199,13 +199,20 @@ def feed_capture(
         if paged is not None:
             paged.reach(rows)  # (a sidecar read back: its blocks up to `rows`)
             rows = len(paged)
+        first_rows = rows and not good_rows
         bytes_done, good_rows = done, rows
         now = time.monotonic()
         interval = every if pacing.speed is None else min(every, 0.1)  # replays look live
-        if now - last >= interval and not pacing.stopped():
+        if (now - last >= interval or first_rows) and not pacing.stopped():
             last = now
             publish(FeedProgress(rows, done, share=share(done)))
             time.sleep(breather)
+
+    def written(session: Session, writer: Any) -> None:
+        assert paged is not None
+        paged.take(session, writer)
+        if not good_rows:  # the first rows: on screen now, not at the next progress
+            progress(bytes_done, len(paged))
 
     from sniffer import index
     from sniffer.index import DamagedError
@@ -217,7 +224,7 @@ def feed_capture(
             # segments that fit a sidecar block: one block each
             "window": max(1, index.BLOCK * 15 // 16),
             "segment": _ignore,
-            "written": paged.take,
+            "written": written,
             "opened": opened,
         }
     try:
