@@ -318,8 +318,6 @@ def test_the_first_rows_are_published_once_written_not_at_the_next_progress(
         store = PagedStore()
         published: list[FeedProgress] = []
         # progress as good as never: only the first rows and the end are published
-        feed_capture(
-            session, capture.chunks(), Pacing(), published.append, paged=store, first=3600
-        )
+        feed_capture(session, capture.chunks(), Pacing(), published.append, paged=store, first=3600)
         assert [p.done for p in published] == [False, True]
         assert 0 < published[0].rows < published[1].rows == len(store)
