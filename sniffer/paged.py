@@ -150,8 +150,9 @@ class PagedStream:
         return self.size
 
     def add(self, block: _Block, start: int, size: int) -> None:
-        self.starts.append(start)
+        # (in this order: a reader in another thread that finds a start finds its piece)
         self.where.append((block, size))
+        self.starts.append(start)
         self.size = start + size
 
     def __getitem__(self, key: slice) -> bytes:
