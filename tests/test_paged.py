@@ -4,7 +4,6 @@ holding every row, however they reached the paged store."""
 from __future__ import annotations
 
 import shutil
-import time
 from pathlib import Path
 from typing import Any
 
@@ -231,16 +230,13 @@ def test_a_small_capture_or_a_replay_at_its_own_speed_is_not_paged(
 @pytest.mark.asyncio
 async def test_the_app_pages_a_capture_with_a_sidecar_and_shows_every_row(demo: Path) -> None:
     from sniffer.tui.app import ModscopeApp
+    from tests.test_tui_app import ready
 
     full = whole(demo)
     session, capture = open_session(demo, bindings=load_bindings(DEMO_BUS))
     app = ModscopeApp(session, capture, blink=False)
     async with app.run_test(size=(100, 30)) as pilot:
-        deadline = time.monotonic() + 20
-        while not app.indexed.is_set():
-            assert time.monotonic() < deadline
-            await pilot.pause(0.02)
-        await pilot.pause()
+        await ready(pilot, app)
         assert app.model.paged is not None
         assert app.model.published == len(full.store)
         # the estimate from the file's size counts each read of a batch as its packet
