@@ -28,7 +28,7 @@ import threading
 from array import array
 from bisect import bisect_right
 from collections import OrderedDict
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -107,10 +107,6 @@ class PagedColumn:
 
     def __len__(self) -> int:
         return len(self.store)
-
-    def __iter__(self) -> Iterator[Any]:
-        for i in range(len(self)):
-            yield self[i]
 
     def __getitem__(self, key: Any) -> Any:
         n = len(self.store)
@@ -321,8 +317,7 @@ class PagedStore(FrameStore):
         for ch, data in store.streams.items():
             at = bases.get(ch, 0)
             stream = self._stream(ch)
-            if stream.size != at:  # (bytes dropped that no row of ours pointed at)
-                stream.size = at
+            stream.size = at  # (past bytes dropped that no row of ours pointed at)
             kept[ch] = bytes(data)
             pieces.append((ch, at, len(data)))
         block = _Block(self._rows, n, -1, -1, pieces, columns, kept)

@@ -268,8 +268,9 @@ class PollWatch:
         flags, unit, times = store.flags[lo:hi], store.unit[lo:hi], store.t[lo:hi]
         offsets, lengths, channels = store.offset[lo:hi], store.length[lo:hi], store.channel[lo:hi]
         spans: dict[int, tuple[int, bytes]] = {}
-        for ch in set(channels.tobytes()):
-            picked = channels.tobytes().translate(marking((ch,)))
+        present = channels.tobytes()
+        for ch in set(present):
+            picked = present.translate(marking((ch,)))
             first = min(compress(offsets, picked))
             end = max(compress(map(operator.add, offsets, lengths), picked))
             spans[ch] = (first, bytes(store.streams[ch][first:end]))
