@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import peak_rss_mb, timed, workload
 from dissectors.dissect import Role, dissect
-from sniffer.synth import SynthFrame
+from sniffer.sources.synth import SynthFrame
 
 
 def modscope_all(frames: list[SynthFrame]) -> int:

@@ -37,13 +37,13 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import LINE, file_reads, peak_rss_mb, timed, usb_reads, workload
 from sniffer import core
-from sniffer.pipeline import Pipeline
-from sniffer.pollcycle import cycle_table, poll_cycles
-from sniffer.session import open_session
+from sniffer.analysis.pollcycle import cycle_table, poll_cycles
+from sniffer.analysis.stats import Stats
+from sniffer.framing.pipeline import Pipeline
+from sniffer.framing.store import FrameStore
+from sniffer.session.session import open_session
 from sniffer.sources import open_capture
 from sniffer.sources.reads import batching
-from sniffer.stats import Stats
-from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind
 
 HERE = Path(__file__).resolve().parent

@@ -2,7 +2,7 @@
 
 Run: python benchmarks/bench_live.py [--seconds S] [--baud N] [--per-frame] [--only live]
 
-A writer thread plays a realistic polling stream (sniffer.synth) into one end of a
+A writer thread plays a realistic polling stream (sniffer.sources.synth) into one end of a
 pseudo-terminal at the line's own pace: every millisecond it writes the bytes whose last
 bit would be on the wire by then, as a USB adapter with a 1 ms latency timer delivers
 them (--per-frame: one write per frame, the worst case for the reader). modscope runs
@@ -44,7 +44,7 @@ from pathlib import Path
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from sniffer.model import LineSettings
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # modscope from this tree (not whatever the venv's `modscope` script imports)

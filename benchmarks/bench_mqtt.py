@@ -34,11 +34,11 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from sniffer.annotate import load_bindings
+from sniffer.meaning.annotate import load_bindings
 from sniffer.model import Chunk
-from sniffer.mqtt.publish import PublisherOptions, open_publisher, publish_replay
-from sniffer.mqtt.target import parse_target
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, open_session
+from sniffer.outputs.mqtt.publish import PublisherOptions, open_publisher, publish_replay
+from sniffer.outputs.mqtt.target import parse_target
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
 
 TICK = os.sysconf("SC_CLK_TCK")
 

@@ -2,9 +2,9 @@
 
 Run: python benchmarks/bench_parquet.py [--frames N]
 
-The capture is the benchmark workload (sniffer.synth's polling stream at 115200 baud,
+The capture is the benchmark workload (sniffer.sources.synth's polling stream at 115200 baud,
 framed and paired by a Session). Both writers get the same rows, made once by
-`sniffer.parquet.frame_rows` from the store's columns, in row groups of 65,536:
+`sniffer.outputs.parquet.frame_rows` from the store's columns, in row groups of 65,536:
 
 - pyarrow: `pyarrow.parquet.ParquetWriter` (what `modscope export -o X.parquet` uses),
   one `write_table` per row group, zstd;
@@ -32,8 +32,8 @@ from typing import Any
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import LINE, file_reads, peak_rss_mb, workload
-from sniffer.parquet import ROW_GROUP, _schema, frame_rows
-from sniffer.session import Session
+from sniffer.outputs.parquet import ROW_GROUP, _schema, frame_rows
+from sniffer.session.session import Session
 
 
 def batches(session: Session, n: int) -> Iterator[dict[str, list[Any]]]:

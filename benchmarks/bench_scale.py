@@ -34,9 +34,9 @@ from pathlib import Path
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import LINE, usb_reads
+from sniffer.live.port import PortSpec
+from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk
-from sniffer.recorder import Recorder
-from sniffer.serial_source import PortSpec
 from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, RTAC_DATA_RX_START
 from sniffer.sources.pcapng_writer import (
     EPB_FLAG_INBOUND,
@@ -44,7 +44,7 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     rtac_record,
 )
-from sniffer.synth import SynthFrame, polling_frames
+from sniffer.sources.synth import SynthFrame, polling_frames
 
 START = 1768464000.0  # 2026-01-15 08:00:00 UTC, as the demo
 SMALL = 10
@@ -228,7 +228,7 @@ def compare(ours: Figure, theirs: Figure) -> None:
 INDEX_WINDOWED = """
 import sys
 from sniffer.cli.replay import REPLAY_WINDOW
-from sniffer.session import open_session
+from sniffer.session.session import open_session
 session, capture = open_session(sys.argv[1], index=False)
 session.stats.bound()
 session.ingest(capture.chunks(), window=REPLAY_WINDOW)
@@ -281,7 +281,9 @@ def main() -> None:
         [sys.executable, "-c", INDEX_WINDOWED, str(reads10)],
         runs,
     )
-    index_whole = "import sys; from sniffer.session import replay_file; replay_file(sys.argv[1])"
+    index_whole = (
+        "import sys; from sniffer.session.session import replay_file; replay_file(sys.argv[1])"
+    )
     measure(
         "modscope index only, every row kept",
         n,

@@ -32,10 +32,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from sniffer.model import LineSettings  # noqa: E402
-from sniffer.session import open_session  # noqa: E402
+from sniffer.session.session import open_session  # noqa: E402
 from sniffer.sources.linktypes import describe_interface  # noqa: E402
 from sniffer.sources.pcapng_writer import LINKTYPE_USER0, PcapngWriter  # noqa: E402
-from sniffer.synth import clean_chunks, polling_frames  # noqa: E402
+from sniffer.sources.synth import clean_chunks, polling_frames  # noqa: E402
 
 LINE = LineSettings(baud=115200, parity="N", stopbits=1, mode="rtu")
 EPOCH = 1_700_000_000.0
@@ -223,7 +223,7 @@ def main() -> int:
             )
             size = path.stat().st_size / 1e6
             print(f"wrote {path.name}: {size:.1f} MB in {time.perf_counter() - t:.1f} s")
-        from sniffer import index
+        from sniffer.session import index
 
         for old in index.sidecars(path):
             old.unlink(missing_ok=True)  # the first open indexes (and writes the sidecar)

@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterator
 from typing import TypeVar
 
 from sniffer.model import Chunk, LineSettings
-from sniffer.synth import SynthFrame, polling_frames
+from sniffer.sources.synth import SynthFrame, polling_frames
 
 LINE = LineSettings(baud=115200, bytesize=8, parity="N", stopbits=1, mode="rtu")
 T = TypeVar("T")

@@ -5,20 +5,20 @@
  *    (sniffer/sources/pcap.py: _bulk_blocks);
  *  - bulk_pcap: the same over the records of a classic pcap file (_bulk_pcap_records);
  *  - rtu_scan: the RTU framer's fast paths 1 and 2 with the read-by-read timeline step
- *    (sniffer/framing.py: RtuFramer._scan_bytes, _Timeline.add_read);
- *  - pair_rows, pair_update: pairing (sniffer/store.py: FrameStore.pair_rows,
- *    sniffer/pairing.py: Pairer.update);
+ *    (sniffer/framing/serial.py: RtuFramer._scan_bytes, _Timeline.add_read);
+ *  - pair_rows, pair_update: pairing (sniffer/framing/store.py: FrameStore.pair_rows,
+ *    sniffer/framing/pairing.py: Pairer.update);
  *  - stats_scan, ranked: the per-unit statistics and their nearest-rank quantiles
- *    (sniffer/stats.py: Stats.update, nearest_rank, median_gap);
- *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/sunspec.py);
- *  - join_reads: batches of reads held by the pipeline, as one (sniffer/pipeline.py);
+ *    (sniffer/analysis/stats.py: Stats.update, nearest_rank, median_gap);
+ *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/meaning/sunspec.py);
+ *  - join_reads: batches of reads held by the pipeline, as one (sniffer/framing/pipeline.py);
  *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped
- *    (sniffer/pollcycle.py: PollCycles.add);
+ *    (sniffer/analysis/pollcycle.py: PollCycles.add);
  *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
- *    (sniffer/stats.py: Tallies.add_latencies, Tallies.add_requests);
+ *    (sniffer/analysis/stats.py: Tallies.add_latencies, Tallies.add_requests);
  *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
- *    content it has a template for (sniffer/export.py: PcapExporter.write, _rows);
- *  - shift_partners: a sidecar block's partners renumbered (sniffer/index.py:
+ *    content it has a template for (sniffer/outputs/export.py: PcapExporter.write, _rows);
+ *  - shift_partners: a sidecar block's partners renumbered (sniffer/session/index.py:
  *    shifted_partners).
  *
  * All are copies of the Python code named, which stays the reference and the fallback:
@@ -789,7 +789,7 @@ done:
 }
 
 /* pair_update(store, start, open, timeout, broadcasts, last) -> (open, last)
- * Pairer.update's loop over rows start..len(store) (sniffer/pairing.py), with its
+ * Pairer.update's loop over rows start..len(store) (sniffer/framing/pairing.py), with its
  * helpers _request, _pair, _time_out and _check_retry. `open` is the open request's row
  * or -1; `broadcasts` 256 bytes, 1 for the function codes whose broadcasts are answered;
  * `last` the raw bytes of the last request that timed out (Pairer.last_timed_out). The
@@ -938,7 +938,7 @@ early:
 
 /* stats_scan(store, start, n, mode, unresolved)
  *   -> (noise spans, noise bytes, events, units, exception rows, open rows)
- * Stats.update's count of rows start..n (sniffer/stats.py: update, _requests, _answers)
+ * Stats.update's count of rows start..n (sniffer/analysis/stats.py: update, _requests, _answers)
  * but the exception codes and the open requests already remembered: `units` lists, in
  * the order each unit's first frame comes, (unit, last_seen, check errors, requests,
  * timeouts, responses, latencies left out, request times, latencies), the times and
@@ -1081,7 +1081,7 @@ done:
 }
 
 /* sunspec_rows(store, rows, at, known, skip, bases) -> positions
- * The cheap half of SunSpecTracker.follow_rows (sniffer/sunspec.py): of rows[at:]
+ * The cheap half of SunSpecTracker.follow_rows (sniffer/meaning/sunspec.py): of rows[at:]
  * (int64), the positions (int64) of those it may take: answers to FC 3 with a good check,
  * paired, of a unit not in `skip`, whose request either is an ASCII frame (Python reads
  * it) or is at least 8 bytes and of a unit in `known` or reads a range that holds one of
@@ -1174,7 +1174,7 @@ early:
 /* join_reads(batches) -> (data, ends, t_starts, t_ends)
  * Consecutive batches of reads (sniffer/sources/reads.py: Reads) as one: their bytes
  * joined, each read's end offset moved by the bytes of the batches before it (int64),
- * the times (float64) one after the other (sniffer/pipeline.py: _joined). */
+ * the times (float64) one after the other (sniffer/framing/pipeline.py: _joined). */
 static PyObject *py_join_reads(PyObject *self, PyObject *arg) {
     if (!PyList_Check(arg)) {
         PyErr_SetString(PyExc_TypeError, "join_reads: a list of batches");
@@ -1237,7 +1237,7 @@ done:
 }
 
 /* ranked(values, ranks, gaps) -> the values at those ranks of the sorted values, or None
- * sniffer/stats.py's nearest-rank quantiles (sorted(values)[rank]) without sorting: each
+ * sniffer/analysis/stats.py's nearest-rank quantiles (sorted(values)[rank]) without sorting: each
  * rank found by selection. `values` is float64 (an array 'd'); with `gaps`, the values
  * are the differences of consecutive ones, b - a (median_gap). None when a NaN or a
  * negative zero is among them: sorted() puts a NaN where the order of the values leaves
@@ -1335,10 +1335,10 @@ static PyObject *py_tally_gaps(PyObject *self, PyObject *args);
 
 /* ---- the Wireshark export's packets ---------------------------------------------------- */
 
-/* export_table() -> a table of the content keys one PcapExporter met (sniffer/export.py:
+/* export_table() -> a table of the content keys one PcapExporter met (sniffer/outputs/export.py:
  * PcapExporter.write), each with the packet template Python made for its content: the
  * tuple (first, head, middle, tail, spliced) of PcapExporter._template. A key is a row's
- * content key as Describer.contents makes it (sniffer/describe.py): "E" or, for an answer
+ * content key as Describer.contents makes it (sniffer/meaning/describe.py): "E" or, for an answer
  * with a request, "A" with the bytes, kind, flags, status (and the request's bytes and
  * mode); or "F" with what an answer shares with the answers that differ from it only in
  * their values (`_valueless`). The keys live in an arena; at EX_MAX_KEYS the table starts
@@ -1573,7 +1573,7 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
 
 /* export_rows(table, store, rows, notes, apart, bound, alike, slow, mode, valued, miss,
  *             limit) -> (blocks, rows, found, more)
- * PcapExporter.write's loop (sniffer/export.py) over up to `limit` rows taken from the
+ * PcapExporter.write's loop (sniffer/outputs/export.py) over up to `limit` rows taken from the
  * iterator `rows`: the enhanced packet blocks of the rows whose content key `table`
  * holds, made from its template as Python makes them (the time's ticks as time_ticks
  * rounds them, the MBAP transaction id, and, for a Modbus/TCP packet (`alike`) of other
@@ -1842,7 +1842,7 @@ done_:
 
 /* shift_partners(partner, at_least, by) -> bytes: the int32 partner column of a block
  * with each partner p at or above `at_least` moved to p + by and every other one (none,
- * or a row out of the range) made -1 (sniffer/index.py: shifted_partners, the
+ * or a row out of the range) made -1 (sniffer/session/index.py: shifted_partners, the
  * reference). 65,536 rows: about 0.05 ms, against 5 ms for the generator there. */
 static PyObject *py_shift_partners(PyObject *self, PyObject *args) {
     Py_buffer pv;
@@ -1933,7 +1933,7 @@ PyMODINIT_FUNC PyInit__core(void) {
 /* ---- the poll cycle's requests and the bounded statistics' tallies -------------------- */
 
 /* poll_table() -> a table of the distinct request keys met by one PollCycles.add
- * (sniffer/pollcycle.py): a key is a row's bytes, with its framing (flags & the `apart`
+ * (sniffer/analysis/pollcycle.py): a key is a row's bytes, with its framing (flags & the `apart`
  * bits: ASCII, Modbus TCP) where it has any, and each maps to the group Python gave it
  * (one group per _Sent). The bytes are kept in an arena, the slots point into it. */
 typedef struct {
@@ -2017,7 +2017,7 @@ typedef struct {
 #define WRITE_KEY 0x80000000u
 
 /* Whether the RTU frame p[0..n) (unit, body, CRC) is a write that _plain_what
- * (sniffer/pollcycle.py) reads straight from its bytes: FC 6, FC 5 of FF00 or 0000, or
+ * (sniffer/analysis/pollcycle.py) reads straight from its bytes: FC 6, FC 5 of FF00 or 0000, or
  * FC 15/16 whose quantity is in range and whose byte count is its bytes that follow and
  * what the quantity needs. Then `same` gets what its identity holds (unit, code, address,
  * quantity), so that writes of other values share one key: a master that writes
@@ -2052,7 +2052,7 @@ static int write_identity(const char *p, Py_ssize_t n, char *same) {
 
 /* poll_block(table, store, lo, hi, resolve, request, bad, retry, apart)
  *     -> [(group, times, retries), ...]
- * PollCycles.add over rows lo..hi (sniffer/pollcycle.py: the requests of a block, their
+ * PollCycles.add over rows lo..hi (sniffer/analysis/pollcycle.py: the requests of a block, their
  * keys as _keys makes them, grouped): the rows of kind `request` with none of the `bad`
  * flags, each keyed by its bytes (as FrameStore slices them; the one stream for every row
  * when the store has one, as _keys reads it) and, where it has any of the `apart` flags,
@@ -2235,7 +2235,7 @@ done:
     return result;
 }
 
-/* The tallies of sniffer/stats.py: Tallies (a Counter: printed figure -> how many).
+/* The tallies of sniffer/analysis/stats.py: Tallies (a Counter: printed figure -> how many).
  * The figures of one call are counted here first, each distinct one (by ==, so 0.0 and
  * -0.0 are one, the first met kept as the Counter would keep it) once, in the order they
  * were first met, then added to the Counter as `counter[key] += count`. */

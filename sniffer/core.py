@@ -3,13 +3,14 @@
 
 The compiled core runs the loops that cost once a packet or a frame: the pcapng reader's
 walk over link type 250 data records (`sniffer.sources.pcap`), the RTU framer's fast
-paths with its timeline of reads (`sniffer.framing`), and the passes over the indexed
-rows: pairing (`sniffer.pairing.Pairer.update`, `FrameStore.pair_rows`), the per-unit
-statistics, their bounded tallies and their quantiles (`sniffer.stats`), the poll
-cycle's requests (`sniffer.pollcycle.PollCycles.add`), SunSpec's first look at FC 3
-answers (`sniffer.sunspec`), the joining of held batches of reads (`sniffer.pipeline`)
+paths with its timeline of reads (`sniffer.framing.serial`), and the passes over the indexed
+rows: pairing (`sniffer.framing.pairing.Pairer.update`, `FrameStore.pair_rows`), the per-unit
+statistics, their bounded tallies and their quantiles (`sniffer.analysis.stats`), the poll
+cycle's requests (`sniffer.analysis.pollcycle.PollCycles.add`), SunSpec's first look at FC 3
+answers (`sniffer.meaning.sunspec`), the joining of held batches of reads
+(`sniffer.framing.pipeline`)
 and the pcapng export's packets from the templates it keeps
-(`sniffer.export.PcapExporter`). Each is a copy of Python code that stays, runs where
+(`sniffer.outputs.export.PcapExporter`). Each is a copy of Python code that stays, runs where
 the extension is missing, and takes over wherever the compiled loop meets anything else,
 so both cores give the same rows, pairs, tables and packets, bit for bit (the export's
 loop lets more rows share a packet template than the Python one, only rows whose packets

@@ -120,7 +120,7 @@ class SourceInfo:
     with (the command line over the file's own); `recorded_line` what the file itself
     recorded, if it did. `network` is true for an Ethernet-family capture: its channels
     are TCP or UDP connection directions, labelled as `sniffer.sources.net` says, and it
-    is framed by `sniffer.tcpframing.NetPipeline`.
+    is framed by `sniffer.framing.tcp.NetPipeline`.
     """
 
     path: str

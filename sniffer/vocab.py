@@ -37,7 +37,7 @@ class Flag(enum.IntFlag):
 
     The stage that sets each one is in `FLAGS`; framing sets bits 0-10, pairing and
     annotation set 11-15 on stored rows, sources 16; Modbus TCP framing and pairing
-    (`sniffer.tcpframing`) set 17-19. Bit 24 and up are facts.
+    (`sniffer.framing.tcp`) set 17-19. Bit 24 and up are facts.
     """
 
     NONE = 0

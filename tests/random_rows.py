@@ -12,8 +12,8 @@ from __future__ import annotations
 import random
 
 from dissectors.checks import ascii_frame, with_crc
+from sniffer.framing.store import FrameStore
 from sniffer.model import Stamp
-from sniffer.store import FrameStore
 from sniffer.vocab import Flag, Kind, Status
 
 # requests a master repeats (reads and writes), by unit byte first

@@ -8,9 +8,9 @@ from typing import Any
 
 import pytest
 
-from sniffer.annotate import load_bindings
-from sniffer.parquet import write_parquet
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
+from sniffer.meaning.annotate import load_bindings
+from sniffer.outputs.parquet import write_parquet
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
 
 duckdb = pytest.importorskip("duckdb")
 pytest.importorskip("pyarrow")

@@ -9,9 +9,9 @@ from typing import Any
 import pytest
 
 from dissectors.dictionary import load_dictionary, load_model
-from sniffer.annotate import Binding, load_bindings
+from sniffer.meaning.annotate import Binding, load_bindings
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
 from sniffer.vocab import Flag, Kind, Status
 from tests.seedvectors import MODELS, by_id, load_examples, wire_bytes
 

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session, open_session
+from sniffer.session.session import Session, open_session
 from sniffer.sources import open_capture, pcap
 from sniffer.sources.linktypes import (
     LINKTYPE_RTAC_SERIAL,
@@ -29,7 +29,7 @@ from sniffer.sources.linktypes import (
 )
 from sniffer.sources.pcapng_writer import describe_interface, rtac_record
 from sniffer.sources.reads import MAX_BATCH_SPAN, Reads, batching
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 
 T0 = 1_714_564_800.0
 LINE = LineSettings(baud=19200, bytesize=8, parity="E", stopbits=1, mode="rtu")

@@ -13,7 +13,7 @@ import pytest
 
 from dissectors.checks import with_crc
 from sniffer.cli import main
-from sniffer.session import DEMO_CAPTURE
+from sniffer.session.session import DEMO_CAPTURE
 
 ROOT = Path(__file__).resolve().parent.parent
 WIZ = ROOT / "tests" / "captures" / "sigrok" / "wizmodbus" / "wizmodbus.sr"

@@ -164,7 +164,7 @@ def test_bytes_at_the_wrong_speed_suggest_scan(
     got, _f, _p = Wire(line, *modbus_cycle(line)).receive(LineSettings(9600, 8, "E", 1), 0, 1)
     path = write_capture(tmp_path / "wrong.pcapng", [(0.5, bytes(v for _t, v in got))])
     code, _out, err = run(["replay", str(path), "--format", "text"], capsys)
-    assert code == 2  # not one frame: nothing usable (sniffer.verdict)
+    assert code == 2  # not one frame: nothing usable (sniffer.session.verdict)
     assert "not one Modbus frame" in err
     assert "wrong speed" in err and "modscope scan PORT" in err
 
@@ -228,7 +228,7 @@ def test_man_page_renders_without_warnings(
 
 
 def test_the_command_line_filter_never_loads_the_tui_package() -> None:
-    """--filter uses the matcher in sniffer.select; running a filtered replay must not
+    """--filter uses the matcher in sniffer.meaning.select; running a filtered replay must not
     import anything from sniffer.tui (which would tie the CLI to the TUI's files)."""
     code = (
         "import sys\n"
@@ -244,22 +244,22 @@ def test_the_command_line_filter_never_loads_the_tui_package() -> None:
 
 
 def test_the_tui_rows_module_shares_the_core_matcher() -> None:
-    import sniffer.select
+    import sniffer.meaning.select
     import sniffer.tui.model
 
     used = vars(sniffer.tui.model)  # what the TUI's list model filters with
-    assert used["FilterJob"] is sniffer.select.FilterJob
-    assert used["Options"] is sniffer.select.Options
+    assert used["FilterJob"] is sniffer.meaning.select.FilterJob
+    assert used["Options"] is sniffer.meaning.select.Options
 
 
 def test_filtered_replay_in_small_blocks_gives_the_same_rows(
     capture: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sniffer.select
+    import sniffer.meaning.select
 
     args = ["replay", str(capture), "--format", "text", "--filter", "kind:exception,request unit:5"]
     code, whole, _ = run(args, capsys)
-    monkeypatch.setattr(sniffer.select, "BLOCK", 3)  # columns scanned three rows at a time
+    monkeypatch.setattr(sniffer.meaning.select, "BLOCK", 3)  # columns scanned three rows at a time
     code2, small, _ = run(args, capsys)
     assert code == code2
     assert whole == small
@@ -290,7 +290,7 @@ def test_the_readme_toolkit_outputs_are_what_the_demo_gives(
     simulated capture; tests/test_scan.py and test_diff cover them)."""
     import shutil
 
-    from sniffer.session import DEMO_BUS, DEMO_CAPTURE
+    from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE
 
     shutil.copy(DEMO_CAPTURE, tmp_path / "demo.pcapng")
     shutil.copy(DEMO_BUS, tmp_path / "demo-bus.toml")

@@ -1,4 +1,4 @@
-"""Masks over a store's columns (`sniffer.columns`): the rows they mark are the rows a
+"""Masks over a store's columns (`sniffer.framing.columns`): the rows they mark are the rows a
 test of each one picks."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import random
 from array import array
 
-from sniffer.columns import both, but_not, flag_mask, marking
+from sniffer.framing.columns import both, but_not, flag_mask, marking
 from sniffer.vocab import BAD_CHECK, Flag
 
 

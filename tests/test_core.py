@@ -26,9 +26,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import crc16_py, with_crc
-from sniffer import core, framing, index
+from sniffer import core
+from sniffer.framing import serial as framing
 from sniffer.model import Chunk
-from sniffer.session import Session, open_session
+from sniffer.session import index
+from sniffer.session.session import Session, open_session
 from sniffer.sources import open_capture
 from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, LINKTYPE_USER0
 from sniffer.sources.reads import Reads, batching

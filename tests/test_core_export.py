@@ -19,15 +19,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import ascii_frame, with_crc
-from sniffer import core, export
-from sniffer.annotate import Annotator, load_bindings
-from sniffer.describe import Describer
-from sniffer.export import PcapExporter
-from sniffer.listing import FORMATS, Lister
+from sniffer import core
+from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.meaning.annotate import Annotator, load_bindings
+from sniffer.meaning.describe import Describer
+from sniffer.meaning.sunspec import SunSpecUnit
 from sniffer.model import LineSettings
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, replay_file
-from sniffer.store import NO_PARTNER, FrameStore
-from sniffer.sunspec import SunSpecUnit
+from sniffer.outputs import export
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import FORMATS, Lister
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, replay_file
 from sniffer.vocab import Flag, Kind, Status
 from tests.test_core_rows import running
 from tests.test_describe_shared import session

@@ -39,7 +39,7 @@ def _loaded_after_import(modules: list[str]) -> set[str]:
 
 def test_every_core_module_imports_without_textual() -> None:
     modules = _core_modules()
-    assert "sniffer.framing" in modules and "dissectors.dissect" in modules
+    assert "sniffer.framing.serial" in modules and "dissectors.dissect" in modules
     loaded = _loaded_after_import(modules)
     assert not {m for m in loaded if m == "textual" or m.startswith("textual.")}
 

@@ -29,10 +29,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
-from sniffer import pollcycle, stats
-from sniffer.pollcycle import PollCycles, cycle_table
-from sniffer.stats import Tallies
-from sniffer.store import FrameStore
+from sniffer.analysis import pollcycle, stats
+from sniffer.analysis.pollcycle import PollCycles, cycle_table
+from sniffer.analysis.stats import Tallies
+from sniffer.framing.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.test_core import _compiled
 from tests.test_core_rows import running

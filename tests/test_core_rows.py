@@ -27,14 +27,15 @@ from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
 from dissectors.dictionary.sunspec import MARKER
-from sniffer import core, pipeline
+from sniffer import core
+from sniffer.analysis.stats import Stats, UnitStats, median_gap, nearest_rank
+from sniffer.framing import pipeline
+from sniffer.framing.pairing import Pairer
+from sniffer.framing.pipeline import Pipeline, _joined
+from sniffer.framing.store import COLUMNS, FrameStore
+from sniffer.meaning.sunspec import BASES, SunSpecTracker
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
-from sniffer.pairing import Pairer
-from sniffer.pipeline import Pipeline, _joined
 from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads
-from sniffer.stats import Stats, UnitStats, median_gap, nearest_rank
-from sniffer.store import COLUMNS, FrameStore
-from sniffer.sunspec import BASES, SunSpecTracker
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 from tests.test_core import _compiled
 

@@ -14,13 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.annotate import load_bindings
-from sniffer.describe import Describer
-from sniffer.export import PcapExporter
-from sniffer.listing import FORMATS, Lister
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.annotate import load_bindings
+from sniffer.meaning.describe import Describer
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
-from sniffer.store import FrameStore
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import FORMATS, Lister
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
 from tests.test_sunspec import device_image, discovery, frames_of, session_of
 
 LINE = LineSettings(baud=19200, bytesize=8, parity="E", stopbits=1, mode="rtu")

@@ -16,7 +16,7 @@ from dissectors.dictionary import (
     load_dictionary,
     load_model,
 )
-from sniffer.annotate import load_bindings
+from sniffer.meaning.annotate import load_bindings
 
 FIXTURES = Path(__file__).parent / "fixtures" / "dictionaries"
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from dissectors.checks import with_crc
-from sniffer.diff import diff_stores
+from sniffer.analysis.diff import diff_stores
+from sniffer.framing.pipeline import frame_capture
+from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
-from sniffer.store import FrameStore
 
 LINE = LineSettings(19200, 8, "E", 1)
 

@@ -12,11 +12,11 @@ import pytest
 
 from dissectors.checks import with_crc
 from dissectors.dictionary import check_dictionary, load_dictionaries
-from sniffer.annotate import load_bindings
-from sniffer.draft import Place, draft, guess_word, observe, roughness
+from sniffer.analysis.draft import Place, draft, guess_word, observe, roughness
+from sniffer.framing.pipeline import frame_capture
+from sniffer.meaning.annotate import load_bindings
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
-from sniffer.session import Session
+from sniffer.session.session import Session
 
 LINE = LineSettings(19200, 8, "E", 1)
 UNIT = 5

@@ -17,16 +17,16 @@ import pytest
 from dissectors.checks import ascii_frame, with_crc
 from sniffer.cli import main
 from sniffer.cli.export import output_format
-from sniffer.export import (
+from sniffer.live.port import PortSpec
+from sniffer.live.recorder import Recorder
+from sniffer.model import Chunk, LineSettings
+from sniffer.outputs.export import (
     PcapExporter,
     packet_for,
     register_records,
     transaction_records,
 )
-from sniffer.model import Chunk, LineSettings
-from sniffer.recorder import Recorder
-from sniffer.serial_source import PortSpec
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.sources import open_capture
 from sniffer.sources.linktypes import (
     EPB_FLAG_CRC_ERROR,

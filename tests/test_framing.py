@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import ascii_frame, crc16, with_crc
+from sniffer.framing.pipeline import Pipeline, frame_capture
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.problems import check_text
 from sniffer.model import Chunk, Direction, LineSettings
-from sniffer.pipeline import Pipeline, frame_capture
-from sniffer.problems import check_text
-from sniffer.store import FrameStore
-from sniffer.synth import polling_frames, stress_stream
+from sniffer.sources.synth import polling_frames, stress_stream
 from sniffer.vocab import Flag, Kind
 from tests.seedvectors import load_examples, wire_bytes
 

@@ -11,12 +11,12 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.gateway import Verdict, estimate_offset, link, transactions
+from sniffer.analysis.gateway import Verdict, estimate_offset, link, transactions
+from sniffer.framing.pipeline import frame_capture
+from sniffer.framing.store import FrameStore
+from sniffer.framing.tcp import NetPipeline
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
 from sniffer.sources import open_capture
-from sniffer.store import FrameStore
-from sniffer.tcpframing import NetPipeline
 from tests.netbuild import Conversation, pcap
 
 SERIAL_CLOCK = -100.0  # the serial recorder's clock is 100 s behind the network capture's
@@ -190,7 +190,7 @@ def test_fast_repeated_polls_link_one_for_one(fates: list[str]) -> None:
     """Polls faster than the gateway timeout repeat the same request: a dropped one must
     not take the next one's serial request, whatever the fates (estimated clocks), where
     the traffic tells the clocks apart at all."""
-    from sniffer.gateway import coarse_offset
+    from sniffer.analysis.gateway import coarse_offset
 
     assume(not ambiguous(fates))
 

@@ -20,8 +20,8 @@ import pytest
 from dissectors.checks import with_crc
 from dissectors.envelope import open_mbap
 from sniffer.cli import main
-from sniffer.problems import frame_problems
-from sniffer.store import FrameView
+from sniffer.framing.store import FrameView
+from sniffer.meaning.problems import frame_problems
 from sniffer.vocab import Flag, Kind
 from tests import test_gateway as gw
 from tests.netbuild import Conversation, pcap
@@ -271,8 +271,8 @@ def test_stats_have_a_gateway_section(tmp_path: Path, capsys: pytest.CaptureFixt
 
 @pytest.mark.asyncio
 async def test_p_jumps_across_the_gateway_link(tmp_path: Path) -> None:
-    from sniffer.multifile import align, link_files, merge
-    from sniffer.session import replay_file
+    from sniffer.session.multifile import align, link_files, merge
+    from sniffer.session.session import replay_file
     from sniffer.sources import ReadOptions
     from sniffer.tui.app import ModscopeApp
 

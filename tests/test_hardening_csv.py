@@ -15,11 +15,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.annotate import load_bindings
-from sniffer.export import REGISTER_COLUMNS, register_records, write_table
-from sniffer.listing import Lister
+from sniffer.meaning.annotate import load_bindings
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.outputs.export import REGISTER_COLUMNS, register_records, write_table
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session
 from sniffer.text import FORMULA_START, csv_cell
 
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")

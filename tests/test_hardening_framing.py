@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from dissectors.checks import with_crc
+from sniffer.framing.pipeline import frame_capture
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
 from sniffer.vocab import Kind
 
 RTU = LineSettings(baud=19200, parity="E", mode="rtu")

@@ -11,12 +11,12 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.export import PcapExporter
-from sniffer.listing import Lister
-from sniffer.session import open_session
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import open_session
+from sniffer.session.verdict import ALL_READ, NOTHING_USABLE, READ_WITH_WARNINGS, read_verdict
 from sniffer.sources import open_capture
 from sniffer.sources.pcapng_writer import PcapngWriter
-from sniffer.verdict import ALL_READ, NOTHING_USABLE, READ_WITH_WARNINGS, read_verdict
 from sniffer.vocab import Kind
 
 REQUEST = with_crc(bytes.fromhex("010300000002"))

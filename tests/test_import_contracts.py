@@ -25,12 +25,15 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("dissectors", "sniffer")
 # sniffer.core: which core runs (the compiled extension or pure Python), below everything
 FOUNDATION = {"sniffer.vocab", "sniffer.model", "sniffer.text", "sniffer.errors", "sniffer.core"}
-PIPELINES = {"sniffer.pipeline", "sniffer.tcpframing"}  # tcpframing: the TCP framer and pipeline
+PIPELINES = {
+    "sniffer.framing.pipeline",
+    "sniffer.framing.tcp",
+}  # tcpframing: the TCP framer and pipeline
 # Upward imports made on purpose, each inside a function, each with its reason:
 ALLOWED_UPWARD = {
     # a sigrok capture replayed without --baud measures the line by framing its bytes at
     # each candidate setting; only then is the estimator loaded
-    ("sniffer.sources.sigrok", "sniffer.baud"),
+    ("sniffer.sources.sigrok", "sniffer.analysis.baud"),
 }
 
 
@@ -131,7 +134,7 @@ def test_only_the_tui_imports_textual() -> None:
 
 
 def test_only_pipelines_import_the_framer() -> None:
-    users = {m for m in MODULES if "sniffer.framing" in _imports(m, anywhere=True)}
+    users = {m for m in MODULES if "sniffer.framing.serial" in _imports(m, anywhere=True)}
     assert users <= PIPELINES
 
 
@@ -194,6 +197,6 @@ def test_only_the_cli_launches_the_tui_and_only_when_asked() -> None:
 
 def test_the_contracts_see_the_whole_tree() -> None:
     # a guard against the checks above passing because they read nothing
-    assert {"sniffer.vocab", "sniffer.pipeline", "dissectors.pdu.registry"} <= set(MODULES)
-    assert "sniffer.framing" in _ours(_imports("sniffer.pipeline", anywhere=False))
+    assert {"sniffer.vocab", "sniffer.framing.pipeline", "dissectors.pdu.registry"} <= set(MODULES)
+    assert "sniffer.framing.serial" in _ours(_imports("sniffer.framing.pipeline", anywhere=False))
     assert "sniffer.tui.app" in _ours(_imports("sniffer.cli.tui", anywhere=True))

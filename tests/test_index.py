@@ -8,10 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from sniffer import index
 from sniffer.cli import main
+from sniffer.framing.store import COLUMNS
 from sniffer.model import LineSettings
-from sniffer.session import Session, open_session
+from sniffer.session import index
+from sniffer.session.session import Session, open_session
 from sniffer.sources import ReadOptions
 from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL
 from sniffer.sources.pcapng_writer import (
@@ -20,8 +21,7 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     rtac_record,
 )
-from sniffer.store import COLUMNS
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 
 LINE = LineSettings(baud=115200, bytesize=8, parity="N", stopbits=1, mode="rtu")
 T0 = 1_714_564_800.0

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from sniffer import index
-from sniffer.session import Session, open_session
-from sniffer.store import COLUMNS
+from sniffer.framing.store import COLUMNS
+from sniffer.session import index
+from sniffer.session.session import Session, open_session
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture
 from tests import test_index
 from tests.test_index import _ingested, _same

@@ -20,10 +20,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
-from sniffer.listing import Lister
+from sniffer.framing.pairing import measure
+from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
-from sniffer.pairing import measure
-from sniffer.session import Session, replay_file
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session, replay_file
 from sniffer.sources import ReadOptions
 from sniffer.sources.linktypes import (
     EPB_FLAG_INBOUND,
@@ -31,7 +32,6 @@ from sniffer.sources.linktypes import (
     LINKTYPE_USER0,
 )
 from sniffer.sources.pcapng_writer import PcapngWriter
-from sniffer.store import FrameStore
 from sniffer.vocab import Kind, Status
 
 ECHOED = (5, 6, 8)  # the function codes whose answer repeats the request

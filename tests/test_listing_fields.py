@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
 from dissectors.dissect import Role, dissect
-from sniffer.listing import Lister, _values_text
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.outputs.listing import Lister, _values_text
+from sniffer.session.session import Session
 from sniffer.text import json_line
 
 RTU = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")

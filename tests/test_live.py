@@ -17,14 +17,14 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.capture import LiveCapture
 from sniffer.cli import main
 from sniffer.cli.lines import parse_roles
+from sniffer.live.engine import LiveCapture
+from sniffer.live.port import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events
+from sniffer.live.port import _Counters as Counters
+from sniffer.live.recorder import RecordError
 from sniffer.model import Chunk, Direction, LineSettings
-from sniffer.recorder import RecordError
-from sniffer.serial_source import ChunkFeed, LiveReader, PortSpec, WallClock, counter_events
-from sniffer.serial_source import _Counters as Counters
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.sources import open_capture
 from sniffer.vocab import Kind, Status
 from tests.virtual_bus import Made, VirtualBus, wait_ready

@@ -11,10 +11,10 @@ import time
 
 import pytest
 
-from sniffer import capture as capture_module
-from sniffer.capture import GATHER_READS, LiveCapture
+from sniffer.live import engine as capture_module
+from sniffer.live.engine import GATHER_READS, LiveCapture
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.session.session import Session
 from tests.test_live_memory import Batches, Played
 from tests.test_live_memory import Clock as FixedClock
 
@@ -56,7 +56,7 @@ class Reader(Played):
 
 
 class _Time:
-    """`time` as sniffer.capture sees it, with `sleep` only noted."""
+    """`time` as sniffer.live.engine sees it, with `sleep` only noted."""
 
     def __init__(self, slept: list[float]) -> None:
         self.sleep = slept.append

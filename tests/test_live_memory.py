@@ -19,18 +19,18 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.capture import GlobalRows, LiveCapture
 from sniffer.cli.backlog import Backlog
 from sniffer.cli.filtering import Selection
 from sniffer.cli.live import Summary, stream
-from sniffer.export import PcapExporter
-from sniffer.listing import Lister
+from sniffer.framing.pipeline import LIVE_MERGE_SLACK
+from sniffer.live.engine import GlobalRows, LiveCapture
+from sniffer.live.port import ChunkFeed, PortSpec, PortStats
+from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import LIVE_MERGE_SLACK
-from sniffer.recorder import Recorder
-from sniffer.serial_source import ChunkFeed, PortSpec, PortStats
-from sniffer.session import Session, replay_file
-from sniffer.synth import polling_frames
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session, replay_file
+from sniffer.sources.synth import polling_frames
 from tests.test_live_updates import applied
 
 FAST = LineSettings(baud=921600, parity="N", stopbits=1, mode="rtu")
@@ -59,7 +59,7 @@ class Clock:
 
 
 class Played:
-    """A reader (sniffer.capture.Reader) of prepared batches."""
+    """A reader (sniffer.live.engine.Reader) of prepared batches."""
 
     def __init__(self, line: LineSettings, batches: Sequence[list[Chunk]]) -> None:
         self.specs = [PortSpec("/dev/played", line)]

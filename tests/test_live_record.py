@@ -15,11 +15,11 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.capture import LiveCapture
+from sniffer.live.engine import LiveCapture
+from sniffer.live.port import LiveReader, PortSpec
+from sniffer.live.recorder import Recorder, RecordError, Ring, parse_duration, parse_size
 from sniffer.model import Chunk, Direction, LineSettings
-from sniffer.recorder import Recorder, RecordError, Ring, parse_duration, parse_size
-from sniffer.serial_source import LiveReader, PortSpec
-from sniffer.session import Session, replay_file
+from sniffer.session.session import Session, replay_file
 from sniffer.sources import open_capture
 from sniffer.sources.linktypes import (
     LINKTYPE_RTAC_SERIAL,

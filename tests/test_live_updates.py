@@ -17,9 +17,9 @@ from typing import Any
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.listing import UPDATED_KEYS, Lister
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.outputs.listing import UPDATED_KEYS, Lister
+from sniffer.session.session import Session
 from sniffer.text import json_line
 from tests.virtual_bus import VirtualBus, wait_ready
 

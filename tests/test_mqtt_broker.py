@@ -19,14 +19,19 @@ from pathlib import Path
 
 import pytest
 
-from sniffer.annotate import load_bindings
+from sniffer.meaning.annotate import load_bindings
 from sniffer.model import Chunk
-from sniffer.mqtt.link import MqttLink
-from sniffer.mqtt.payload import raw_payload, slug
-from sniffer.mqtt.publish import BusPublisher, PublisherOptions, open_publisher, publish_replay
-from sniffer.mqtt.subscribe import MqttReader
-from sniffer.mqtt.target import parse_target
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
+from sniffer.outputs.mqtt.link import MqttLink
+from sniffer.outputs.mqtt.payload import raw_payload, slug
+from sniffer.outputs.mqtt.publish import (
+    BusPublisher,
+    PublisherOptions,
+    open_publisher,
+    publish_replay,
+)
+from sniffer.outputs.mqtt.subscribe import MqttReader
+from sniffer.outputs.mqtt.target import parse_target
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
 
 pytestmark = [
     pytest.mark.peer,

@@ -23,12 +23,17 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from sniffer.analysis.stats import UnitStats
 from sniffer.model import Chunk, LineSettings
-from sniffer.mqtt.payload import chunk_from_raw, raw_payload, read_raw
-from sniffer.mqtt.publish import PublisherOptions, UnitWindow, open_publisher, publish_replay
-from sniffer.session import DEMO_BUS, Session, open_session
+from sniffer.outputs.mqtt.payload import chunk_from_raw, raw_payload, read_raw
+from sniffer.outputs.mqtt.publish import (
+    PublisherOptions,
+    UnitWindow,
+    open_publisher,
+    publish_replay,
+)
+from sniffer.session.session import DEMO_BUS, Session, open_session
 from sniffer.sources import open_capture
-from sniffer.stats import UnitStats
 from tests.test_mqtt_broker import Broker
 from tests.virtual_bus import VirtualBus, wait_ready
 
@@ -326,8 +331,8 @@ def test_a_watcher_reports_reads_the_broker_dropped(tmp_path: Path) -> None:
     sees the gap in the publisher's count and frames a `data lost` event there. (A loss
     shows when the next read comes: the test releases the watcher before the end.)"""
     pytest.importorskip("paho.mqtt.client")
-    from sniffer.mqtt.subscribe import MqttReader
-    from sniffer.mqtt.target import parse_target
+    from sniffer.outputs.mqtt.subscribe import MqttReader
+    from sniffer.outputs.mqtt.target import parse_target
 
     broker = Broker(tmp_path)
     with broker.conf.open("a") as f:

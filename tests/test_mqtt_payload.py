@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from dissectors.dictionary.device import DeviceDictionary
 from dissectors.dictionary.model import Entry, ValueSpec
 from sniffer.model import Chunk, Direction
-from sniffer.mqtt import MqttError
-from sniffer.mqtt.ha import discovery_configs, entity_kind
-from sniffer.mqtt.payload import (
+from sniffer.outputs.mqtt import MqttError
+from sniffer.outputs.mqtt.ha import discovery_configs, entity_kind
+from sniffer.outputs.mqtt.payload import (
     PayloadError,
     RegisterKey,
     Slugs,
@@ -23,7 +23,7 @@ from sniffer.mqtt.payload import (
     raw_payload,
     slug,
 )
-from sniffer.mqtt.target import bus_slug, parse_target
+from sniffer.outputs.mqtt.target import bus_slug, parse_target
 
 # -- raw messages -------------------------------------------------------------------------------
 

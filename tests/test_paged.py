@@ -1,4 +1,4 @@
-"""The TUI's paged rows (sniffer.paged): the same rows, bytes and descriptions as a store
+"""The TUI's paged rows (sniffer.session.paged): the same rows, bytes and descriptions as a store
 holding every row, however they reached the paged store."""
 
 from __future__ import annotations
@@ -9,13 +9,13 @@ from typing import Any
 
 import pytest
 
-from sniffer import index
-from sniffer.annotate import Annotator, load_bindings
-from sniffer.describe import Describer
-from sniffer.paged import HOT, PagedStore, wanted
-from sniffer.select import row_words
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
-from sniffer.store import COLUMNS, FrameStore
+from sniffer.framing.store import COLUMNS, FrameStore
+from sniffer.meaning.annotate import Annotator, load_bindings
+from sniffer.meaning.describe import Describer
+from sniffer.meaning.select import row_words
+from sniffer.session import index
+from sniffer.session.paged import HOT, PagedStore, wanted
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture
 from sniffer.tui.model import ViewModel
 from sniffer.tui.render import Styles, columns_for
@@ -289,7 +289,7 @@ def test_pages_smaller_than_a_block_read_the_same_rows_and_bytes(
 ) -> None:
     """Columns and bytes are read a page at a time; pages that end inside a frame, a
     block or a slice give the same values."""
-    import sniffer.paged as paged_module
+    import sniffer.session.paged as paged_module
 
     monkeypatch.setattr(paged_module, "PAGE", 7)
     monkeypatch.setattr(paged_module, "BYTES_PAGE", 13)

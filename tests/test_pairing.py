@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 
 from dissectors.checks import with_crc
+from sniffer.framing.pairing import latency
+from sniffer.framing.pipeline import Pipeline, frame_capture
+from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk, LineSettings
-from sniffer.pairing import latency
-from sniffer.pipeline import Pipeline, frame_capture
-from sniffer.store import FrameStore
 from sniffer.vocab import STATUS_NAMES, Flag, Kind, Status
 
 LINE = LineSettings(baud=19200, parity="E", mode="rtu")

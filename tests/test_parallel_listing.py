@@ -1,4 +1,4 @@
-"""Listings and exports written by parallel workers (`--jobs`, `sniffer.parallel`) are the
+"""Listings and exports written by parallel workers (`--jobs`, `sniffer.outputs.parallel`) are the
 serial output byte for byte, in every format, with relative and absolute times, over
 ranges of uneven sizes and more workers than some captures have rows to spare; a
 worker that fails makes the command fail; `| head -1` ends quietly."""
@@ -18,14 +18,14 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import ascii_frame, with_crc
-from sniffer import parallel
 from sniffer.cli import main
-from sniffer.describe import Describer
+from sniffer.meaning.describe import Describer
 from sniffer.model import LineSettings
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE
+from sniffer.outputs import parallel
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE
 from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL
 from sniffer.sources.pcapng_writer import PcapngWriter, describe_interface, rtac_record
-from sniffer.synth import polling_frames, stress_stream
+from sniffer.sources.synth import polling_frames, stress_stream
 from tests.test_core import KINDS, _frame
 from tests.test_sunspec import device_image, discovery
 from tests.test_sunspec import read as sunspec_read

@@ -20,8 +20,8 @@ import pytest
 import serial
 
 from dissectors.checks import with_crc
+from sniffer.live.port import ChunkFeed, LiveReader, PortError, PortSpec, open_passive
 from sniffer.model import Chunk, LineSettings
-from sniffer.serial_source import ChunkFeed, LiveReader, PortError, PortSpec, open_passive
 from tests.virtual_bus import ForbiddenError, Made, Tripwire, VirtualBus
 
 LINE = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
@@ -200,9 +200,24 @@ def test_no_line_driving_call_in_the_live_code() -> None:
         "tcdrain",
     }
     banned_attrs = {"rts", "dtr", "break_condition", "rs485_mode"}
-    source = ROOT / "sniffer" / "serial_source.py"
-    tree = ast.parse(source.read_text())
-    for node in ast.walk(tree):
+    # the modules that hold ports: those that import pyserial (the port and the scan);
+    # the others (the recorder, the engine) write to files, never to a port
+    sources = [
+        path
+        for path in sorted((ROOT / "sniffer").rglob("*.py"))
+        if any(
+            isinstance(n, ast.Import | ast.ImportFrom)
+            and any(
+                (n.module if isinstance(n, ast.ImportFrom) else a.name or "").split(".")[0]
+                == "serial"
+                for a in n.names
+            )
+            for n in ast.walk(ast.parse(path.read_text()))
+        )
+    ]
+    assert {p.name for p in sources} == {"port.py", "scan.py"}
+    trees = [ast.parse(source.read_text()) for source in sources]
+    for node in (n for tree in trees for n in ast.walk(tree)):
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
             if _wakes_own_pipe(node):
                 continue
@@ -363,10 +378,10 @@ def test_live_and_record_say_the_port_refused_in_one_line(
     capsys: pytest.CaptureFixture[str],
     tmp_path: Path,
 ) -> None:
-    import sniffer.serial_source
+    import sniffer.live.port
     from sniffer.cli import main
 
-    monkeypatch.setattr(sniffer.serial_source, "new_port", Flaky(refuse=range(99)))
+    monkeypatch.setattr(sniffer.live.port, "new_port", Flaky(refuse=range(99)))
     argv = [command, "/dev/ttyDOUBLE0", "--format", "text"]
     if command == "record":
         argv = [command, "/dev/ttyDOUBLE0", "-w", str(tmp_path / "rec.pcapng")]
@@ -429,11 +444,11 @@ def test_a_reader_thread_ended_by_a_bug_says_so_and_stops_running() -> None:
 def test_live_ends_as_a_bug_when_its_reader_thread_dies(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import sniffer.serial_source
+    import sniffer.live.port
     from sniffer.cli import main
 
     factory = Flaky(crash=1)
-    monkeypatch.setattr(sniffer.serial_source, "new_port", factory)
+    monkeypatch.setattr(sniffer.live.port, "new_port", factory)
 
     def unplug_soon() -> None:
         end = time.monotonic() + 3

@@ -10,10 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer import pollcycle
-from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
-from sniffer.pollcycle import (
+from sniffer.analysis import pollcycle
+from sniffer.analysis.pollcycle import (
     Gap,
     Poll,
     UnitCycle,
@@ -22,9 +20,11 @@ from sniffer.pollcycle import (
     cycle_table,
     poll_cycles,
 )
-from sniffer.session import DEMO_CAPTURE, replay_file
-from sniffer.stats import nearest_rank
-from sniffer.store import COLUMNS, FrameStore
+from sniffer.analysis.stats import nearest_rank
+from sniffer.framing.pipeline import frame_capture
+from sniffer.framing.store import COLUMNS, FrameStore
+from sniffer.model import Chunk, LineSettings
+from sniffer.session.session import DEMO_CAPTURE, replay_file
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.random_rows import random_store
 

@@ -27,20 +27,20 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer import index
-from sniffer import session as session_module
-from sniffer.baud import SpeedCheck, wrong_speed
+from sniffer.analysis.baud import SpeedCheck, wrong_speed
+from sniffer.analysis.stats import Stats
 from sniffer.cli import build_parser
 from sniffer.cli import replay as replay_cli
 from sniffer.errors import UserError
+from sniffer.framing.store import COLUMNS, FrameStore
+from sniffer.live.port import PortSpec
+from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk, LineSettings
-from sniffer.recorder import Recorder
-from sniffer.serial_source import PortSpec
-from sniffer.session import Session, open_session
+from sniffer.session import index
+from sniffer.session import session as session_module
+from sniffer.session.session import Session, open_session
 from sniffer.sources.reads import batching
-from sniffer.stats import Stats
-from sniffer.store import COLUMNS, FrameStore
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 from sniffer.vocab import Flag, Kind
 from tests.random_rows import random_store
 

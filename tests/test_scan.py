@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.baud import estimate_baud, estimate_line, wrong_speed
-from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
-from sniffer.scan import (
+from sniffer.analysis.baud import estimate_baud, estimate_line, wrong_speed
+from sniffer.framing.pipeline import frame_capture
+from sniffer.framing.store import FrameStore
+from sniffer.live.scan import (
     BAUDS,
     PortListener,
     Sample,
@@ -28,8 +28,8 @@ from sniffer.scan import (
     scan,
     score,
 )
+from sniffer.model import Chunk, LineSettings
 from sniffer.sources import ReadOptions, open_capture
-from sniffer.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
 
@@ -398,15 +398,15 @@ def test_wrong_speed_counts_rows_with_line_errors() -> None:
 
 
 def _fast_scan(monkeypatch: pytest.MonkeyPatch, ports: GarblingPorts | None = None) -> None:
-    import sniffer.scan
-    import sniffer.serial_source
+    import sniffer.live.port
+    import sniffer.live.scan
 
-    monkeypatch.setattr(sniffer.scan, "BAUDS", (9600, 19200, 38400))
-    monkeypatch.setattr(sniffer.scan, "DWELL", 0.02)
-    monkeypatch.setattr(sniffer.scan, "MAX_DWELL", 0.05)
+    monkeypatch.setattr(sniffer.live.scan, "BAUDS", (9600, 19200, 38400))
+    monkeypatch.setattr(sniffer.live.scan, "DWELL", 0.02)
+    monkeypatch.setattr(sniffer.live.scan, "MAX_DWELL", 0.05)
     if ports is not None:
-        monkeypatch.setattr(sniffer.serial_source, "new_port", ports)
-        monkeypatch.setattr(sniffer.scan, "driver_counters", ports.counters)
+        monkeypatch.setattr(sniffer.live.port, "new_port", ports)
+        monkeypatch.setattr(sniffer.live.scan, "driver_counters", ports.counters)
 
 
 def test_live_baud_auto_scans_then_listens_at_the_winner(

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from sniffer.pairing import latency
-from sniffer.session import replay_file
+from sniffer.framing.pairing import latency
+from sniffer.session.session import replay_file
 from sniffer.sources import ReadOptions
 from sniffer.vocab import Flag, Kind, Status
 

@@ -19,13 +19,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from sniffer.framing.store import FrameStore
+from sniffer.framing.tcp import CUT_SHORT, ENVELOPE_BAD, MBAP, TID_REUSED, NetPipeline
 from sniffer.model import Chunk, Direction, Labels, Stamp
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.sources.net import parse_label
 from sniffer.sources.net.packets import Segment, Skip, decode
 from sniffer.sources.pcapng_writer import PcapngWriter
-from sniffer.store import FrameStore
-from sniffer.tcpframing import CUT_SHORT, ENVELOPE_BAD, MBAP, TID_REUSED, NetPipeline
 from sniffer.vocab import Kind, Status
 from tests.netbuild import (
     TCP_ACK,

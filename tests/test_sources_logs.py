@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from dissectors.checks import with_crc
 from sniffer.cli import main
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.sources import ReadOptions, detect, open_capture
 from sniffer.sources.logs import (
     LOG_FORMATS,

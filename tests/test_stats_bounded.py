@@ -9,9 +9,9 @@ from collections import Counter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sniffer.analysis.stats import RECENT, UnitStats
 from sniffer.model import LineSettings
-from sniffer.stats import RECENT, UnitStats
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 from tests.test_live_memory import FAST, Run, reads
 
 QS = (0, 0.5, 0.95, 1)

@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 
 import pytest
 
+from sniffer.analysis.stats import Stats
+from sniffer.framing.pairing import UNRESOLVED, measure
+from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Stamp
-from sniffer.pairing import UNRESOLVED, measure
-from sniffer.session import DEMO_CAPTURE, replay_file
-from sniffer.stats import Stats
-from sniffer.store import NO_PARTNER, FrameStore
+from sniffer.session.session import DEMO_CAPTURE, replay_file
 from sniffer.vocab import BAD_CHECK, Kind, Status
 from tests.random_rows import random_store
 

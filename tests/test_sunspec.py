@@ -26,13 +26,13 @@ from dissectors.dictionary.sunspec import (
     definitions_folder,
     parse_model,
 )
-from sniffer.annotate import Annotator
 from sniffer.cli import main
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.annotate import Annotator
+from sniffer.meaning.sunspec import SunSpecTracker
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.sources.pcapng_writer import PcapngWriter
-from sniffer.store import FrameStore
-from sniffer.sunspec import SunSpecTracker
 from sniffer.vocab import Flag, Kind
 
 UNIT = 7
@@ -301,7 +301,7 @@ def test_a_unit_that_does_not_show_the_marker_is_left_alone() -> None:
 
 @needs_models
 def test_a_unit_with_a_dictionary_is_not_taken_for_sunspec(tmp_path: Path) -> None:
-    from sniffer.annotate import load_bindings
+    from sniffer.meaning.annotate import load_bindings
 
     path = tmp_path / "d.toml"
     path.write_text(
@@ -357,8 +357,8 @@ def test_rows_picked_from_the_columns_are_annotated_as_row_by_row() -> None:
     """A SunSpec device, a unit read at address 0 with no marker and the demo's bound
     devices (with their own timing rules and parameter windows), interleaved, fed in
     pieces: the same SunSpec state, windows and flags as a walk over every row."""
-    from sniffer.annotate import load_bindings
-    from sniffer.session import DEMO_BUS, DEMO_CAPTURE, replay_file
+    from sniffer.meaning.annotate import load_bindings
+    from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, replay_file
 
     bindings = load_bindings(DEMO_BUS)
     demo = replay_file(DEMO_CAPTURE, bindings=bindings).store

@@ -11,10 +11,10 @@ import pytest
 from textual.pilot import Pilot
 from textual.widgets import ContentSwitcher, Input, Static
 
+from sniffer.live.port import PortSpec
+from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk, SourceInfo
-from sniffer.recorder import Recorder
-from sniffer.serial_source import PortSpec
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.sources import Capture
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.screens.dialogs import HelpScreen
@@ -475,7 +475,7 @@ async def test_device_strings_are_shown_as_text_never_as_markup() -> None:
 
 
 class FakeLive:
-    """Feeds chunks handed to it by the test, as `sniffer.capture.LiveCapture.pump` does."""
+    """Feeds chunks handed to it by the test, as `sniffer.live.engine.LiveCapture.pump` does."""
 
     def __init__(self, session: Session) -> None:
         self.session = session
@@ -534,7 +534,7 @@ async def test_live_rows_arrive_followed_and_pause_freezes_the_view() -> None:
 
 
 class RecordingLive(FakeLive):
-    """A live source that can record, like `sniffer.capture.LiveCapture`."""
+    """A live source that can record, like `sniffer.live.engine.LiveCapture`."""
 
     def __init__(self, session: Session, folder: Path) -> None:
         super().__init__(session)

@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from sniffer.cli import build_parser, main, serve
-from sniffer.session import DEMO_CAPTURE
+from sniffer.session.session import DEMO_CAPTURE
 
 ROOT = Path(__file__).resolve().parent.parent
 

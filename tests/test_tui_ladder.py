@@ -10,9 +10,9 @@ from array import array
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.describe import Describer
+from sniffer.meaning.describe import Describer
 from sniffer.model import Chunk, Stamp
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.ladder import Ladder, Lanes, lanes_for, latency_label
 from sniffer.tui.rows import RowView

@@ -9,8 +9,8 @@ import time
 import pytest
 from textual.pilot import Pilot
 
-from sniffer.query import parse_query
-from sniffer.select import Options
+from sniffer.meaning.query import parse_query
+from sniffer.meaning.select import Options
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.navigate import find_row
 from tests.test_tui_support import burst, hostile_session, synthetic_session

@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sniffer.cli import main
-from sniffer.query import QueryError, parse_query
+from sniffer.meaning.query import QueryError, parse_query
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.widgets.prompt import LineInput
 from tests.test_tui_app import ready, settle

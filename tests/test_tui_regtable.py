@@ -9,7 +9,7 @@ import pytest
 
 from dissectors.checks import with_crc
 from sniffer.model import Chunk
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.regtable import RegisterTable
 from sniffer.tui.screens.regtable import TableScreen

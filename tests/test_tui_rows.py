@@ -15,13 +15,13 @@ from hypothesis import strategies as st
 from rich.style import Style
 
 from dissectors.values import Dissection
-from sniffer.describe import FrameDetail, register_span
+from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.meaning.describe import FrameDetail, register_span
+from sniffer.meaning.query import Query, QueryError, TimePoint, parse_query, parse_time_point
+from sniffer.meaning.select import FilterJob, Options
 from sniffer.model import Chunk, LineSettings
-from sniffer.query import Query, QueryError, TimePoint, parse_query, parse_time_point
-from sniffer.select import FilterJob, Options
-from sniffer.session import Session
-from sniffer.store import NO_PARTNER, FrameStore
-from sniffer.synth import polling_frames, stress_stream
+from sniffer.session.session import Session
+from sniffer.sources.synth import polling_frames, stress_stream
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture, feed_live, live_status
 from sniffer.tui.model import ViewModel
 from sniffer.tui.render import (
@@ -237,7 +237,7 @@ def test_column_scan_matches_the_reference(
 def test_a_scan_in_small_steps_gives_the_same_rows(
     stress: Session, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import sniffer.select as select_module  # where the matcher reads its step
+    import sniffer.meaning.select as select_module  # where the matcher reads its step
 
     q = parse_query("-fc:3 status:ok,exception,timeout")
     o = Options(transactions=True)

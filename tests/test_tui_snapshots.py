@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 from textual.pilot import Pilot
 
-from sniffer.annotate import load_bindings
-from sniffer.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
+from sniffer.meaning.annotate import load_bindings
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
 from sniffer.tui.app import ModscopeApp
 
 pytestmark = pytest.mark.skipif(not DEMO_CAPTURE.exists(), reason="the demo capture is missing")

@@ -4,7 +4,7 @@
 RVS-DN dictionary under a label full of markup and escape sequences, register reads and
 a write, an exception, a timeout, noise, a bad CRC, and device identification and
 Report Server ID answers whose strings are markup. `synthetic_session(n)` is the
-polling mix of `sniffer.synth`.
+polling mix of `sniffer.sources.synth`.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from textual.keys import _character_to_key
 
 from dissectors.checks import with_crc
 from dissectors.dictionary import load_model
-from sniffer.annotate import Binding
+from sniffer.meaning.annotate import Binding
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
-from sniffer.synth import clean_chunks, polling_frames
+from sniffer.session.session import Session
+from sniffer.sources.synth import clean_chunks, polling_frames
 
 HOSTILE = "[bold red]Pump[/] [@click=app.quit]\x1b[31m"
 HOSTILE_SHOWN = "[bold red]Pump[/] [@click=app.quit]\\x1b[31m"  # how it must appear

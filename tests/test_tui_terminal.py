@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from sniffer.session import DEMO_CAPTURE
+from sniffer.session.session import DEMO_CAPTURE
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = [

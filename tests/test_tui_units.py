@@ -1,5 +1,5 @@
 """The units pane's poll cycle: period, jitter and gaps of each unit's main poll, followed
-incrementally, agreeing with `sniffer.pollcycle` (the --stats table); snapshots of the
+incrementally, agreeing with `sniffer.analysis.pollcycle` (the --stats table); snapshots of the
 pane at 80x24 and 160x48.
 
 Review the SVGs in tests/__snapshots__/ when they change; regenerate them with
@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from textual.pilot import Pilot
 
 from dissectors.checks import with_crc
+from sniffer.analysis.pollcycle import poll_cycles
 from sniffer.model import Chunk, LineSettings
-from sniffer.pollcycle import poll_cycles
-from sniffer.session import Session
+from sniffer.session.session import Session
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.widgets.units import PollWatch, UnitsPanel, request_key
 

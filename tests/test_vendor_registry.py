@@ -11,10 +11,10 @@ from dissectors.checks import with_crc
 from dissectors.dictionary import VendorField, VendorFunction, load_model
 from dissectors.dissect import Role, dissect
 from dissectors.functions import FUNCTIONS, fixed
-from sniffer.annotate import Binding
-from sniffer.listing import record
+from sniffer.meaning.annotate import Binding
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session
+from sniffer.outputs.listing import record
+from sniffer.session.session import Session
 from sniffer.vocab import Kind, Status
 
 # VED903B manual (seed 000, lines 754-766), "Get Slave Address": the master broadcasts

@@ -6,10 +6,10 @@ import json
 from io import StringIO
 
 from dissectors.checks import with_crc
-from sniffer.describe import Describer
-from sniffer.listing import Lister
+from sniffer.framing.pipeline import frame_capture
+from sniffer.meaning.describe import Describer
 from sniffer.model import Chunk, LineSettings
-from sniffer.pipeline import frame_capture
+from sniffer.outputs.listing import Lister
 from sniffer.tui.render import FLAG_TAGS
 from sniffer.vocab import (
     BAD_CHECK,

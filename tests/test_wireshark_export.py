@@ -14,12 +14,13 @@ from pathlib import Path
 import pytest
 
 from dissectors.checks import ascii_frame, with_crc
-from sniffer.annotate import Annotator
 from sniffer.cli import main
-from sniffer.describe import Describer
-from sniffer.export import PcapExporter, tcp_packet_for
+from sniffer.framing.tcp import NetPipeline
+from sniffer.meaning.annotate import Annotator
+from sniffer.meaning.describe import Describer
 from sniffer.model import Chunk, LineSettings
-from sniffer.session import Session, open_session
+from sniffer.outputs.export import PcapExporter, tcp_packet_for
+from sniffer.session.session import Session, open_session
 from sniffer.sources import open_capture
 from sniffer.sources.base import ReadOptions
 from sniffer.sources.linktypes import (
@@ -29,7 +30,6 @@ from sniffer.sources.linktypes import (
     MBAP_HEADER,
     parse_upper_pdu,
 )
-from sniffer.tcpframing import NetPipeline
 from sniffer.vocab import STATUS_NAMES, Kind
 from tests.netbuild import Conversation, pcap
 

@@ -21,8 +21,8 @@ from typing import Any
 import serial
 
 from dissectors.checks import lrc, with_crc
+from sniffer.live.scan import Sample
 from sniffer.model import Chunk, LineSettings
-from sniffer.scan import Sample
 from tests.virtual_bus import Tripwire
 
 
@@ -133,7 +133,7 @@ class Wire:
 
 @dataclass
 class GarbledLine:
-    """`listen(line, seconds)` for `sniffer.scan.scan`: what a receiver at `line` reads
+    """`listen(line, seconds)` for `sniffer.live.scan.scan`: what a receiver at `line` reads
     from the wire in the next `seconds` of (simulated) time, as read-sized chunks."""
 
     wire: Wire

@@ -66,8 +66,8 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_draft(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.draft import draft, units_seen
-    from sniffer.session import open_session
+    from sniffer.analysis.draft import draft, units_seen
+    from sniffer.session.session import open_session
 
     session, capture = open_session(Path(args.capture), read_options(args))
     session.ingest(capture.chunks())

@@ -11,8 +11,8 @@ from sniffer.text import plain
 
 
 def cmd_diff(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.diff import diff_stores
-    from sniffer.session import open_session
+    from sniffer.analysis.diff import diff_stores
+    from sniffer.session.session import open_session
 
     stores = []
     for name in (args.a, args.b):

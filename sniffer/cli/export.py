@@ -27,7 +27,7 @@ from sniffer.cli.options import (
 from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
-from sniffer.export import (
+from sniffer.outputs.export import (
     EXPORT_FORMATS,
     EXTENSIONS,
     PCAP_STYLES,
@@ -39,8 +39,8 @@ from sniffer.export import (
     transaction_records,
     write_table,
 )
-from sniffer.listing import Lister
-from sniffer.parallel import workers_for, write_binary, write_text
+from sniffer.outputs.listing import Lister
+from sniffer.outputs.parallel import workers_for, write_binary, write_text
 from sniffer.text import plain
 
 EXPORT_EXAMPLES = """\
@@ -70,7 +70,7 @@ def output_format(path: str, fmt: str | None) -> str:
 
 
 def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.session import open_session
+    from sniffer.session.session import open_session
 
     source = Path(args.file)
     fmt = output_format(args.output, args.format)
@@ -103,7 +103,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     status = finish_read(capture, session, err)
     describer = session.describer
     if fmt == "parquet":
-        from sniffer.parquet import ParquetError, write_parquet
+        from sniffer.outputs.parquet import ParquetError, write_parquet
 
         if args.output == "-":
             raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")

@@ -8,9 +8,9 @@ import argparse
 from array import array
 
 from sniffer.errors import UsageError
-from sniffer.query import Query, QueryError, parse_query
-from sniffer.select import FilterJob, Options  # the TUI's matcher, in the core
-from sniffer.session import Session
+from sniffer.meaning.query import Query, QueryError, parse_query
+from sniffer.meaning.select import FilterJob, Options  # the TUI's matcher, in the core
+from sniffer.session.session import Session
 
 FILTER_HELP = (
     "only frames matching QUERY, in the TUI's filter language: unit:3 fc:3,16 "

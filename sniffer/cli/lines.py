@@ -13,12 +13,12 @@ from collections.abc import Iterator, Sequence
 from types import FrameType
 from typing import TextIO
 
-from sniffer.capture import LiveCapture, Notify
 from sniffer.cli.options import add_line_options, line_of, read_options
 from sniffer.errors import UsageError
+from sniffer.live.engine import LiveCapture, Notify
+from sniffer.live.port import DEFAULT_QUEUE, LiveReader, PortFactory, PortSpec
+from sniffer.live.recorder import Recorder, Ring, parse_duration, parse_size
 from sniffer.model import Direction
-from sniffer.recorder import Recorder, Ring, parse_duration, parse_size
-from sniffer.serial_source import DEFAULT_QUEUE, LiveReader, PortFactory, PortSpec
 from sniffer.text import plain
 
 ROLES = {

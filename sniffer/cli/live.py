@@ -14,15 +14,6 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TextIO
 
-from sniffer.capture import (
-    PUMP_GATHER,
-    PUMP_SECONDS,
-    WINDOW_ROWS,
-    GlobalRows,
-    LiveCapture,
-    Notify,
-    Reader,
-)
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
@@ -43,23 +34,32 @@ from sniffer.cli.lines import (
 from sniffer.cli.options import SubParsers, add_device_options, add_output_options, bindings_for
 from sniffer.cli.scan import AUTO, accept_auto_baud, scan_for_live
 from sniffer.errors import UsageError
-from sniffer.export import PcapExporter
-from sniffer.listing import Lister
-from sniffer.pipeline import LIVE_MERGE_SLACK
-from sniffer.recorder import parse_size
-from sniffer.select import FilterJob
-from sniffer.session import Session
+from sniffer.framing.pipeline import LIVE_MERGE_SLACK
+from sniffer.live.engine import (
+    PUMP_GATHER,
+    PUMP_SECONDS,
+    WINDOW_ROWS,
+    GlobalRows,
+    LiveCapture,
+    Notify,
+    Reader,
+)
+from sniffer.live.recorder import parse_size
+from sniffer.meaning.select import FilterJob
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session
 from sniffer.vocab import Status
 
 if TYPE_CHECKING:
-    from sniffer.pollcycle import PollCycles
+    from sniffer.analysis.pollcycle import PollCycles
 
 RENDER_ROWS = 256  # rows rendered between two looks at the output and at Ctrl-C
 STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.mqtt.command import (
+    from sniffer.outputs.mqtt.command import (
         MQTT_QUIET,
         live_publisher,
         mqtt_session,
@@ -224,7 +224,7 @@ class Summary:
         """`whole`: the poll cycle covers the whole capture, not only the rows of its
         window still in memory: the requests of each segment are counted before it goes
         (8 bytes each: asked for with --stats)."""
-        from sniffer.pollcycle import PollCycles
+        from sniffer.analysis.pollcycle import PollCycles
 
         self.cycles: PollCycles | None = None
         if whole is not None:
@@ -243,7 +243,7 @@ class Summary:
             self.write()
 
     def write(self) -> None:
-        from sniffer.pollcycle import cycle_table, poll_cycles
+        from sniffer.analysis.pollcycle import cycle_table, poll_cycles
 
         session = self.session
         session.store.sync()
@@ -437,7 +437,7 @@ def register(sub: SubParsers) -> None:
         help="print the statistics and poll cycle to stderr every S seconds (default 10); "
         "they are printed once anyway when the capture ends",
     )
-    from sniffer.mqtt.command import add_mqtt_options
+    from sniffer.outputs.mqtt.command import add_mqtt_options
 
     add_mqtt_options(p)
     p.set_defaults(func=cmd_live)

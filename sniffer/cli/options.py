@@ -8,11 +8,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from sniffer.annotate import Binding, load_bindings
 from sniffer.errors import UsageError
-from sniffer.listing import FORMATS
+from sniffer.meaning.annotate import Binding, load_bindings
 from sniffer.model import LineSettings
-from sniffer.parallel import MAX_AUTO, MIN_ROWS, parse_jobs
+from sniffer.outputs.listing import FORMATS
+from sniffer.outputs.parallel import MAX_AUTO, MIN_ROWS, parse_jobs
 from sniffer.sources import ReadOptions
 
 if TYPE_CHECKING:
@@ -106,7 +106,7 @@ def add_output_options(p: argparse.ArgumentParser) -> None:
 
 
 def add_jobs_option(p: argparse._ActionsContainer) -> None:
-    """`--jobs`: processes writing a listing or an export (see `sniffer.parallel`)."""
+    """`--jobs`: processes writing a listing or an export (see `sniffer.outputs.parallel`)."""
     p.add_argument(
         "--jobs",
         type=parse_jobs,

@@ -7,7 +7,7 @@ import json
 from typing import TextIO
 
 from sniffer.cli.options import SubParsers
-from sniffer.serial_source import list_ports
+from sniffer.live.port import list_ports
 from sniffer.text import plain
 
 

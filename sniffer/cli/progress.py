@@ -14,7 +14,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TextIO
 
-from sniffer.procio import bytes_read as _bytes_read
+from sniffer.sources.procio import bytes_read as _bytes_read
 from sniffer.text import plain
 
 SHOW_AFTER = 1.0  # seconds before the line appears

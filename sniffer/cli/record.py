@@ -7,7 +7,6 @@ import argparse
 import time
 from typing import TYPE_CHECKING, TextIO
 
-from sniffer.capture import WINDOW_ROWS, LiveCapture
 from sniffer.cli.lines import (
     add_port_options,
     add_recording_options,
@@ -25,10 +24,11 @@ from sniffer.cli.lines import (
 )
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
-from sniffer.session import Session
+from sniffer.live.engine import WINDOW_ROWS, LiveCapture
+from sniffer.session.session import Session
 
 if TYPE_CHECKING:
-    from sniffer.mqtt.publish import BusPublisher
+    from sniffer.outputs.mqtt.publish import BusPublisher
 
 
 def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -49,8 +49,8 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.mqtt:
         # publishing needs the frames: the session frames what is recorded, as live does
         from sniffer.cli.options import bindings_for
-        from sniffer.mqtt.command import live_publisher
-        from sniffer.pipeline import LIVE_MERGE_SLACK
+        from sniffer.framing.pipeline import LIVE_MERGE_SLACK
+        from sniffer.outputs.mqtt.command import live_publisher
 
         try:
             bindings = bindings_for(args)
@@ -132,7 +132,7 @@ def register(sub: SubParsers) -> None:
     add_port_options(p)
     add_recording_options(p, required=True)
     from sniffer.cli.options import add_device_options
-    from sniffer.mqtt.command import add_mqtt_options
+    from sniffer.outputs.mqtt.command import add_mqtt_options
 
     add_device_options(p)
     add_mqtt_options(p)

@@ -30,16 +30,16 @@ from sniffer.cli.options import (
 from sniffer.cli.progress import Progress
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
-from sniffer.listing import Lister
-from sniffer.parallel import workers_for, write_text
-from sniffer.query import Query
-from sniffer.session import Session
+from sniffer.meaning.query import Query
+from sniffer.outputs.listing import Lister
+from sniffer.outputs.parallel import workers_for, write_text
+from sniffer.session.session import Session
 from sniffer.sources import Capture
 from sniffer.text import plain
 
 if TYPE_CHECKING:
-    from sniffer.baud import SpeedCheck
-    from sniffer.pollcycle import PollCycles
+    from sniffer.analysis.baud import SpeedCheck
+    from sniffer.analysis.pollcycle import PollCycles
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -73,11 +73,11 @@ def stdin_copy() -> Iterator[Path]:
 
 
 def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | None) -> int:
-    from sniffer.baud import wrong_speed
+    from sniffer.analysis.baud import wrong_speed
+    from sniffer.analysis.pollcycle import cycle_table, poll_cycles
     from sniffer.cli.filtering import query_of
-    from sniffer.index import DamagedError
-    from sniffer.pollcycle import cycle_table, poll_cycles
-    from sniffer.session import DEMO_BUS, DEMO_CAPTURE, open_session
+    from sniffer.session.index import DamagedError
+    from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
 
     query = query_of(args)
     path = Path(args.file) if args.file else DEMO_CAPTURE
@@ -99,7 +99,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     )
     told = line_warnings(options, capture.info.recorded_line, str(path))
     if getattr(args, "mqtt", None):
-        from sniffer.mqtt.command import cmd_replay_mqtt
+        from sniffer.outputs.mqtt.command import cmd_replay_mqtt
 
         return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
     if use_tui:
@@ -140,7 +140,7 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n\n")
         if session.store.servers:
-            from sniffer.gateway_report import server_table
+            from sniffer.analysis.gateway_report import server_table
 
             out.write(server_table(session.store) + "\n\n")
         found = poll_cycles(session.store) if cycles is None else cycles.cycles()
@@ -165,8 +165,8 @@ def _windowed(
     when no sidecar keeps their values), the sidecar index is written (or read) a
     segment at a time. The network server table and a network capture's rows are not
     windowed (`Session.settled`: they stay in one store)."""
-    from sniffer.baud import SpeedCheck
-    from sniffer.pollcycle import PollCycles
+    from sniffer.analysis.baud import SpeedCheck
+    from sniffer.analysis.pollcycle import PollCycles
 
     cycles, speed = PollCycles(), SpeedCheck()
 
@@ -184,7 +184,7 @@ def write_listing(
     out: TextIO, args: argparse.Namespace, session: Session, query: Query | None
 ) -> None:
     """The rows a filter and -c let through, in the format asked for (text by default),
-    by `--jobs` processes over ranges of rows when that pays (see `sniffer.parallel`).
+    by `--jobs` processes over ranges of rows when that pays (see `sniffer.outputs.parallel`).
 
     Not windowed (every row stays in the store, unlike `--stats`): the workers take
     ranges of one store, the filter and relative times count from its rows, a row is
@@ -281,7 +281,7 @@ def register(sub: SubParsers) -> None:
         metavar="S",
         help="longest a gateway takes to put a TCP request on the serial line (default 1 s)",
     )
-    from sniffer.mqtt.command import add_mqtt_options
+    from sniffer.outputs.mqtt.command import add_mqtt_options
 
     add_mqtt_options(p, replay=True)
     p.set_defaults(func=cmd_replay)

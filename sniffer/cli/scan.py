@@ -7,10 +7,11 @@ import argparse
 from collections.abc import Callable
 from typing import TextIO
 
-import sniffer.scan as scanning
+import sniffer.live.scan as scanning
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
-from sniffer.scan import (
+from sniffer.live.port import PortError
+from sniffer.live.scan import (
     BAUDS,
     DWELL,
     FORMATS,
@@ -22,7 +23,6 @@ from sniffer.scan import (
     live_command,
     scan,
 )
-from sniffer.serial_source import PortError
 from sniffer.text import plain
 
 EPILOG = """\
@@ -53,7 +53,7 @@ def _bauds(text: str | None) -> tuple[int, ...]:
 def _formats(text: str | None) -> tuple[str, ...]:
     if not text:
         return FORMATS
-    from sniffer.scan import parse_format
+    from sniffer.live.scan import parse_format
 
     found = tuple(part.strip().upper() for part in text.split(",") if part.strip())
     for part in found:

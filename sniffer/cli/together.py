@@ -1,5 +1,5 @@
 """Provides `modscope replay FILE FILE...`: several captures replayed together, merged by
-time, and both sides of a gateway linked (see `sniffer.multifile`)."""
+time, and both sides of a gateway linked (see `sniffer.session.multifile`)."""
 
 from __future__ import annotations
 
@@ -37,14 +37,14 @@ def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
 
 
 def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
+    from sniffer.analysis.gateway_report import gateway_table, server_table
     from sniffer.cli.filtering import query_of
     from sniffer.cli.options import bindings_for, read_options
     from sniffer.cli.replay import stdin_copy, write_listing
     from sniffer.cli.verdicts import finish_read
-    from sniffer.gateway_report import gateway_table, server_table
-    from sniffer.multifile import align, link_files, merge
-    from sniffer.session import open_session
-    from sniffer.verdict import ALL_READ, READ_WITH_WARNINGS
+    from sniffer.session.multifile import align, link_files, merge
+    from sniffer.session.session import open_session
+    from sniffer.session.verdict import ALL_READ, READ_WITH_WARNINGS
 
     if files.count("-") > 1:
         raise UsageError("standard input (-) can be given once")

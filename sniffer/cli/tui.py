@@ -20,7 +20,7 @@ from sniffer.errors import UsageError
 
 def capture_path(args: argparse.Namespace) -> Path:
     """The capture FILE names, or the bundled demo; UsageError if there is none."""
-    from sniffer.session import DEMO_CAPTURE
+    from sniffer.session.session import DEMO_CAPTURE
 
     if args.file:
         path = Path(args.file)
@@ -33,7 +33,7 @@ def capture_path(args: argparse.Namespace) -> Path:
 
 
 def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.session import DEMO_BUS, open_session
+    from sniffer.session.session import DEMO_BUS, open_session
 
     if args.file and args.file.lower().startswith(("mqtt://", "mqtts://")):
         return _watch(args)
@@ -48,8 +48,8 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _watch(args: argparse.Namespace) -> int:
     """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
-    from sniffer.capture import LiveCapture
-    from sniffer.mqtt.command import (
+    from sniffer.live.engine import LiveCapture
+    from sniffer.outputs.mqtt.command import (
         MQTT_QUIET,
         mqtt_session,
         open_mqtt_source,

@@ -1,14 +1,14 @@
 """Provides the exit status of a command that read a capture, with the one line that says
-why when nothing in it was usable (see `sniffer.verdict`)."""
+why when nothing in it was usable (see `sniffer.session.verdict`)."""
 
 from __future__ import annotations
 
 from typing import TextIO
 
-from sniffer.session import Session
+from sniffer.session.session import Session
+from sniffer.session.verdict import NOTHING_USABLE, read_verdict
 from sniffer.sources import Capture
 from sniffer.text import plain
-from sniffer.verdict import NOTHING_USABLE, read_verdict
 
 WHAT_MODSCOPE_READS = (
     "modscope reads Modbus serial data (RTU or ASCII) from pcap/pcapng link types 147, 250 "

@@ -29,7 +29,7 @@ Link type 252: packets for `mbrtu` hold one RTU frame; packets for `mbtcp` (mods
 default Wireshark export) hold one MBAP header and PDU, read back as the line's bytes the
 packet comment gives (`RTU 01 03 ...`, `ASCII ":01..."`) or else as the RTU frame of the
 unit and PDU. Each packet is one frame; requests and answers stay on their interface's
-channel, in file order, their EPB flags a hint (see `sniffer.pipeline`). `t_end` is the
+channel, in file order, their EPB flags a hint (see `sniffer.framing.pipeline`). `t_end` is the
 packet time and `t_start` one
 frame length earlier, moved later where needed so that every frame starts at least t3.5
 after the previous one on its channel ends (and `t_end` no earlier than `t_start`): the

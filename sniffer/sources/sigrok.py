@@ -306,8 +306,8 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
     numbers = _choose_probes(path, meta, options)
     line = options.line(None)
     notes: list[str] = []
-    if options.baud is None:  # measure it (sniffer/baud.py) and say what was chosen
-        from sniffer.baud import estimate_sigrok
+    if options.baud is None:  # measure it (sniffer/analysis/baud.py) and say what was chosen
+        from sniffer.analysis.baud import estimate_sigrok
 
         guess = estimate_sigrok(
             path, meta.samplerate, meta.unitsize, meta.members, numbers, options

@@ -25,18 +25,18 @@ from textual.widget import Widget
 from textual.widgets import DataTable, Input
 from textual.worker import get_current_worker
 
-from sniffer.describe import Describer
-from sniffer.listing import FORMATS, Lister
+from sniffer.framing.store import FrameStore
+from sniffer.live.recorder import RecordError
+from sniffer.meaning.describe import Describer
+from sniffer.meaning.query import Query, QueryError, parse_query, parse_time_point
+from sniffer.meaning.select import FilterJob, resolve_time, time_bounds
 from sniffer.model import Chunk
-from sniffer.paged import PagedStore
-from sniffer.paged import wanted as paged_wanted
-from sniffer.query import Query, QueryError, parse_query, parse_time_point
-from sniffer.recorder import RecordError
-from sniffer.select import FilterJob, resolve_time, time_bounds
-from sniffer.session import Session, open_session
+from sniffer.outputs.listing import FORMATS, Lister
+from sniffer.session.paged import PagedStore
+from sniffer.session.paged import wanted as paged_wanted
+from sniffer.session.session import Session, open_session
 from sniffer.sources import Capture, ReadOptions
 from sniffer.sources.reads import Reads
-from sniffer.store import FrameStore
 from sniffer.tui.feed import (
     FeedProgress,
     LiveSource,
@@ -1119,7 +1119,7 @@ def reopen_file(session: Session) -> tuple[Session, Capture]:
 
 def _paged(session: Session, live: LiveSource | None, speed: float | None) -> PagedStore | None:
     """A store for the rows of a capture big enough to have a sidecar index, paged from
-    it (see `sniffer.paged`); None: the session's store is shown as it is."""
+    it (see `sniffer.session.paged`); None: the session's store is shown as it is."""
     return PagedStore() if paged_wanted(session, live is not None, speed) else None
 
 

@@ -3,7 +3,7 @@
 The thread frames, pairs and counts; the UI only reads rows below the count published
 with each `FeedProgress` (all columns of those rows are complete). A capture can be
 replayed as fast as possible or at its original speed, and paused; a live capture
-(`sniffer.capture.LiveCapture`, see `LiveSource`) is pumped. Nothing here imports Textual.
+(`sniffer.live.engine.LiveCapture`, see `LiveSource`) is pumped. Nothing here imports Textual.
 """
 
 from __future__ import annotations
@@ -16,15 +16,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk
-from sniffer.paged import PagedStore
-from sniffer.procio import bytes_read
-from sniffer.recorder import Recorder
-from sniffer.session import Session
+from sniffer.session.paged import PagedStore
+from sniffer.session.session import Session
+from sniffer.sources.procio import bytes_read
 
 
 class LiveSource(Protocol):
-    """A live line as the TUI consumes it: `sniffer.capture.LiveCapture`, already started.
+    """A live line as the TUI consumes it: `sniffer.live.engine.LiveCapture`, already started.
 
     `pump(timeout)` feeds what the ports read to the session (waiting up to `timeout`)
     and brings it up to date; it is called from the feeding thread only. `stop()` ends
@@ -162,11 +162,11 @@ def feed_capture(
 
     `paged`: the rows go there instead, a segment at a time (a windowed ingest writing
     the sidecar, or the sidecar read back a block at a time), and only those rows are
-    published; the session's store holds one segment (see `sniffer.paged`).
+    published; the session's store holds one segment (see `sniffer.session.paged`).
 
     `size`: the capture file's, to publish how far the feed is (`FeedProgress.share`):
     the share of the sidecar read back, or of the file's bytes this process has read
-    (Linux: `sniffer.procio`; not the data bytes, which leave out each format's
+    (Linux: `sniffer.sources.procio`; not the data bytes, which leave out each format's
     overhead per packet).
 
     After each publication the thread sleeps `breather` seconds: Python runs one thread
@@ -214,8 +214,8 @@ def feed_capture(
         if not good_rows:  # the first rows: on screen now, not at the next progress
             progress(bytes_done, len(paged))
 
-    from sniffer import index
-    from sniffer.index import DamagedError
+    from sniffer.session import index
+    from sniffer.session.index import DamagedError
 
     paging: dict[str, Any] = {"opened": opened}
     if paged is not None:

@@ -17,9 +17,9 @@ from itertools import pairwise
 
 from rich.text import Text
 
+from sniffer.framing.pairing import measure
+from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Stamp
-from sniffer.pairing import measure
-from sniffer.store import NO_PARTNER, FrameStore
 from sniffer.text import plain
 from sniffer.tui.render import Styles, flag_tags, span_text, time_text
 from sniffer.tui.rows import RowView

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from rich.text import Text
 
-from sniffer.describe import Describer, FrameDetail
-from sniffer.paged import PagedStore
-from sniffer.query import Query
-from sniffer.select import FilterJob, Options
-from sniffer.session import Session
-from sniffer.store import NO_PARTNER
+from sniffer.framing.store import NO_PARTNER
+from sniffer.meaning.describe import Describer, FrameDetail
+from sniffer.meaning.query import Query
+from sniffer.meaning.select import FilterJob, Options
+from sniffer.session.paged import PagedStore
+from sniffer.session.session import Session
 from sniffer.tui.render import Columns, Styles, delta_text, row_text, time_text
 from sniffer.tui.rows import RowView, StoreReader, last_answers
 from sniffer.vocab import Kind
@@ -25,7 +25,7 @@ class ViewModel:
 
     def __init__(self, session: Session, paged: PagedStore | None = None) -> None:
         self.session = session
-        # a big capture's rows come paged from its sidecar (see `sniffer.paged`): the
+        # a big capture's rows come paged from its sidecar (see `sniffer.session.paged`): the
         # feeding thread fills `paged` a segment at a time; else the store is read as
         # it is filled
         self.paged = paged

@@ -13,10 +13,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import compress
 
-from sniffer.describe import Describer
-from sniffer.query import Query
-from sniffer.select import Options, column_mask, detail_matches
-from sniffer.store import FrameStore
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.describe import Describer
+from sniffer.meaning.query import Query
+from sniffer.meaning.select import Options, column_mask, detail_matches
 
 BLOCK = 65536
 

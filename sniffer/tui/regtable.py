@@ -17,9 +17,9 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from sniffer.annotate import Annotator
-from sniffer.describe import Describer
-from sniffer.store import FrameStore
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.annotate import Annotator
+from sniffer.meaning.describe import Describer
 from sniffer.tui.watch import SeriesKey, value_text
 from sniffer.vocab import BAD_CHECK, Kind
 

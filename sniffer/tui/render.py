@@ -16,8 +16,8 @@ from rich.style import Style
 from rich.text import Text
 
 from dissectors.dictionary import RegisterValue
-from sniffer.describe import FrameDetail
-from sniffer.store import FrameView
+from sniffer.framing.store import FrameView
+from sniffer.meaning.describe import FrameDetail
 from sniffer.text import plain
 from sniffer.vocab import BAD_CHECK, FLAGS, PROBLEM_MASK, STATUS_NAMES, Flag, Kind, Status
 

@@ -1,6 +1,6 @@
 """Provides the rows the frame list shows: all of them, one per transaction, or a filter's matches.
 
-The matcher itself (`FilterJob`, the column masks, `Options`) lives in `sniffer.select`,
+The matcher itself (`FilterJob`, the column masks, `Options`) lives in `sniffer.meaning.select`,
 shared with the command line's `--filter`. This module adds what only the list needs: a
 read-only view of a store another thread fills, the mapping from
 list positions to rows, and each unit's last answer. Nothing here imports Textual; the
@@ -12,8 +12,8 @@ from __future__ import annotations
 from array import array
 from bisect import bisect_left
 
-from sniffer.select import _and, _bytes_mask, _table  # the masks last_answers scans
-from sniffer.store import FrameStore
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.select import _and, _bytes_mask, _table  # the masks last_answers scans
 from sniffer.vocab import Kind
 
 

@@ -14,9 +14,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from dissectors.dictionary import RegisterValue
-from sniffer.annotate import Annotator
-from sniffer.describe import Describer
-from sniffer.store import FrameStore
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.annotate import Annotator
+from sniffer.meaning.describe import Describer
 from sniffer.text import plain
 from sniffer.vocab import BAD_CHECK, Kind
 

@@ -18,8 +18,8 @@ from types import FrameType
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
+from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk
-from sniffer.store import FrameStore
 from sniffer.vocab import Kind
 
 ROOT = Path(__file__).resolve().parents[2]

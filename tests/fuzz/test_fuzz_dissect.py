@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from dissectors.pdu.dissect import dissect
 from dissectors.values import Role
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 from tests.fuzz.harness import budget, mutated, no_hang
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.slow]

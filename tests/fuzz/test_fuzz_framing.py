@@ -12,18 +12,18 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dissectors.checks import ascii_frame
-from sniffer.annotate import load_bindings
-from sniffer.export import (
+from sniffer.meaning.annotate import load_bindings
+from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.outputs.export import (
     REGISTER_COLUMNS,
     TRANSACTION_COLUMNS,
     register_records,
     transaction_records,
     write_table,
 )
-from sniffer.listing import Lister
-from sniffer.model import Chunk, Direction, LineSettings
-from sniffer.session import Session
-from sniffer.synth import polling_frames
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session
+from sniffer.sources.synth import polling_frames
 from sniffer.text import FORMULA_START
 from tests.fuzz.harness import budget, bytes_by_channel, conserved, mutated, no_hang
 from tests.seedvectors import load_examples, wire_bytes

@@ -14,10 +14,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.export import PcapExporter
-from sniffer.listing import Lister
 from sniffer.model import Chunk
-from sniffer.session import Session
+from sniffer.outputs.export import PcapExporter
+from sniffer.outputs.listing import Lister
+from sniffer.session.session import Session
 from sniffer.sources import CaptureError, ReadOptions, open_capture
 from sniffer.sources.linktypes import (
     LINKTYPE_RTAC_SERIAL,
@@ -26,7 +26,7 @@ from sniffer.sources.linktypes import (
     build_rtac,
 )
 from sniffer.sources.pcapng_writer import PcapngWriter, upper_pdu_record
-from sniffer.synth import polling_frames
+from sniffer.sources.synth import polling_frames
 from tests.fuzz.harness import CAPTURES, budget, bytes_by_channel, conserved, mutated, no_hang
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.slow]

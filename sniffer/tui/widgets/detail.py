@@ -18,8 +18,8 @@ from textual.widgets import Static, Tree
 from textual.widgets.tree import TreeNode
 
 from dissectors.values import Field
-from sniffer.describe import FrameDetail, register_span
-from sniffer.listing import KIND_NAMES
+from sniffer.meaning.describe import FrameDetail, register_span
+from sniffer.outputs.listing import KIND_NAMES
 from sniffer.text import plain
 from sniffer.tui.render import (
     bytes_per_line,

@@ -17,10 +17,10 @@ from rich.text import Text
 from textual.widgets import DataTable
 
 from dissectors.envelope import ascii_body
-from sniffer.columns import marking
-from sniffer.pollcycle import GAP_FACTOR, MIN_REPEATS
-from sniffer.stats import UnitStats
-from sniffer.store import FrameStore
+from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS
+from sniffer.analysis.stats import UnitStats
+from sniffer.framing.columns import marking
+from sniffer.framing.store import FrameStore
 from sniffer.text import plain
 from sniffer.tui.render import ago_text, fit_columns
 from sniffer.vocab import Flag, Kind
@@ -201,7 +201,7 @@ class CycleSummary:
 
 def request_key(body: bytes) -> bytes:
     """What makes two requests the same poll: unit, function, address and count; the
-    values a write carries are left out (as sniffer.pollcycle does)."""
+    values a write carries are left out (as sniffer.analysis.pollcycle does)."""
     if len(body) < 2:
         return body
     fc = body[1]
@@ -229,7 +229,7 @@ _REQUESTS = marking((int(Kind.REQUEST),))
 class PollWatch:
     """Each unit's repeating requests, followed incrementally over a store.
 
-    The same polls as `sniffer.pollcycle.poll_cycles` (which the --stats table uses), but
+    The same polls as `sniffer.analysis.pollcycle.poll_cycles` (which the --stats table uses), but
     measured over each poll's latest WINDOW waits so the pane stays cheap on a long
     capture; a gap is a wait of more than GAP_FACTOR times the period known when it ended.
     """

@@ -1,0 +1,2 @@
+"""Provides framing and pairing: chunks in; frames, noise and transactions in a columnar
+store out."""

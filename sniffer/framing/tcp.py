@@ -1,0 +1,394 @@
+"""Provides Modbus TCP framing and pairing, and the pipeline for network captures.
+
+`TcpFramer` has the RTU and ASCII framers' interface (feed, flush, idle, finish,
+line_error, `out`, `pair_inline`) and cuts one direction of a connection into MBAP
+frames by their length field. A row's raw bytes are the whole frame, header and PDU;
+the body `dissect()` takes is `dissectors.mbap.body(raw)` (the unit byte on). The row's
+unit and function columns are set from the unit byte and the PDU, not from the header,
+and the row carries the `MBAP` flag so that every later stage can tell.
+
+Bytes that cannot start a frame (protocol id not 0, a length out of range) are noise
+until a position where a plausible header starts; a frame cut short by a gap in the
+captured stream, or by the end of the capture, keeps its bytes and the `CUT_SHORT`
+flag. `NetPairer` pairs by connection and transaction id with any number of requests in
+flight; a request reusing an id still in flight gets `TID_REUSED`; an answer to an id
+nobody asked for is an orphan. RTU frames over TCP/UDP are paired one transaction at a
+time per connection, as on a serial line.
+
+`NetPipeline` is the pipeline with these plugged in: a channel whose label (see
+`sniffer.sources.net.carrier`) says `modbus-tcp` or `modbus-udp` is framed by a
+`TcpFramer`; the others by the RTU framer.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections import deque
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, cast
+
+from dissectors import mbap
+from dissectors.functions import FUNCTIONS, FunctionSpec
+from sniffer.framing.pipeline import Pipeline, _Channel
+from sniffer.framing.serial import MAX_NOISE
+from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.sources.net.carrier import MBAP_CARRIERS, parse_label
+from sniffer.sources.net.tcp import GAP
+from sniffer.vocab import Flag, Kind, Status
+
+if TYPE_CHECKING:
+    from sniffer.framing.serial import Framer
+
+# Flag bits of network rows, named in the one table of meanings (sniffer.vocab)
+MBAP = int(Flag.MBAP)  # the row is a Modbus TCP frame: raw = MBAP header + PDU (a fact)
+ENVELOPE_BAD = int(Flag.ENVELOPE_BAD)  # MBAP protocol id not 0, or a length wrong
+TID_REUSED = int(Flag.TID_REUSED)  # a request reusing a transaction id still waiting
+CUT_SHORT = int(Flag.CUT_SHORT)  # the frame was cut by a gap in the captured stream
+
+TCP_TIMEOUT = 3.0  # seconds: Modbus TCP clients (pymodbus, libmodbus) wait about this long
+
+
+def body(raw: bytes, flags: int) -> bytes:
+    """Unit byte and PDU of a network row (`MBAP` rows), else the RTU body."""
+    if flags & MBAP:
+        return mbap.body(raw)
+    return raw[:-2]
+
+
+class TcpFramer:
+    """Frames one direction of a Modbus TCP connection into `out` (module doc)."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        out: FrameStore,
+        *,
+        channel: int = 0,
+        direction: Direction = Direction.UNKNOWN,
+        exact_timing: bool = False,
+        functions: Mapping[int, FunctionSpec] = FUNCTIONS,
+    ) -> None:
+        self.line = line
+        self.out = out
+        self.stream = out.stream(channel)
+        self.channel = channel
+        self.direction = direction
+        self.pos = len(self.stream)
+        self.pair_inline = False  # pairing is NetPairer's, over the merged store
+        self.starts: list[int] = []  # stream offset where each chunk starts
+        self.times: list[float] = []  # its time
+        self.noise_start = -1
+
+    # -- the framer interface --------------------------------------------------------
+
+    def feed(self, chunk: Chunk) -> None:
+        if not chunk.data:
+            return
+        self.starts.append(len(self.stream))
+        self.times.append(chunk.t_end)
+        self.stream += chunk.data
+        self._scan(final=False)
+
+    def flush(self) -> None:
+        """Rows are complete as they are written."""
+
+    def idle(self) -> None:
+        """A TCP stream keeps its bytes over any pause."""
+
+    def line_error(self) -> None:
+        """Network captures report no line errors."""
+
+    def finish(self) -> None:
+        self._scan(final=True)
+
+    def gap(self) -> None:
+        """Bytes are missing from the stream here: what is open is closed as it is."""
+        self._scan(final=True)
+
+    # -- internals -------------------------------------------------------------------
+
+    def _scan(self, final: bool) -> None:
+        buf = self.stream
+        end = len(buf)
+        pos = self.pos
+        while pos < end:
+            size = mbap.announced(buf, pos)
+            if size is None or (end - pos < mbap.HEADER_SIZE + 1 and not final):
+                if final:
+                    self._frame(pos, end, CUT_SHORT)
+                    pos = end
+                break
+            if not mbap.plausible(buf, pos):
+                nxt = self._resync(pos + 1, end, final)
+                if nxt is None:
+                    break
+                self._noise(pos, nxt)
+                pos = nxt
+                continue
+            if end - pos < size:
+                if final:
+                    self._frame(pos, end, CUT_SHORT)
+                    pos = end
+                break
+            self._frame(pos, pos + size, 0)
+            pos += size
+        self.pos = pos
+        self._forget(pos)
+
+    def _resync(self, start: int, end: int, final: bool) -> int | None:
+        """The next offset where a frame plausibly starts and is confirmed (by the header
+        after it, or by ending exactly at the stream's end); None to wait for more."""
+        buf = self.stream
+        for p in range(start, end):
+            if not mbap.plausible(buf, p):
+                continue
+            size = mbap.announced(buf, p)
+            assert size is not None
+            after = p + size
+            if after == end or (after < end and mbap.plausible(buf, after)):
+                return p
+            if after > end and not final:
+                return None  # wait: the candidate is not complete yet
+        if final:
+            return end
+        # keep at most one frame's worth undecided; older bytes are noise
+        return max(start, end - mbap.MAX_FRAME) if end - start > mbap.MAX_FRAME else None
+
+    def _time(self, pos: int) -> float:
+        k = bisect_right(self.starts, pos) - 1
+        return self.times[k if k >= 0 else 0]
+
+    def _forget(self, pos: int) -> None:
+        k = bisect_right(self.starts, pos) - 1
+        if k > 0:
+            del self.starts[:k]
+            del self.times[:k]
+
+    def _noise(self, start: int, end: int) -> None:
+        for piece in range(start, end, MAX_NOISE):
+            stop = min(end, piece + MAX_NOISE)
+            self.out.add_row(
+                self.channel,
+                piece,
+                stop - piece,
+                self._time(piece),
+                self._time(stop - 1),
+                int(Kind.NOISE),
+                MBAP,
+            )
+
+    def _frame(self, start: int, end: int, flags: int) -> None:
+        raw = bytes(self.stream[start:end])
+        header = mbap.parse(raw)
+        flags |= MBAP
+        if header.problems and not flags & CUT_SHORT:
+            flags |= ENVELOPE_BAD
+        fc = raw[7] if len(raw) > 7 else 0
+        if self.direction == Direction.MASTER:
+            kind = Kind.REQUEST
+        elif self.direction == Direction.SLAVE:
+            kind = Kind.EXCEPTION if fc & 0x80 else Kind.RESPONSE
+        else:
+            kind = Kind.UNKNOWN
+        out = self.out
+        out.add_row(
+            self.channel,
+            start,
+            end - start,
+            self._time(start),
+            self._time(end - 1),
+            int(kind),
+            flags,
+        )
+        out.unit[-1] = header.unit
+        out.fc[-1] = fc
+
+
+class NetPairer:
+    """Pairs the rows of network channels (module doc). Channels `2k` and `2k + 1` are
+    the two directions of one connection (see `sniffer.sources.net.decoder`)."""
+
+    def __init__(self, store: FrameStore, timeout: float) -> None:
+        self.store = store
+        self.timeout = timeout
+        self.end_time = float("-inf")
+        self.next = 0
+        # Modbus TCP: (connection, transaction id) -> requests waiting, oldest first
+        self.open: dict[tuple[int, int], deque[int]] = {}
+        self.late: dict[tuple[int, int], int] = {}  # timed out, an answer may still come
+        self.waiting: deque[int] = deque()  # requests in time order, for timeouts
+        self.serial_open: dict[int, int] = {}  # RTU over TCP/UDP: connection -> request
+
+    def update(self) -> None:
+        s = self.store
+        s.sync()
+        n = len(s)
+        for i in range(self.next, n):
+            kind = s.kind[i]
+            if kind == Kind.NOISE or kind == Kind.EVENT:
+                continue
+            self._expire(s.t[i])
+            if s.flags[i] & MBAP:
+                self._mbap(i)
+            else:
+                self._serial(i)
+        self.next = n
+
+    def tick(self, now: float) -> None:
+        self.update()
+        self._expire(now)
+
+    def finish(self) -> None:
+        self.update()
+        s = self.store
+        if len(s):
+            end = max(s.t_end[len(s) - 1], self.end_time)
+            self._expire(end)
+
+    # -- internals -------------------------------------------------------------------
+
+    def _tid(self, i: int) -> tuple[int, int]:
+        raw = self.store.raw(i)
+        return (self.store.channel[i] >> 1, int.from_bytes(raw[0:2], "big"))
+
+    def _mbap(self, i: int) -> None:
+        s = self.store
+        if s.flags[i] & CUT_SHORT and s.length[i] < 2:
+            return
+        key = self._tid(i)
+        if s.kind[i] == Kind.REQUEST:
+            asked = self.open.setdefault(key, deque())
+            if asked:
+                s.flags[i] |= TID_REUSED
+            asked.append(i)
+            s.status[i] = Status.OPEN
+            self.waiting.append(i)
+            return
+        queue = self.open.get(key)
+        req = -1
+        if queue:
+            req = queue.popleft()
+            if not queue:
+                del self.open[key]
+        elif key in self.late:
+            req = self.late.pop(key)
+            s.flags[i] |= Flag.LATE
+        if req < 0 or s.fc[req] != s.fc[i] & 0x7F:
+            if req >= 0:  # an answer to another question: leave the request waiting
+                self.open.setdefault(key, deque()).appendleft(req)
+            s.status[i] = Status.ORPHAN
+            return
+        self._pair(req, i)
+
+    def _serial(self, i: int) -> None:
+        s = self.store
+        conn = s.channel[i] >> 1
+        if s.kind[i] == Kind.REQUEST:
+            old = self.serial_open.pop(conn, -1)
+            if old >= 0:
+                self._time_out(old)
+            if s.unit[i] == 0:
+                s.status[i] = Status.BROADCAST
+            else:
+                s.status[i] = Status.OPEN
+                self.serial_open[conn] = i
+                self.waiting.append(i)
+            return
+        req = self.serial_open.get(conn, -1)
+        if req >= 0 and s.unit[req] == s.unit[i] and s.fc[req] == s.fc[i] & 0x7F:
+            del self.serial_open[conn]
+            self._pair(req, i)
+        elif s.kind[i] != Kind.UNKNOWN:
+            s.status[i] = Status.ORPHAN
+
+    def _pair(self, req: int, resp: int) -> None:
+        s = self.store
+        s.partner[req] = resp
+        s.partner[resp] = req
+        if s.flags[resp] & (Flag.CHECK_BAD | CUT_SHORT):
+            status = Status.BAD_ANSWER
+        elif s.fc[resp] & 0x80:
+            status = Status.EXCEPTION
+        else:
+            status = Status.OK
+        s.status[req] = s.status[resp] = status
+        if s.t[resp] - s.t_end[req] > self.timeout:
+            s.flags[resp] |= Flag.LATE
+
+    def _expire(self, now: float) -> None:
+        s = self.store
+        waiting = self.waiting
+        while waiting and now - s.t_end[waiting[0]] > self.timeout:
+            req = waiting.popleft()
+            if s.status[req] == Status.OPEN and s.partner[req] == NO_PARTNER:
+                self._time_out(req)
+
+    def _time_out(self, req: int) -> None:
+        s = self.store
+        if s.partner[req] != NO_PARTNER:
+            return
+        s.status[req] = Status.TIMEOUT
+        if s.flags[req] & MBAP:
+            key = self._tid(req)
+            queue = self.open.get(key)
+            if queue and req in queue:
+                queue.remove(req)
+                if not queue:
+                    del self.open[key]
+            self.late[key] = req
+        else:
+            conn = s.channel[req] >> 1
+            if self.serial_open.get(conn) == req:
+                del self.serial_open[conn]
+
+
+class NetPipeline(Pipeline):
+    """The pipeline for network captures: `channels` is the capture's channel table,
+    whose labels say each channel's carrier (see the module doc)."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        store: FrameStore | None = None,
+        *,
+        channels: Mapping[int, str],
+        timeout: float | None = None,
+        **options: Any,
+    ) -> None:
+        super().__init__(line, store, timeout=timeout, **options)
+        self.channel_labels = channels
+        self.pairer = NetPairer(self.store, timeout if timeout is not None else TCP_TIMEOUT)  # type: ignore[assignment]
+        self.mode = "rtu"  # RTU over TCP/UDP; Modbus TCP channels get their own framer
+
+    def feed(self, chunk: Chunk) -> None:
+        if chunk.event == GAP:
+            ch = self.channels.get(chunk.channel)
+            if ch is not None and isinstance(ch.framer, TcpFramer):
+                ch.framer.gap()
+        super().feed(chunk)
+
+    def too_fast(self) -> tuple[int, float | None]:
+        """Packets carry bytes as fast as the network does: no line speed applies."""
+        return 0, None
+
+    def _start_framer(self, ch: _Channel) -> None:
+        label = parse_label(self.channel_labels.get(ch.number, ""))
+        if label is not None:
+            self.store.peers[ch.number] = label.sender
+            server = label.sender if label.role == Direction.SLAVE else label.receiver
+            self.store.servers[ch.number] = server
+        if label is None or label.carrier not in MBAP_CARRIERS:
+            super()._start_framer(ch)
+            return
+        framer = TcpFramer(
+            self.line,
+            ch.staging if ch.staging is not None else self.store,
+            channel=ch.number,
+            direction=ch.direction,
+        )
+        ch.framer = cast("Framer", framer)  # the same interface; see docs/ethernet.md
+        held, ch.held = ch.held or [], None
+        for old in held:
+            framer.feed(old)
+            ch.last_t = old.t_end

@@ -1,0 +1,1 @@
+"""Provides what a frame means: annotation, dissection on demand, problems, SunSpec, filters."""

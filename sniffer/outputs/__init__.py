@@ -1,0 +1,1 @@
+"""Provides what leaves modscope: listings, exports, Parquet tables, MQTT."""

@@ -1,0 +1,491 @@
+"""Provides the bus publisher: what a session sees, published under one base topic.
+
+The publisher is an output beside the listing: it gets every chunk as it is read (the
+`raw` topic) and the session's rows as they are framed (values, events, statuses).
+Topics under the base (see docs/mqtt.md for an example of each message):
+
+- `raw`: every read as recorded, a pcapng block (see `payload`);
+- `interface` (retained): line settings, channels, bound units;
+- `unit/<N>/<register-slug>` (retained): a named register's decoded value, published when
+  it changes and at least every `every` seconds (capture time) while it is read;
+- `events`: exceptions, timeouts, check errors, noise, source events, device rule
+  violations, each a JSON object naming its frame;
+- `unit/<N>/status` (retained): counts, latency, polling period, online or silent;
+- `status` (retained, and the connection's last will): `online` or `offline`;
+- with Home Assistant discovery, `<prefix>/.../config` (retained) per named register.
+
+Retained messages are published again after a reconnection, so a broker restarted
+without persistence gets them back.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from dissectors.dictionary.model import Entry, RegisterValue, ValueSpec
+from sniffer import __version__
+from sniffer.analysis.stats import RECENT, UnitStats, median_gap, nearest_rank
+from sniffer.framing.store import NO_PARTNER
+from sniffer.meaning.annotate import Binding
+from sniffer.meaning.describe import FrameDetail
+from sniffer.model import Chunk, SourceInfo
+from sniffer.outputs.listing import KIND_NAMES
+from sniffer.outputs.mqtt.ha import discovery_configs
+from sniffer.outputs.mqtt.link import MqttLink, Notify
+from sniffer.outputs.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_payload
+from sniffer.outputs.mqtt.target import MqttTarget
+from sniffer.session.session import Session
+from sniffer.sources.linktypes import describe_interface
+from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
+
+DEFAULT_EVERY = 60.0  # seconds between two publications of an unchanged value
+STATUS_EVERY = 5.0  # seconds between two unit status messages
+SILENT_AFTER = 3.0  # polling periods without an answer after which a unit is silent
+SILENT_MIN = 2.0  # ... but never fewer seconds than this
+WINDOW = RECENT  # answers (and requests) a unit's latency quantiles and poll period are over
+
+
+class UnitWindow:
+    """A unit's latest latencies and request times, bounded: a status message costs
+    the same on the millionth answer as on the tenth. It reads the newest entries of the
+    session's statistics for the unit (`UnitStats.newest_latencies`), whether they keep
+    everything or, live, only their newest (`sniffer.analysis.stats.RECENT`, as many as this
+    window holds)."""
+
+    def __init__(self, size: int = WINDOW) -> None:
+        self.latencies: deque[float] = deque(maxlen=size)
+        self.requests: deque[float] = deque(maxlen=size)
+        self._seen_latencies = 0
+        self._seen_requests = 0
+
+    def update(self, unit: UnitStats) -> None:
+        size = self.latencies.maxlen or WINDOW
+        count = unit.latency_count
+        self.latencies.extend(unit.newest_latencies(min(size, count - self._seen_latencies)))
+        self._seen_latencies = count
+        count = unit.request_count
+        self.requests.extend(unit.newest_requests(min(size, count - self._seen_requests)))
+        self._seen_requests = count
+
+    def latency_ms(self, q: float) -> float | None:
+        """The q-quantile (nearest rank) of the window's latencies, in ms."""
+        found = nearest_rank(self.latencies, q)
+        return None if found is None else found * 1000
+
+    def polling_period(self) -> float | None:
+        """The median gap between the window's requests, in seconds."""
+        return median_gap(self.requests)
+
+
+@dataclass
+class _Published:
+    value: Any
+    raw: tuple[int, ...]
+    t: float
+
+
+@dataclass
+class PublisherOptions:
+    """What to publish, besides the always-published topics."""
+
+    bus: str = "bus"
+    every: float = DEFAULT_EVERY
+    ha_prefix: str | None = None  # Home Assistant discovery prefix, None for none
+    block: bool = True  # wait for room while the broker is there (replay); live drops
+    status_every: float = STATUS_EVERY
+    extra: dict[str, Any] = field(default_factory=dict)  # more for the interface message
+
+
+class BusPublisher:
+    """Publishes one session's bus through `link` (see the module doc)."""
+
+    def __init__(
+        self,
+        link: MqttLink,
+        session: Session,
+        bindings: Mapping[int, Binding],
+        options: PublisherOptions,
+        *,
+        info: SourceInfo | None = None,
+        clock: Callable[[], float] | None = None,
+    ) -> None:
+        self.link = link
+        self.clock = clock  # a live capture's clock: units fall silent while the bus is
+        self.target: MqttTarget = link.target
+        self.session = session
+        self.bindings = dict(bindings)
+        self.options = options
+        self.info = info
+        self.next = 0  # the next store row to look at
+        self.values = 0
+        self.events = 0
+        self.raw = 0
+        self.raw_dropped = 0
+        self._slugs = Slugs()
+        self._entries: dict[int, dict[tuple[str, int, str], Entry]] = {}
+        self._params: dict[int, dict[str, ValueSpec]] = {}
+        for unit, b in sorted(self.bindings.items()):
+            index = self._entries[unit] = {}
+            for e in b.dictionary.entries:
+                index[(e.table, e.address, e.name)] = e
+                self._slugs.add(RegisterKey(unit, e.table, e.address, e.name))
+            self._params[unit] = {
+                p.name: p.spec for w in b.dictionary.windows for p in w.parameters.values()
+            }
+        self._last: dict[str, _Published] = {}
+        self._retained: dict[str, str] = {}
+        self._discovered: set[str] = set()
+        self._open: set[int] = set()
+        self._answered: dict[int, float] = {}
+        self._status_t: float | None = None
+        self._windows: dict[int, UnitWindow] = {}
+        self._last_t = 0.0
+        self._resend = threading.Event()
+        link._on_connect_hook = self._on_connect
+
+    # -- the link's connection ----------------------------------------------------------------
+
+    def _on_connect(self) -> None:
+        # paho's thread: say online at once, leave the retained state to the main thread
+        self.link.publish(self.target.topic("status"), "online", retain=True)
+        if self.link.counts.connects > 1:
+            self._resend.set()
+
+    def _resend_retained(self) -> None:
+        if self._resend.is_set():
+            self._resend.clear()
+            for topic, payload in list(self._retained.items()):
+                self.link.publish(topic, payload, retain=True, block=self.options.block)
+
+    def _send(self, topic: str, payload: bytes | str, *, retain: bool = False) -> None:
+        if retain:
+            assert isinstance(payload, str)
+            self._retained[topic] = payload
+        self.link.publish(topic, payload, retain=retain, block=self.options.block)
+
+    # -- what the session sees ----------------------------------------------------------------
+
+    def announce(self) -> None:
+        """The `interface` message: publish once, before the first chunk."""
+        self._send(self.target.topic("interface"), json.dumps(self.interface()), retain=True)
+
+    def interface(self) -> dict[str, Any]:
+        line = self.session.line
+        pipeline = self.session.pipeline
+        channels: dict[str, Any] = {}
+        if self.info is not None:
+            channels = {str(k): {"name": v} for k, v in sorted(self.info.channels.items())}
+        return {
+            "bus": self.options.bus,
+            "source": self.session.source,
+            "format": self.info.format if self.info is not None else "",
+            "description": describe_interface(line),
+            "line": {
+                "baud": line.baud,
+                "bytesize": line.bytesize,
+                "parity": line.parity,
+                "stopbits": line.stopbits,
+                "mode": line.mode,
+            },
+            "exact_timing": pipeline.exact_timing,
+            "timeout": pipeline.pairer.timeout,
+            "merge_slack": pipeline.merge_slack,
+            "stamps": self.info.stamps.value if self.info is not None else "read-end",
+            "channels": channels,
+            "units": {
+                str(u): {"label": b.label, "model": b.dictionary.model, "name": b.dictionary.name}
+                for u, b in sorted(self.bindings.items())
+            },
+            "raw": "pcapng enhanced packet block, link type 250 (RTAC serial); see docs/mqtt.md",
+            "modscope": __version__,
+            **self.options.extra,
+        }
+
+    def chunk(self, chunk: Chunk) -> None:
+        """Publish one read (or source event) as it was recorded."""
+        self._resend_retained()
+        self.raw += 1
+        if not self.link.publish(
+            self.target.topic("raw"), raw_payload(chunk, self.raw), block=self.options.block
+        ):
+            self.raw_dropped += 1
+
+    def rows(self, final: bool = False) -> None:
+        """Publish what the session's new rows say. Call after `session.refresh()`."""
+        self._resend_retained()
+        store = self.session.store
+        store.sync()
+        describer = self.session.describer
+        for i in sorted(self._open):
+            state = store.status[i]
+            if state != Status.OPEN:
+                self._open.discard(i)
+                if state == Status.TIMEOUT:
+                    self._event("timeout", describer.detail(i))
+        end = len(store)
+        for i in range(self.next, end):
+            self._row(i)
+        self.next = end
+        if end:
+            self._last_t = max(self._last_t, store.t_end[end - 1])
+        if self.clock is not None:
+            self._last_t = max(self._last_t, self.clock())
+        if (
+            final
+            or self._status_t is None
+            or self._last_t - self._status_t >= self.options.status_every
+        ):
+            self._status_t = self._last_t
+            self.unit_status()
+
+    def _row(self, i: int) -> None:
+        store = self.session.store
+        kind = store.kind[i]
+        flags = store.flags[i]
+        describer = self.session.describer
+        if kind == Kind.EVENT:
+            self._event("event", describer.detail(i))
+            return
+        if kind == Kind.NOISE:
+            self._event("noise", describer.detail(i))
+            return
+        unit = store.unit[i]
+        if flags & (Flag.CHECK_BAD | Flag.NON_HEX):
+            self._event("check error", describer.detail(i))
+            return
+        if kind == Kind.REQUEST:
+            state = store.status[i]
+            if state == Status.OPEN:
+                self._open.add(i)
+            elif state == Status.TIMEOUT:
+                self._event("timeout", describer.detail(i))
+                return
+        d: FrameDetail | None = None
+        if kind in (Kind.RESPONSE, Kind.EXCEPTION):
+            self._answered[unit] = store.t_end[i]
+        if unit in self.bindings and kind == Kind.RESPONSE:
+            d = describer.detail(i)
+            self._values(d, "read")
+            j = store.partner[i]
+            if j != NO_PARTNER:
+                self._values(describer.detail(j), "write")
+        if kind == Kind.EXCEPTION:
+            self._event("exception", d or describer.detail(i))
+            return
+        if flags & PROBLEM_MASK or store.status[i] == Status.ORPHAN:
+            d = d or describer.detail(i)
+            if d.problems:
+                self._event("problem", d)
+                return
+        if unit in self.bindings and kind == Kind.REQUEST:
+            d = d or describer.detail(i)
+            if any(r.problems for r in d.registers):
+                self._event("problem", d)
+
+    # -- values ---------------------------------------------------------------------------------
+
+    def _entry(self, unit: int, r: RegisterValue) -> Entry:
+        found = self._entries.get(unit, {}).get((r.table, r.address, r.name))
+        if found is not None:
+            return found
+        spec = self._params.get(unit, {}).get(r.name)
+        if spec is None:
+            kind = (
+                "bool"
+                if isinstance(r.value, bool)
+                else "str"
+                if isinstance(r.value, str)
+                else "u16"
+            )
+            spec = ValueSpec(type=kind, unit=r.unit)
+        return Entry(r.table, r.address, r.name, spec)
+
+    def _values(self, d: FrameDetail, access: str) -> None:
+        v = d.view
+        if not d.registers or not v.check_ok:
+            return
+        if access == "write" and v.kind != Kind.REQUEST:
+            return
+        unit = v.unit
+        binding = self.bindings[unit]
+        for r in d.registers:
+            if r.partial or not r.name:
+                continue
+            slug = self._slugs.add(RegisterKey(unit, r.table, r.address, r.name))
+            topic = self.target.topic("unit", str(unit), slug)
+            last = self._last.get(topic)
+            value = json_value(r.value)
+            if (
+                last is not None
+                and last.value == value
+                and last.raw == r.raw
+                and v.t - last.t < self.options.every
+            ):
+                continue
+            entry = self._entry(unit, r)
+            if self.options.ha_prefix is not None and topic not in self._discovered:
+                self._discovered.add(topic)
+                for config in discovery_configs(
+                    prefix=self.options.ha_prefix,
+                    bus=self.options.bus,
+                    unit=unit,
+                    label=binding.label,
+                    dictionary=binding.dictionary,
+                    entry=entry,
+                    register_slug=slug,
+                    state_topic=topic,
+                    availability_topic=self.target.topic("status"),
+                ):
+                    self._send(config.topic, config.payload, retain=True)
+            message: dict[str, Any] = {
+                "unit": unit,
+                "device": binding.label,
+                "model": binding.dictionary.model,
+                "name": r.name,
+                "table": r.table,
+                "address": r.address,
+                "value": value,
+                "value_unit": r.unit,
+                "text": r.text,
+                "raw": list(r.raw),
+                "t": v.t,
+                "time": iso_time(v.t),
+                "frame": v.index + self.session.base,  # in the whole capture (windowed live)
+                "access": access,
+            }
+            if entry.spec.bits and isinstance(r.value, int) and not isinstance(r.value, bool):
+                message["bits"] = {
+                    str(bit): bool(r.value >> bit & 1) for bit in sorted(entry.spec.bits)
+                }
+            self._last[topic] = _Published(value, r.raw, v.t)
+            self._send(topic, json.dumps(message, ensure_ascii=False), retain=True)
+            self.values += 1
+
+    # -- events and statuses ------------------------------------------------------------------
+
+    def _event(self, kind: str, d: FrameDetail) -> None:
+        v = d.view
+        framed = v.kind not in (Kind.NOISE, Kind.EVENT)
+        message: dict[str, Any] = {
+            "kind": kind,
+            "t": v.t,
+            "time": iso_time(v.t),
+            "frame": v.index + self.session.base,  # in the whole capture (windowed live)
+            "frame_kind": KIND_NAMES[v.kind],
+            "unit": v.unit if framed else None,
+            "device": d.label,
+            "function": v.function if framed else None,
+            "name": d.name,
+            "summary": d.summary,
+            "problems": list(d.problem_texts),
+            "raw": v.raw.hex(),
+        }
+        if v.kind == Kind.EXCEPTION:
+            body = v.body()
+            message["exception_code"] = body[2] if len(body) > 2 else None
+        if v.partner != NO_PARTNER:
+            message["partner"] = v.partner + self.session.base
+        self._send(self.target.topic("events"), json.dumps(message, ensure_ascii=False))
+        self.events += 1
+
+    def unit_status(self) -> None:
+        """A retained status message for every unit seen so far."""
+        now = self._last_t
+        for u, st in sorted(self.session.stats.units.items()):
+            window = self._windows.setdefault(u, UnitWindow())
+            window.update(st)
+            period = window.polling_period()
+            answered = self._answered.get(u)
+            limit = max(SILENT_MIN, SILENT_AFTER * (period or 0.0))
+            online = answered is not None and now - answered <= limit
+            median, p95 = window.latency_ms(0.5), window.latency_ms(0.95)
+            binding = self.bindings.get(u)
+            message = {
+                "unit": u,
+                "device": binding.label if binding else "",
+                "state": "online" if online else "silent",
+                "requests": st.requests,
+                "answers": st.responses,
+                "exceptions": st.exception_count,
+                "timeouts": st.timeouts,
+                "check_errors": st.check_errors,
+                "latency_median_ms": None if median is None else round(median, 3),
+                "latency_p95_ms": None if p95 is None else round(p95, 3),
+                "poll_period_ms": None if period is None else round(period * 1000, 3),
+                "last_answer": answered,
+                "t": now,
+                "time": iso_time(now),
+            }
+            self._send(
+                self.target.topic("unit", str(u), "status"), json.dumps(message), retain=True
+            )
+
+    def close(self, drain: float = 10.0) -> str:
+        """Final statuses, `status` offline, wait for delivery; the link's report."""
+        self.rows(final=True)
+        self.link.close(drain, last=(self.target.topic("status"), "offline"))
+        return self.link.report()
+
+
+def open_publisher(
+    target: MqttTarget,
+    session: Session,
+    bindings: Mapping[int, Binding],
+    options: PublisherOptions,
+    *,
+    info: SourceInfo | None = None,
+    notify: Notify | None = None,
+    limit: int | None = None,
+    wait: float = 5.0,
+    clock: Callable[[], float] | None = None,
+) -> BusPublisher:
+    """A connected (or connecting) publisher with its `interface` message sent."""
+    kwargs: dict[str, Any] = {} if limit is None else {"limit": limit}
+    link = MqttLink(target, will=(target.topic("status"), "offline"), notify=notify, **kwargs)
+    publisher = BusPublisher(link, session, bindings, options, info=info, clock=clock)
+    if not link.start(wait) and notify is not None:
+        notify(
+            f"mqtt: {target.describe()} does not answer yet; buffering and retrying "
+            "in the background"
+        )
+    publisher.announce()
+    return publisher
+
+
+def publish_replay(
+    session: Session,
+    chunks: Iterable[Chunk],
+    publisher: BusPublisher,
+    *,
+    original_speed: bool = False,
+    refresh_every: float = 0.25,
+) -> None:
+    """Feed a capture's chunks to `session` and `publisher`: as fast as they are read, or
+    at the pace they were recorded (`original_speed`). Ends with the session finished and
+    its last rows published (the link stays open: `publisher.close()` ends it)."""
+    last = time.monotonic()
+    first: tuple[float, float] | None = None
+    for chunk in chunks:
+        if original_speed:
+            if first is None:
+                first = (chunk.t_end, time.monotonic())
+            delay = first[1] + (chunk.t_end - first[0]) - time.monotonic()
+            if delay > 0:
+                session.refresh()
+                publisher.rows()
+                time.sleep(delay)
+        publisher.chunk(chunk)
+        session.feed(chunk)
+        now = time.monotonic()
+        if now - last >= refresh_every:
+            last = now
+            session.refresh()
+            publisher.rows()
+    session.finish()
+    publisher.rows()

@@ -1,0 +1,944 @@
+"""Provides the sidecar index: a capture's framed and paired rows kept beside it.
+
+Indexing a day's capture takes tens of seconds; reading the rows back takes a moment.
+After a capture of at least `MIN_SIZE` bytes has been indexed to its end, its rows
+(the store's columns and bytes), the session's warnings and notes and the capture's own
+warnings are written to `FILE.modscope-index` beside it, or, where that folder cannot be
+written, to `~/.cache/modscope/index/` (`$XDG_CACHE_HOME` if set) under a name made from
+the capture's path.
+
+A sidecar is used only when all of this still holds, else the capture is indexed again
+(and the sidecar rewritten):
+- the capture's size, modification time and the SHA-256 of its first 64 KiB;
+- the settings the rows depend on: the line settings and other read options, the
+  response timeout, the function codes of the bound devices, the bindings (the
+  annotator's flags are in the rows), and a fingerprint of modscope's own code.
+
+The file: a header of JSON (with its CRC-32), then the rows in blocks of `BLOCK` rows,
+each its columns and the bytes its rows point at, each with its own CRC-32, then the
+per-unit latencies and request times. It is read a block at a time (`load`): the TUI
+shows the first rows after the first block while the rest is read.
+
+A sidecar is data, never code: one that is damaged or does not fit its capture is
+ignored. `MODSCOPE_NO_INDEX=1` (or `open_session(...,
+index=False)`) neither reads nor writes one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import json
+import operator
+import os
+import struct
+import sys
+import tempfile
+import zlib
+from array import array
+from collections.abc import Callable, Mapping
+from functools import cache, lru_cache
+from itertools import compress
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sniffer import __version__, core
+from sniffer.framing.columns import marking
+from sniffer.framing.store import COLUMNS, NO_PARTNER
+from sniffer.model import Stamp
+from sniffer.vocab import Kind
+
+if TYPE_CHECKING:
+    from sniffer.framing.store import FrameStore
+    from sniffer.session.session import Session
+    from sniffer.sources import Capture
+
+MAGIC = b"MODSCOPE-INDEX\n\0"
+FORMAT = 2  # 1: one CRC over the whole file, read whole (now stale: indexed again)
+SUFFIX = ".modscope-index"
+MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
+HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
+# a block keeps its rows' columns in the order of sniffer.framing.store.COLUMNS
+_PREFIX = struct.Struct("<QI")  # the header's length and CRC-32
+# rows a block: 65,536 rows are about 4 MB, read and checked in about 10 ms, so the TUI
+# has its first screen after one block whatever the size of the capture
+BLOCK = 1 << 16
+
+
+def enabled() -> bool:
+    return os.environ.get("MODSCOPE_NO_INDEX", "") in ("", "0")
+
+
+def cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "modscope" / "index"
+
+
+def sidecars(capture: Path) -> list[Path]:
+    """Where a capture's sidecar may be: beside it, then in the cache folder."""
+    absolute = capture.resolve()
+    digest = hashlib.sha256(str(absolute).encode("utf-8", "surrogateescape")).hexdigest()
+    return [
+        absolute.with_name(absolute.name + SUFFIX),
+        cache_dir() / f"{digest[:32]}{SUFFIX}",
+    ]
+
+
+def identity(capture: Path) -> dict[str, Any] | None:
+    """Size, modification time and the hash of the head of `capture` (None: unreadable)."""
+    try:
+        with capture.open("rb") as handle:
+            st = os.fstat(handle.fileno())
+            head = handle.read(HEAD)
+    except OSError:
+        return None
+    return {
+        "size": st.st_size,
+        "mtime_ns": st.st_mtime_ns,
+        "head": hashlib.sha256(head).hexdigest(),
+    }
+
+
+def _plain(value: Any, depth: int = 0) -> Any:
+    """A JSON-able picture of settings (dataclasses, mappings, rules, callables by name)."""
+    if depth > 12:
+        return "..."
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return [
+            type(value).__name__,
+            *(_plain(getattr(value, f.name), depth + 1) for f in dataclasses.fields(value)),
+        ]
+    if isinstance(value, Mapping):
+        items = sorted(value.items(), key=lambda kv: repr(kv[0]))
+        return [[_plain(k, depth + 1), _plain(v, depth + 1)] for k, v in items]
+    if isinstance(value, (list, tuple, frozenset, set)):
+        items = list(value)
+        if isinstance(value, (set, frozenset)):
+            items.sort(key=repr)
+        return [_plain(v, depth + 1) for v in items]
+    if callable(value):
+        return getattr(value, "__qualname__", type(value).__name__)
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)
+
+
+@cache
+def code_fingerprint() -> str:
+    """A hash of modscope's own source (a changed framer must not reuse old rows)."""
+    digest = hashlib.sha256(__version__.encode())
+    for package in ("sniffer", "dissectors"):
+        module = sys.modules.get(package)
+        where = getattr(module, "__file__", None)
+        if where is None:
+            continue
+        root = Path(where).parent
+        for path in sorted(root.rglob("*.py")):
+            if "tui" in path.relative_to(root).parts:
+                continue
+            with contextlib.suppress(OSError):
+                digest.update(str(path.relative_to(root)).encode())
+                digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def settings_key(session: Session, options: Any, timeout: float | None) -> str:
+    """What the rows of a capture depend on besides its bytes, as one hash."""
+    registry = session.annotator.registry
+    picture = [
+        FORMAT,
+        code_fingerprint(),
+        _plain(options),
+        timeout,
+        [[code, _plain(registry[code])] for code in sorted(registry)],
+        _plain(session.annotator.bindings),
+    ]
+    return hashlib.sha256(json.dumps(picture, sort_keys=True).encode()).hexdigest()
+
+
+# -------------------------------------------------------------------------- writing
+
+
+def _row_bytes() -> int:
+    from sniffer.framing.store import FrameStore
+
+    model = FrameStore()
+    return sum(getattr(model, name).itemsize for name in COLUMNS)
+
+
+def _blocks(store: FrameStore, n: int) -> list[tuple[int, int, list[list[int]]]] | None:
+    """The blocks of rows: (first row, end, [[channel, bytes], ...]) where a block carries
+    the bytes of each channel from where the one before stopped to the end of the last
+    byte its rows point at (the last block: to the end of the stream). None: a row of a
+    channel with no bytes (not written)."""
+    ends = dict.fromkeys(store.streams, 0)
+    out: list[tuple[int, int, list[list[int]]]] = []
+    for a in range(0, max(n, 1), BLOCK):
+        b = min(n, a + BLOCK)
+        if b >= n:
+            reach = {ch: len(data) for ch, data in store.streams.items()}
+        else:
+            reach = dict(ends)
+            channels = store.channel[a:b].tobytes()
+            present = set(channels)
+            if not present <= set(reach):
+                return None
+            offset, length = store.offset[a:b], store.length[a:b]
+            for ch in present:
+                if len(present) == 1:
+                    far = max(map(operator.add, offset, length))
+                else:
+                    mask = channels.translate(marking((ch,)))
+                    far = max(compress(map(operator.add, offset, length), mask))
+                reach[ch] = max(reach[ch], min(far, len(store.streams[ch])))
+        out.append((a, b, [[ch, reach[ch] - ends[ch]] for ch in store.streams]))
+        ends = reach
+    return out
+
+
+def _block_parts(
+    store: FrameStore, a: int, b: int, pieces: list[list[int]], starts: dict[int, int]
+) -> list[memoryview]:
+    """The bytes of one block: its rows' columns, then its share of each stream."""
+    parts = []
+    for name in COLUMNS:
+        col = getattr(store, name)
+        parts.append(memoryview(col).cast("B")[a * col.itemsize : b * col.itemsize])
+    for ch, size in pieces:
+        at = starts[ch]
+        parts.append(memoryview(store.streams[ch])[at : at + size])
+        starts[ch] = at + size
+    return parts
+
+
+def save(session: Session, capture: Capture, path: Path, key: str) -> Path | None:
+    """Write the sidecar of `path`; its location, or None when nowhere could take it."""
+    who = identity(path)
+    if who is None:
+        return None
+    store = session.store
+    store.sync()
+    n = len(store)
+    blocks = _blocks(store, n)
+    if blocks is None:
+        return None
+    table = []
+    starts = dict.fromkeys(store.streams, 0)
+    for a, b, pieces in blocks:
+        crc = 0
+        for part in _block_parts(store, a, b, pieces, starts):
+            crc = zlib.crc32(part, crc)
+        table.append([b - a, pieces, crc])
+    tail, crc = _tail(session)
+    header = _header_of(
+        session,
+        capture,
+        key,
+        who,
+        rows=n,
+        streams=[[ch, len(data)] for ch, data in store.streams.items()],
+        blocks=table,
+        tail_crc=crc,
+        notes={str(i): text for i, text in store.notes.items()},
+    )
+    blob = json.dumps(header).encode()
+    for target in sidecars(path):
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+        except OSError:
+            continue
+        try:
+            with os.fdopen(fd, "wb") as out:
+                out.write(MAGIC)
+                out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
+                out.write(blob)
+                starts = dict.fromkeys(store.streams, 0)
+                for a, b, pieces in blocks:
+                    for part in _block_parts(store, a, b, pieces, starts):
+                        out.write(part)
+                for part in tail:
+                    out.write(memoryview(part).cast("B"))
+            _publish(tmp, target)
+            return target
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+    return None
+
+
+def _publish(tmp: str, target: Path) -> None:
+    """The written temporary file in its place, readable as any file the user writes."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # (mkstemp: 0600)
+    os.replace(tmp, target)
+
+
+def _tail(session: Session) -> tuple[list[Any], int]:
+    """The per-unit latencies and request times written after the blocks, and their
+    CRC-32."""
+    tail: list[Any] = []
+    for unit in session.stats.units.values():
+        tail += [unit.latencies, unit.request_times]
+    crc = 0
+    for part in tail:
+        crc = zlib.crc32(memoryview(part).cast("B"), crc)
+    return tail, crc
+
+
+def _header_of(
+    session: Session,
+    capture: Capture,
+    key: str,
+    who: dict[str, Any],
+    *,
+    rows: int,
+    streams: list[list[int]],
+    blocks: list[Any],
+    tail_crc: int,
+    notes: dict[str, str],
+) -> dict[str, Any]:
+    store = session.store
+    return {
+        "format": FORMAT,
+        "key": key,
+        "capture": who,
+        "rows": rows,
+        "columns": {name: getattr(store, name).typecode for name in COLUMNS},
+        "streams": streams,
+        "blocks": blocks,
+        "tail_crc32": tail_crc,
+        "notes": notes,
+        "stamps": store.stamps.name,
+        "resolution": store.resolution,
+        "fill_channel": store.fill_channel,
+        "mode": session.pipeline.mode,
+        "session_warnings": session.warnings,
+        "session_notes": session.notes,
+        "chunks": session.chunks,
+        "capture_warnings": capture.warnings,
+        "data_bytes": capture.data_bytes,
+        "channels": {str(ch): label for ch, label in capture.info.channels.items()},
+        "stats": _stats_header(session),
+    }
+
+
+# room left for the header before the first block when the blocks are written first
+# (`Writer`): JSON allows the spaces that fill what it does not use; a header that does
+# not fit (a capture with very many row notes) is written in front of a copy
+RESERVE = 1 << 18
+
+
+class Writer:
+    """The sidecar of a capture written a segment at a time, as a windowed session
+    (`Session.ingest` with a window) drops them: each segment's rows as blocks of at most
+    `BLOCK` rows (the last block of a segment ends with it), their offsets and partners
+    numbered in the whole capture, so the file is the one `save` writes of a store
+    holding every row, but for where blocks end. The header comes last, into room left
+    for it at the start (`RESERVE`)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.out: Any = None
+        self.tmp = ""
+        self.target: Path | None = None
+        for target in sidecars(path):
+            try:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+            except OSError:
+                continue
+            self.out, self.tmp, self.target = os.fdopen(fd, "wb"), tmp, target
+            break
+        self.blocks: list[Any] = []
+        self.first_block = len(MAGIC) + _PREFIX.size + RESERVE  # where the blocks start
+        self.notes: dict[str, str] = {}
+        self.rows = 0
+        self.streams: dict[int, int] = {}
+        try:
+            if self.out is not None:
+                self.out.write(MAGIC)
+                self.out.write(bytes(_PREFIX.size + RESERVE))
+        except OSError:
+            self.abandon()
+
+    def add(self, session: Session) -> None:
+        """Write the rows of the session's store (a segment, or the last rows)."""
+        if self.out is None:
+            return
+        store = session.store
+        store.sync()
+        n = len(store)
+        blocks = _blocks(store, n)
+        if blocks is None:
+            self.abandon()
+            return
+        base, bases = session.base, session.stream_base
+        starts = dict.fromkeys(store.streams, 0)
+        try:
+            for a, b, pieces in blocks:
+                parts = _block_parts(store, a, b, pieces, starts)
+                if base or any(bases.values()):
+                    _renumber(store, a, b, parts, base, bases)
+                crc = 0
+                for part in parts:
+                    crc = zlib.crc32(part, crc)
+                    self.out.write(part)
+                self.blocks.append([b - a, pieces, crc])
+        except OSError:
+            self.abandon()
+            return
+        self.rows = base + n
+        self.notes.update({str(base + i): text for i, text in store.notes.items()})
+        for ch, data in store.streams.items():
+            self.streams[ch] = bases.get(ch, 0) + len(data)
+
+    def close(self, session: Session, capture: Capture, key: str) -> Path | None:
+        """Finish the sidecar (after the last `add`): its location, or None."""
+        out, target = self.out, self.target
+        who = identity(self.path)
+        if out is None or target is None or who is None:
+            self.abandon()
+            return None
+        tail, crc = _tail(session)
+        header = _header_of(
+            session,
+            capture,
+            key,
+            who,
+            rows=self.rows,
+            streams=[[ch, size] for ch, size in self.streams.items()],
+            blocks=self.blocks,
+            tail_crc=crc,
+            notes=self.notes,
+        )
+        blob = json.dumps(header).encode()
+        try:
+            for part in tail:
+                out.write(memoryview(part).cast("B"))
+            if len(blob) <= RESERVE:
+                blob += b" " * (RESERVE - len(blob))
+                out.seek(len(MAGIC))
+                out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
+                out.write(blob)
+                out.close()
+                _publish(self.tmp, target)
+            else:
+                self._rewrite(blob, target)
+        except OSError:
+            self.abandon()
+            return None
+        self.out = None
+        return target
+
+    def _rewrite(self, blob: bytes, target: Path) -> None:
+        """The header in front of a copy of the blocks (it did not fit its room)."""
+        self.out.close()
+        fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+        try:
+            with os.fdopen(fd, "wb") as out, open(self.tmp, "rb") as blocks:
+                out.write(MAGIC)
+                out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
+                out.write(blob)
+                blocks.seek(len(MAGIC) + _PREFIX.size + RESERVE)
+                while piece := blocks.read(1 << 22):
+                    out.write(piece)
+            _publish(tmp, target)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(self.tmp)
+
+    def abandon(self) -> None:
+        """No sidecar after all (a folder that filled up, a read stopped halfway)."""
+        if self.out is not None:
+            with contextlib.suppress(OSError):
+                self.out.close()
+            with contextlib.suppress(OSError):
+                os.unlink(self.tmp)
+        self.out = None
+
+
+def _renumber(
+    store: FrameStore,
+    a: int,
+    b: int,
+    parts: list[memoryview],
+    base: int,
+    bases: Mapping[int, int],
+) -> None:
+    """The offset and partner columns of rows `a`..`b` of a segment, in `parts`,
+    replaced by their numbers in the whole capture (`base` rows and each channel's
+    `bases` bytes before the segment)."""
+    offset = store.offset[a:b]
+    channels = store.channel[a:b]
+    present = set(channels.tobytes())
+    if len(present) == 1:
+        shifted = _plus(offset, bases.get(next(iter(present)), 0))
+    else:
+        shifted = array(
+            offset.typecode,
+            (o + bases.get(ch, 0) for o, ch in zip(offset, channels, strict=True)),
+        ).tobytes()
+    parts[COLUMNS.index("offset")] = memoryview(shifted)
+    if base:
+        partner = shifted_partners(memoryview(store.partner)[a:b], 0, base)
+        parts[COLUMNS.index("partner")] = memoryview(partner)
+
+
+def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
+    """The bytes of a block's partner column (int32) with each partner `p` at or above
+    `at_least` made `p + by`, and every other one none (-1): `at_least` 0 moves rows
+    numbered in a segment into the whole capture (`by` its base), `at_least` the base
+    and `by` minus it the other way, a partner in a block dropped before becoming none.
+    In the compiled core where it runs (5 ms a block of 65,536 rows here, 0.05 ms
+    there: some 2 s of a 30M-row day, written or read back windowed)."""
+    fast = core.FAST
+    if fast is not None:
+        return bytes(fast.shift_partners(partner, at_least, by))
+    shifted = array("i", (p + by if p >= at_least else NO_PARTNER for p in partner))
+    return shifted.tobytes()
+
+
+def _plus(column: array[int] | memoryview, by: int) -> bytes:
+    """The bytes of `column` (unsigned words: offsets) with `by` added to every value;
+    every result must fit its word (a word never carries into the next). The column is
+    taken as one big integer and `by` times a word of 1 at every row added to it, in C:
+    for 65,536 offsets 1.1-1.5 ms, where `array(map(add, ...))` takes 3-6 ms (about
+    1.5 s of a 30M-frame day's sidecar, written or read back)."""
+    raw = column.tobytes()
+    size = column.itemsize
+    total = int.from_bytes(raw, sys.byteorder) + by * _ones(len(raw) // size, size)
+    return total.to_bytes(len(raw), sys.byteorder)
+
+
+@lru_cache(maxsize=4)
+def _ones(rows: int, size: int) -> int:
+    """`rows` words of `size` bytes, each holding 1, as one integer (native order)."""
+    return int.from_bytes((1).to_bytes(size, sys.byteorder) * rows, sys.byteorder)
+
+
+def _stats_header(session: Session) -> dict[str, Any]:
+    """The per-unit statistics (recounting them costs about 0.5 us a row)."""
+    stats = session.stats
+    base = session.base  # (a windowed session: rows numbered in the whole capture)
+    return {
+        "next": base + stats.next,
+        "noise_bytes": stats.noise_bytes,
+        "noise_spans": stats.noise_spans,
+        "events": stats.events,
+        "open": sorted(base + i for i in stats._open),
+        "units": [
+            {
+                "unit": u.unit,
+                "requests": u.requests,
+                "responses": u.responses,
+                "exceptions": {str(code): k for code, k in u.exceptions.items()},
+                "timeouts": u.timeouts,
+                "check_errors": u.check_errors,
+                "last_seen": u.last_seen,
+                "below_resolution": u.below_resolution,
+                "unmeasured": u.unmeasured,
+                "latencies": len(u.latencies),
+                "request_times": len(u.request_times),
+            }
+            for u in stats.units.values()
+        ],
+    }
+
+
+# -------------------------------------------------------------------------- reading
+
+
+class DamagedError(Exception):
+    """A block of a sidecar failed its checks after rows before it were handed out (to
+    `progress` with `shown`): they stay, so the capture cannot be indexed again in the
+    same session. The sidecar is not read again by this process."""
+
+
+_refused: set[tuple[str, int, int]] = set()  # damaged sidecars: path, size, mtime
+
+
+def _stamp(handle: Any, candidate: Path) -> tuple[str, int, int]:
+    st = os.fstat(handle.fileno())
+    return (str(candidate), st.st_size, st.st_mtime_ns)
+
+
+Progress = Callable[[int, int], None]
+
+
+def load(
+    session: Session,
+    capture: Capture,
+    path: Path,
+    key: str,
+    progress: Progress | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    shown: bool = False,
+    segment: Callable[[Session], None] | None = None,
+    opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
+) -> Path | None:
+    """Fill `session` and `capture` from a sidecar of `path` that still fits; its path,
+    or None (nothing was changed) when there is none.
+
+    `segment`: the rows are not kept. After each block but the last, `segment(session)`
+    is given its rows in the store (row `i` is row `session.base + i` of the capture,
+    offsets counted from `session.stream_base`), then they are dropped, as a windowed
+    `Session.ingest` drops its segments; the last block's rows stay. Rows handed to it
+    are never taken back: a damaged block after the first raises `DamagedError`. (A
+    block may begin with the answer to a request at the end of the block before: its
+    partner is then given as none.)
+
+    The rows come block by block, each checked (CRC-32, rows inside their bytes) before
+    it joins the store, and `progress(bytes, rows)` is called after each block, the
+    first one included: rows below `rows` are complete (the annotator has seen them with
+    `shown`). The statistics, warnings and notes come after the last block. A damaged
+    block takes back the rows before it, unless `shown` (another thread may be showing
+    them): then `DamagedError` is raised. `should_stop()` true between blocks: return with
+    the rows read so far.
+
+    `opened(path, fd, start, header)`: the sidecar found to fit, before its first block
+    is read: an open descriptor of it (valid during the call: `os.dup` it to keep it),
+    where its first block starts, and its header (`sniffer.session.paged.PagedStore` reads its
+    rows from there)."""
+    who = identity(path)
+    if who is None:
+        return None
+    for candidate in sidecars(path):
+        try:
+            handle = candidate.open("rb")
+        except OSError:
+            continue
+        with handle:
+            try:
+                stamp = _stamp(handle, candidate)
+                found = None if stamp in _refused else _header(handle, key, who, stamp[1])
+            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+                continue
+            if found is None:
+                continue
+            header, counts = found
+            if opened is not None:
+                opened(candidate, handle.fileno(), handle.tell(), header)
+            filling = _Filling(
+                session, capture, header, handle, progress, shown, who["size"], segment
+            )
+            try:
+                if filling.run(should_stop):
+                    tail = filling.tail(counts)
+                    if tail is not None:
+                        filling.finish(tail)
+                        return candidate
+                if filling.stopped:
+                    return candidate
+            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+                pass
+            _refused.add(stamp)
+            if filling.handed_out:
+                raise DamagedError(f"{candidate}: damaged after {len(session.store):,} rows")
+            filling.undo()
+    return None
+
+
+def _header(
+    handle: Any, key: str, who: dict[str, Any], file_size: int
+) -> tuple[dict[str, Any], list[int]] | None:
+    """The header of a sidecar that fits the capture and `key`, and the lengths of its
+    statistics' arrays; None if it does not fit or its length is not what the header
+    says."""
+    if handle.read(len(MAGIC)) != MAGIC:
+        return None
+    size, crc = _PREFIX.unpack(handle.read(_PREFIX.size))
+    if size > 1 << 30:
+        return None
+    blob = handle.read(size)
+    if len(blob) != size or zlib.crc32(blob) != crc:
+        return None
+    header = json.loads(blob)
+    if header.get("format") != FORMAT or header.get("key") != key:
+        return None
+    if header.get("capture") != who:
+        return None  # stale: the capture changed since it was indexed
+    from sniffer.framing.store import FrameStore
+
+    model = FrameStore()
+    for name in COLUMNS:
+        if header["columns"].get(name) != getattr(model, name).typecode:
+            return None
+    row_bytes = _row_bytes()
+    body = 0
+    rows = 0
+    for count, pieces, _crc in header["blocks"]:
+        rows += int(count)
+        body += int(count) * row_bytes + sum(int(size) for _ch, size in pieces)
+    if rows != int(header["rows"]) or any(int(s) < 0 for _ch, s in header["streams"]):
+        return None
+    counts = [
+        int(u[name]) for u in header["stats"]["units"] for name in ("latencies", "request_times")
+    ]
+    start = len(MAGIC) + _PREFIX.size + size
+    if start + body + 8 * sum(counts) != file_size:
+        return None  # cut short, or more than the header says
+    return header, counts
+
+
+class _Filling:
+    """Rows going from a sidecar into a session, a block at a time."""
+
+    def __init__(
+        self,
+        session: Session,
+        capture: Capture,
+        header: dict[str, Any],
+        handle: Any,
+        progress: Progress | None,
+        shown: bool,
+        capture_size: int,
+        segment: Callable[[Session], None] | None = None,
+    ) -> None:
+        self.session, self.capture, self.header, self.handle = session, capture, header, handle
+        self.progress, self.shown = progress, shown
+        self.segment = segment
+        self.notes: dict[int, str] = {}  # (with `segment`) those of rows still to come
+        self.handed_out = False
+        self.stopped = False
+        store = session.store
+        self.before = (store.stamps, store.resolution, store.fill_channel)
+        self.streams_before = {ch: len(data) for ch, data in store.streams.items()}
+        self.rows = int(header["rows"])
+        self.row_bytes = _row_bytes()
+        self.file_size = os.fstat(handle.fileno()).st_size
+        self.capture_size = capture_size
+
+    def run(self, should_stop: Callable[[], bool] | None) -> bool:
+        """Read every block; False if one is damaged or `should_stop` said so."""
+        header, store = self.header, self.session.store
+        # what the rows need to be shown: their notes, times and bytes' channels
+        notes = {int(i): str(text) for i, text in header["notes"].items()}
+        if self.segment is None:
+            store.notes.update(notes)
+        else:
+            self.notes = dict(sorted(notes.items()))
+        store.stamps = Stamp[header["stamps"]]
+        store.resolution = float(header["resolution"])
+        store.fill_channel = int(header["fill_channel"])
+        streams = {int(ch): int(size) for ch, size in header["streams"]}
+        for ch in streams:
+            store.stream(ch)
+        reach = {ch: len(store.streams[ch]) for ch in streams}
+        session = self.session
+        blocks = header["blocks"]
+        for k, (count, pieces, crc) in enumerate(blocks):
+            if k and self.segment is not None:  # the rows before go (see `load`)
+                self.segment(session)
+                _drop(session)
+                self.handed_out = True
+            if not self._block(int(count), pieces, int(crc), streams, reach):
+                return False
+            if self.progress is not None:
+                done = self.capture_size * self.handle.tell() // max(1, self.file_size)
+                self.progress(done, session.base + len(store))
+                self.handed_out = self.handed_out or bool(len(store))
+            if should_stop is not None and should_stop():
+                self.stopped = True
+                return False
+        bases = session.stream_base
+        return all(
+            bases.get(ch, 0) + len(store.streams[ch]) == size for ch, size in streams.items()
+        )
+
+    def _block(
+        self,
+        count: int,
+        pieces: list[list[int]],
+        crc: int,
+        streams: dict[int, int],
+        reach: dict[int, int],
+    ) -> bool:
+        store = self.session.store
+        size = count * self.row_bytes + sum(int(s) for _ch, s in pieces)
+        data = self.handle.read(size)
+        if len(data) != size or zlib.crc32(data) != crc:
+            return False  # damaged on the way
+        view = memoryview(data)
+        columns: dict[str, memoryview] = {}  # checked where they are, then copied once
+        at = 0
+        for name in COLUMNS:
+            col = getattr(store, name)
+            columns[name] = view[at : at + count * col.itemsize].cast(col.typecode)
+            at += count * col.itemsize
+        added: list[tuple[int, memoryview]] = []
+        for ch, piece in pieces:
+            ch, piece = int(ch), int(piece)
+            if ch not in streams or reach[ch] + piece > streams[ch]:
+                return False
+            added.append((ch, view[at : at + piece]))
+            reach[ch] += piece
+            at += piece
+        if count and not _consistent(columns, reach, self.rows):
+            return False
+        session = self.session
+        if session.base or any(session.stream_base.values()):
+            shifted = _local(columns, session.base, session.stream_base)
+            if shifted is None:
+                return False  # a row before the bytes dropped with the rows before
+            columns = shifted
+        if self.notes:
+            end = session.base + len(store) + count
+            while self.notes:
+                i = next(iter(self.notes))
+                if i >= end:
+                    break
+                store.notes[i - session.base] = self.notes.pop(i)
+        # into the store's own objects: views (the TUI's reader) hold on to its columns
+        for ch, piece_bytes in added:
+            store.streams[ch] += piece_bytes
+        for name in COLUMNS:
+            getattr(store, name).frombytes(columns[name].cast("B"))
+        if self.shown:
+            self.session.annotator.update(store)  # before the rows are handed out
+        return True
+
+    def tail(self, counts: list[int]) -> list[array[float]] | None:
+        """The per-unit latencies and request times, after the last block (None: damaged;
+        last, not first: they grow with the capture, and the first rows should not wait)."""
+        tail = []
+        crc = 0
+        for count in counts:
+            col = array("d")
+            col.fromfile(self.handle, count) if count else None
+            crc = zlib.crc32(memoryview(col).cast("B"), crc)
+            tail.append(col)
+        return tail if crc == self.header["tail_crc32"] else None
+
+    def finish(self, tail: list[array[float]]) -> None:
+        """What needs every row: pairing's and the annotator's state, the statistics, the
+        warnings."""
+        session, capture, header = self.session, self.capture, self.header
+        n = len(session.store)
+        pipeline = session.pipeline
+        pipeline.mode = header["mode"]
+        pipeline.pairer.next = n
+        pipeline._hint_checked = n
+        session.warnings[:] = [str(w) for w in header["session_warnings"]]
+        session.notes[:] = [str(w) for w in header["session_notes"]]
+        session.chunks = int(header["chunks"])
+        capture.warnings[:] = [str(w) for w in header["capture_warnings"]]
+        capture.data_bytes = int(header["data_bytes"])
+        capture.finished = True
+        for ch, label in header["channels"].items():
+            capture.info.channels.setdefault(int(ch), str(label))
+        session.annotator.update(session.store)  # all rows, or those after the last block
+        _restore_stats(session, header["stats"], tail, n)
+
+    def undo(self) -> None:
+        """Take back the rows (and the little before them) of a damaged sidecar."""
+        store = self.session.store
+        for name in COLUMNS:
+            del getattr(store, name)[:]
+        for ch in list(store.streams):
+            if ch in self.streams_before:
+                del store.streams[ch][self.streams_before[ch] :]
+            else:
+                del store.streams[ch]
+        store.notes.clear()
+        store.stamps, store.resolution, store.fill_channel = self.before
+
+
+def _local(
+    columns: dict[str, memoryview], base: int, bases: Mapping[int, int]
+) -> dict[str, memoryview] | None:
+    """A block's columns with rows and offsets numbered from the rows and bytes still
+    in the store (`base` rows, each channel's `bases` bytes dropped before it); None if
+    a row points at bytes already dropped."""
+    offset, channel = columns["offset"], columns["channel"]
+    present = set(channel.tobytes())
+    if len(present) == 1:
+        by = bases.get(next(iter(present)), 0)
+        if min(offset) < by:
+            return None
+        shifted = _plus(offset, -by)
+    else:
+        local = array("Q")
+        for o, ch in zip(offset, channel, strict=True):
+            by = bases.get(ch, 0)
+            if o < by:
+                return None
+            local.append(o - by)
+        shifted = local.tobytes()
+    # a partner in a block dropped before (a request at the end of the block before, its
+    # answer here) is given as none: the rows a partner points at must exist
+    out = dict(columns)  # (the typecodes the header was checked for)
+    out["offset"] = memoryview(shifted).cast("Q")
+    if base:
+        out["partner"] = memoryview(shifted_partners(columns["partner"], base, -base)).cast("i")
+    return out
+
+
+def _drop(session: Session) -> None:
+    """Forget the rows in the session's store (a windowed load, see `load`): they count
+    in `session.base`, their bytes in `session.stream_base`."""
+    store = session.store
+    session.annotator.update(store)
+    kinds = store.kind.tobytes()
+    session.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
+    for ch, data in store.streams.items():
+        session.stream_base[ch] = session.stream_base.get(ch, 0) + len(data)
+        del data[:]
+    session.base += len(store)
+    for name in COLUMNS:
+        del getattr(store, name)[:]
+    store.notes.clear()
+    session.forget_annotation()
+
+
+def _consistent(
+    columns: Mapping[str, array[Any] | memoryview], streams: Mapping[int, int], n: int
+) -> bool:
+    """Rows that point inside their bytes (`streams`: the length of each channel's bytes)
+    and at rows that exist (C-speed scans)."""
+    channels = set(columns["channel"].tobytes())
+    if not channels <= set(streams):
+        return False
+    offset, length, channel = columns["offset"], columns["length"], columns["channel"]
+    if len(channels) == 1:
+        if max(map(operator.add, offset, length)) > streams[channel[0]]:
+            return False
+    else:
+        ends = map(operator.add, offset, length)
+        if any(end > streams[ch] for end, ch in zip(ends, channel, strict=True)):
+            return False
+    partner = columns["partner"]
+    return bool(min(partner) >= -1 and max(partner) < n and max(columns["kind"]) < 8)
+
+
+def _restore_stats(
+    session: Session, saved: dict[str, Any], tail: list[array[float]], n: int
+) -> None:
+    from sniffer.analysis.stats import UnitStats
+
+    stats = session.stats
+    units = {}
+    arrays = iter(tail)
+    for u in saved["units"]:
+        unit = UnitStats(int(u["unit"]))
+        unit.requests, unit.responses = int(u["requests"]), int(u["responses"])
+        unit.exceptions.update({int(code): int(k) for code, k in u["exceptions"].items()})
+        unit.timeouts, unit.check_errors = int(u["timeouts"]), int(u["check_errors"])
+        unit.last_seen = float(u["last_seen"])
+        unit.below_resolution, unit.unmeasured = int(u["below_resolution"]), int(u["unmeasured"])
+        unit.latencies, unit.request_times = next(arrays), next(arrays)
+        units[unit.unit] = unit
+    stats.units.clear()
+    stats.units.update(units)
+    stats.noise_bytes, stats.noise_spans = int(saved["noise_bytes"]), int(saved["noise_spans"])
+    stats.events = int(saved["events"])
+    base = session.base  # rows dropped before the store's (a windowed load)
+    stats._open = {int(i) - base for i in saved["open"] if 0 <= int(i) - base < n}
+    stats.next = min(max(0, int(saved["next"]) - base), n)
+    stats.update()  # rows after `next`, if any

@@ -1,0 +1,427 @@
+"""Provides a capture session: a source's chunks framed, paired, annotated and counted.
+
+The CLI listing, the exports and the TUI all look at a capture through a Session.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Mapping
+from importlib import resources
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sniffer.analysis.stats import Stats
+from sniffer.framing.pipeline import MERGE_SLACK, Pipeline
+from sniffer.framing.store import FrameStore
+from sniffer.meaning.annotate import Annotator, Binding
+from sniffer.meaning.describe import Describer
+from sniffer.model import Chunk, Labels, LineSettings, Stamp
+from sniffer.sources import Capture, ReadOptions, open_capture
+from sniffer.sources.reads import Reads, batching
+from sniffer.vocab import Kind, Status
+
+if TYPE_CHECKING:
+    from sniffer.session.index import Writer
+
+
+def _demo_file(name: str) -> Path:
+    """A file of the bundled demo: package data (`sniffer/demo/`), so an installed wheel
+    has it too, found through importlib.resources rather than the source tree."""
+    return Path(str(resources.files("sniffer").joinpath("demo", name)))
+
+
+DEMO_CAPTURE = _demo_file("demo.pcapng")
+DEMO_BUS = _demo_file("demo-bus.toml")
+
+Progress = Callable[[int, int], None]
+"""progress(bytes_done, frames_so_far)."""
+
+
+class Session:
+    """One capture being looked at: store, pipeline, annotation, statistics, details."""
+
+    def __init__(
+        self,
+        line: LineSettings,
+        *,
+        bindings: Mapping[int, Binding] | None = None,
+        exact_timing: bool = False,
+        timeout: float | None = None,
+        source: str = "",
+        merge_slack: float = MERGE_SLACK,
+        labels: Labels = Labels.CERTAIN,
+        stamps: Stamp = Stamp.READ_END,
+        resolution: float = 0.0,
+        network: Mapping[int, str] | None = None,
+    ) -> None:
+        """`network`: the channel labels of a network capture (`SourceInfo.channels`),
+        which is then framed by `NetPipeline` (Modbus TCP, RTU over TCP/UDP)."""
+        self.line = line
+        self.source = source
+        self.store = FrameStore()
+        self.annotator = Annotator(bindings or {})
+        pipeline_class: type[Pipeline] = Pipeline
+        extra: dict[str, Any] = {}
+        if network is not None:
+            from sniffer.framing.tcp import NetPipeline
+
+            pipeline_class = NetPipeline
+            extra["channels"] = network
+        self.pipeline = pipeline_class(
+            line,
+            self.store,
+            exact_timing=exact_timing,
+            timeout=timeout,
+            registry=self.annotator.registry,
+            merge_slack=merge_slack,
+            labels=labels,
+            stamps=stamps,
+            resolution=resolution,
+            **extra,
+        )
+        self.stats = Stats(self.store)
+        self.describer = Describer(self.store, self.annotator)
+        self.warnings: list[str] = []
+        self.notes: list[str] = []  # what the user should know, not faults
+        self.chunks = 0
+        # rows of earlier segments (a windowed live capture, see new_segment): row i of
+        # `store` is row `base + i` of the capture
+        self.base = 0
+        # what the dropped rows leave behind: each channel's bytes before its stream's
+        # start (`stream_base`), and how many of them were frames (not noise or events)
+        self.stream_base: dict[int, int] = {}
+        self.frames_before = 0
+        self._contradiction_placed = False  # pipeline.first_contradiction counts from 0
+        self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
+        # the sidecar index (sniffer.session.index): where it came from, or what to save it as
+        self.indexed_from: Path | None = None
+        self._sidecar: tuple[Path, Capture, str] | None = None
+
+    @property
+    def indexing(self) -> bool:
+        """Whether `ingest` will read or write a sidecar index (see `open_session`)."""
+        return self._sidecar is not None
+
+    @property
+    def mode(self) -> str:
+        return self.pipeline.mode or self.line.mode
+
+    def feed(self, chunk: Chunk) -> None:
+        self.pipeline.feed(chunk)
+        self.chunks += len(chunk) if isinstance(chunk, Reads) else 1
+
+    def refresh(self) -> None:
+        """Bring pairing, annotation state and statistics up to date with the store."""
+        self.pipeline.sync()
+        self.annotator.update(self.store)
+        self.stats.update()
+
+    def idle(self, now: float) -> None:
+        self.pipeline.idle(now)
+        self.refresh()
+
+    def finish(self) -> None:
+        self.pipeline.finish()
+        self.refresh()
+        self._place_contradiction()
+        # what the source's labels and stamps turned out to be worth, said once
+        self.warnings.extend(n for n in self.pipeline.source_notes() if n not in self.warnings)
+        self.notes.extend(n for n in self.pipeline.timing_notes() if n not in self.notes)
+
+    def settled(self) -> bool:
+        """Whether the store may be dropped now (see `new_segment`): every byte read
+        decided, no request waiting for its answer or its timeout, no row waiting to be
+        merged; the caller brings pairing and the statistics up to date first
+        (`refresh`)."""
+        pipeline = self.pipeline
+        store = self.store
+        if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
+            return False  # network captures (several open requests) are not windowed
+        if store.status.tobytes().find(bytes([Status.OPEN])) >= 0:
+            return False
+        if pipeline.holding:  # bytes read but not framed yet
+            return False
+        for ch in pipeline.channels.values():
+            framer = ch.framer
+            if framer is None or ch.held is not None or not framer.settled():
+                return False
+            if ch.staging is not None and ch.read < len(ch.staging):
+                return False
+        return True
+
+    def new_segment(self) -> bool:
+        """Forget the rows framed so far and go on in an empty store, numbering rows on
+        from where they were (`base`): what keeps a headless live capture's memory
+        bounded, and a replay's (`ingest` with a window). Only at a settled moment
+        (`settled`); False (nothing done) otherwise. The framers, the pairer, the
+        annotation state and the statistics carry on as they are, so the rows that follow
+        are those one store would have had, shifted by `base` (their offsets by
+        `stream_base`). Callers must be done with the old rows (listed, exported,
+        published, counted) and tell every consumer that numbers rows (see
+        `sniffer.live.engine.LiveCapture.cut`)."""
+        if not self.settled():
+            return False
+        pipeline = self.pipeline
+        store = self.store
+        store.sync()
+        kinds = store.kind.tobytes()
+        self.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
+        for number, stream in store.streams.items():
+            self.stream_base[number] = self.stream_base.get(number, 0) + len(stream)
+        self._place_contradiction()
+        rows = len(store)
+        fresh = FrameStore(store.streams)  # the same bytearrays, emptied below
+        fresh.stamps, fresh.resolution = store.stamps, store.resolution
+        fresh.fill_channel = store.fill_channel
+        fresh.peers, fresh.servers = store.peers, store.servers
+        for ch in pipeline.channels.values():
+            assert ch.framer is not None
+            ch.framer.rebase()
+            if ch.staging is None:
+                ch.framer.out = fresh
+            ch.fed = 0
+            if ch.hint_at is not None and ch.hint_dir:
+                ch.hint_at, ch.hint_dir = [0], ch.hint_dir[-1:]
+        for stream in store.streams.values():
+            del stream[:]
+        pipeline.store = fresh
+        pipeline.pairer.store = fresh
+        pipeline.pairer.next = 0
+        pipeline._hint_checked = 0
+        self.forget_annotation()
+        self.stats.store = fresh
+        self.stats.next = 0
+        self.describer = Describer(fresh, self.annotator, self.describer.size)
+        self.store = fresh
+        self.base += rows
+        return True
+
+    def _place_contradiction(self) -> None:
+        """The row a source warning names (the first frame labelled against its
+        content), numbered in the whole capture once its segment ends."""
+        pipeline = self.pipeline
+        if pipeline.first_contradiction >= 0 and not self._contradiction_placed:
+            pipeline.first_contradiction += self.base
+            self._contradiction_placed = True
+
+    def _timed(self) -> bool:
+        """Whether the rows framed so far may be counted for good: not while the host
+        reads' resolution is still unknown (`Pipeline` estimates it from the first
+        reads), since the statistics count an answer faster than the stamps resolve as
+        such only once it is known. A whole store counts its rows at the end, or at the
+        first progress (0.25 s in, the resolution long known), and a windowed replay must
+        count them alike; one whose reads never come close enough to tell (a slow poll,
+        a read a second) keeps every row, as before windows."""
+        store = self.store
+        return store.stamps != Stamp.READ_END or store.resolution > 0
+
+    def forget_annotation(self) -> None:
+        """The annotator's state carried into an emptied store (a new segment): what it
+        learnt stays, the rows it learnt it from are gone. With `annotator.keep_rows` the
+        rows it recorded stay too, numbered in the whole capture (the rows before the new
+        store's first are `self.base + len(self.store)` here: `new_segment` calls this
+        before it moves `base` on, `sniffer.session.index` after it emptied the store)."""
+        annotator = self.annotator
+        annotator.next = 0
+        if annotator.keep_rows:
+            annotator.base = annotator.sunspec.base = self.base + len(self.store)
+            return
+        for track in self.annotator.tracks.values():  # the parameter selected last
+            if track.rows:
+                track.rows, track.numbers = [-1], track.numbers[-1:]
+        for unit in self.annotator.sunspec.units.values():  # scale factors as they are
+            for history in unit.scale.values():
+                if history.rows:
+                    history.rows, history.values = [-1], history.values[-1:]
+
+    def ingest(
+        self,
+        chunks: Iterable[Chunk],
+        progress: Progress | None = None,
+        every: float = 0.25,
+        should_stop: Callable[[], bool] | None = None,
+        *,
+        shown: bool = False,
+        index: bool = True,
+        window: int | None = None,
+        segment: Callable[[Session], None] | None = None,
+        written: Callable[[Session, Writer | None], None] | None = None,
+        opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
+    ) -> None:
+        """Feed all `chunks`, refreshing and reporting progress every `every` seconds.
+
+        Where a sidecar index fits (see `open_session`), its rows are read instead, a
+        block at a time, with progress after each block. `shown`: another thread shows
+        the rows reported to `progress`, so they are never taken back: a sidecar found
+        damaged after some raises `sniffer.session.index.DamagedError` (else the capture is indexed
+        again). `index` False: the sidecar is neither read nor written.
+
+        `window`: rows the store may hold before they are dropped (at the next settled
+        moment, `new_segment`): memory stays bounded whatever the size of the capture.
+        `segment(session)` is called with each segment's rows in `session.store` (row
+        `i` is row `session.base + i` of the capture) just before they are dropped, and
+        with the last segment's once every row has been read: what needs every row
+        (`sniffer.analysis.pollcycle.PollCycles`, `sniffer.analysis.baud.SpeedCheck`) counts
+        them there.
+        The statistics carry on across segments (bound them: `Stats.bound`). The
+        sidecar is then written a segment at a time (`sniffer.session.index.Writer`), and read
+        back a block at a time, each block a segment.
+
+        `written(session, writer)` (with `window`): called once each segment's rows are
+        in the sidecar being written (`writer`, None when none is: the rows are only in
+        `session.store`), before they are dropped, and once with the last segment's.
+        `opened(path, fd, start, header)`: the sidecar being read back (see
+        `sniffer.session.index.load`). Both feed `sniffer.session.paged.PagedStore`."""
+        if not index:
+            self._sidecar = None
+        if self._sidecar is not None and self.indexed_from is None and not len(self.store):
+            # read back from the sidecar index where one fits: every row is there already
+            # (here rather than in open_session: the TUI draws while this thread reads)
+            from sniffer.session import index as sidecar
+
+            path, capture, key = self._sidecar
+            self.indexed_from = sidecar.load(
+                self,
+                capture,
+                path,
+                key,
+                progress,
+                should_stop,
+                shown=shown,
+                segment=segment if window is not None else None,
+                opened=opened,
+            )
+        if self.indexed_from is not None:
+            if segment is not None:
+                segment(self)  # every row, or (windowed) the last block's
+            return
+        last = time.monotonic()
+        done = 0
+        writer = None
+        if window is not None and self._sidecar is not None:
+            from sniffer.session import index as sidecar
+
+            writer = sidecar.Writer(self._sidecar[0])
+        retry = window or 0  # rows in the store before the next try at a new segment
+        try:
+            # readers may pass runs of reads as one batch (sniffer.sources.reads): the
+            # pipeline frames them read by read, so the rows are the same
+            with batching(self.batch_reads):
+                for chunk in chunks:
+                    self.feed(chunk)
+                    done += len(chunk.data)
+                    now = time.monotonic()
+                    if now - last >= every:
+                        last = now
+                        self.refresh()
+                        if progress is not None:
+                            progress(done, self.base + len(self.store))
+                        if should_stop is not None and should_stop():
+                            return
+                    if window is not None and len(self.store) >= retry:
+                        self.pipeline.sync()
+                        if self._timed():
+                            self.refresh()
+                        if self._timed() and self.settled():
+                            if segment is not None:
+                                segment(self)
+                            if writer is not None:
+                                writer.add(self)
+                            if written is not None:
+                                written(self, _open(writer))
+                            self.new_segment()
+                            retry = window
+                        else:  # try again once more rows came (the test costs a scan)
+                            retry = len(self.store) + max(1, window // 8)
+            self.finish()
+            if segment is not None:
+                segment(self)
+            if self._sidecar is not None:
+                from sniffer.session import index as sidecar
+
+                path, capture, key = self._sidecar
+                if capture.finished:  # read to its end
+                    if writer is not None:
+                        writer.add(self)
+                        if written is not None:
+                            written(self, _open(writer))
+                            written = None
+                        writer.close(self, capture, key)
+                    else:
+                        sidecar.save(self, capture, path, key)
+                    self._sidecar = None
+            if written is not None and window is not None:
+                written(self, None)  # the last segment, not in a sidecar
+        finally:
+            if writer is not None:  # (no half-written sidecar left behind: Ctrl-C)
+                writer.abandon()
+        if progress is not None:
+            progress(done, self.base + len(self.store))
+
+
+def _open(writer: Writer | None) -> Writer | None:
+    """The writer, if it still writes its sidecar (not abandoned: a folder filled up)."""
+    return writer if writer is not None and writer.out is not None else None
+
+
+def open_session(
+    path: str | Path,
+    options: ReadOptions | None = None,
+    *,
+    bindings: Mapping[int, Binding] | None = None,
+    timeout: float | None = None,
+    index: bool = True,
+) -> tuple[Session, Capture]:
+    """A session for a capture file, not yet ingested: feed it `capture.chunks()`.
+
+    With `index` (and MODSCOPE_NO_INDEX unset), a capture of at least
+    `sniffer.session.index.MIN_SIZE` bytes is read back by `Session.ingest` from its sidecar index
+    when one fits it (the capture itself is then not read), and gets one once it has been
+    read to its end.
+    """
+    options = options or ReadOptions()
+    capture = open_capture(path, options)
+    line = options.line(capture.info.line)
+    session = Session(
+        line,
+        bindings=bindings,
+        exact_timing=capture.info.exact_timing,
+        timeout=timeout,
+        source=str(path),
+        labels=capture.info.labels,
+        stamps=capture.info.stamps,
+        resolution=capture.info.resolution,
+        network=capture.info.channels if capture.info.network else None,
+    )
+    if index:
+        _sidecar(session, capture, Path(path), options, timeout)
+    return session, capture
+
+
+def _sidecar(
+    session: Session, capture: Capture, path: Path, options: ReadOptions, timeout: float | None
+) -> None:
+    from sniffer.session import index
+
+    try:
+        if not index.enabled() or not path.is_file() or path.stat().st_size < index.MIN_SIZE:
+            return
+    except OSError:
+        return
+    session._sidecar = (path, capture, index.settings_key(session, options, timeout))
+
+
+def replay_file(
+    path: str | Path,
+    options: ReadOptions | None = None,
+    *,
+    bindings: Mapping[int, Binding] | None = None,
+    timeout: float | None = None,
+    progress: Progress | None = None,
+) -> Session:
+    """Open, frame, pair and annotate a whole capture file."""
+    session, capture = open_session(path, options, bindings=bindings, timeout=timeout)
+    session.ingest(capture.chunks(), progress)
+    session.warnings.extend(capture.warnings)
+    return session
