@@ -10,7 +10,7 @@ out once (a plan per code byte and direction, kept on the registry). The commone
 a capture has that was not seen before, a well-formed answer to an FC 3 or 4 read (the
 values change, the requests repeat), is read straight from its bytes (`_words_answer`):
 the same Dissection the schemas and the meaning routine give, which
-`tests/test_dissect_fast.py` holds to on arbitrary bytes.
+`tests/dissectors/test_dissect_fast.py` holds to on arbitrary bytes.
 """
 
 from __future__ import annotations

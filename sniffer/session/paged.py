@@ -15,7 +15,7 @@ folder that filled up) stay in memory, a block each (`take` with no writer).
 
 Rows are numbered in the whole capture, as in a store holding every row, and every
 column reads as it would there: `raw`, `view` and the columns give the same values
-(tests/test_paged.py holds it to that). Only the TUI uses it, for captures that get a
+(tests/session/test_paged.py holds it to that). Only the TUI uses it, for captures that get a
 sidecar (`wanted`); it is filled by one thread and read by others: rows below `len()`
 are complete.
 """

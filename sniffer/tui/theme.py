@@ -3,7 +3,7 @@ other timing flag, noise, event), legible on the selected row.
 
 Each colour is given as a Textual theme variable (`$row-exception`, ...) that the
 stylesheet uses; every foreground keeps a contrast of at least 4.5:1 (WCAG AA) on the
-list's background and on the selected row, focused or not (tests/test_tui_theme.py
+list's background and on the selected row, focused or not (tests/tui/test_tui_theme.py
 computes it). `modscope-dark` is the default; `modscope-light` is for bright rooms and
 light terminals (the `T` key switches between them).
 """

@@ -26,7 +26,7 @@ from sniffer.session.session import Session
 from sniffer.sources.synth import polling_frames
 from sniffer.text import FORMULA_START
 from tests.fuzz.harness import budget, bytes_by_channel, conserved, mutated, no_hang
-from tests.seedvectors import load_examples, wire_bytes
+from tests.support.seedvectors import load_examples, wire_bytes
 
 pytestmark = [pytest.mark.fuzz, pytest.mark.slow]
 

@@ -1,0 +1,1 @@
+"""Tests of sniffer.analysis: statistics, the poll cycle, gateways, diff, drafts."""

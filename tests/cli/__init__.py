@@ -1,0 +1,1 @@
+"""Tests of sniffer.cli: the commands as a user runs them."""

@@ -1,0 +1,1 @@
+"""Tests of dissectors/: function codes, envelopes, the registry, device dictionaries."""

@@ -1,0 +1,1 @@
+"""Tests of sniffer.framing: the RTU and ASCII framers, the store, pairing."""

@@ -1,0 +1,1 @@
+"""Tests of sniffer.meaning: annotation, frame details, SunSpec."""

@@ -1,0 +1,1 @@
+"""Tests of sniffer.outputs: listings, exports, Parquet, MQTT."""

@@ -1,0 +1,1 @@
+"""Tests of sniffer.session: the sidecar index, the paged store, windowed replays."""

@@ -1,0 +1,1 @@
+"""Tests of sniffer.tui: the Textual app, its panes, keys and screens."""
