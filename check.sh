@@ -26,6 +26,21 @@ step() {  # step "what is done now"
 done_step() {
   echo "   done in $((SECONDS - STEP_START)) s"
 }
+# ticking CMD ...: run CMD, saying every 20 s that it still runs, so that a step that takes
+# long (a first mypy run, apt-get, pip building the compiled core) is never silent for long;
+# returns CMD's exit status
+ticking() {
+  "$@" &
+  local pid=$! waited=0
+  while kill -0 "$pid" 2>/dev/null; do
+    sleep 1
+    waited=$((waited + 1))
+    if [ $((waited % 20)) -eq 0 ]; then
+      echo "   ... still running after ${waited} s: $1 ${2-}"
+    fi
+  done
+  wait "$pid"
+}
 
 # -- what is missing, and whether we can install it: said before anything is done -------
 have() {  # a program on PATH, or in /usr/sbin (mosquitto) that a user's PATH may lack
@@ -74,10 +89,10 @@ fi
 # -- peer programs, and a C compiler before pip builds the compiled core ----------------
 if [ "$can_apt" = yes ]; then
   step "installing peer programs for the tests: ${missing_pkgs[*]} (apt-get, quietly)"
-  if $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null \
-    && echo "   package lists updated; installing" \
-    && $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-      "${missing_pkgs[@]}" >/dev/null; then
+  if ticking $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq >/dev/null \
+    && echo "   package lists updated; installing (a line per package set up)" \
+    && ticking $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+      "${missing_pkgs[@]}" | { grep --line-buffered '^Setting up' || true; } | sed -u 's/^/   /'; then
     done_step
   else
     echo "   apt-get failed; the tests that need ${missing_progs[*]} will be skipped"
@@ -91,7 +106,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   done_step
 fi
 step "installing modscope and its dev extras into $VENV (a minute or two the first time)"
-"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[dev,imports]'
+ticking "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e '.[dev,imports]'
 done_step
 
 # the compiled core's tests fail, not skip, where it was not built
@@ -103,14 +118,17 @@ step "ruff (lint and format)"
 "$VENV/bin/ruff" format --check .
 done_step
 step "mypy (strict)"
-"$VENV/bin/mypy"
+ticking "$VENV/bin/mypy"
 done_step
+# pytest-xdist runs the tests in parallel, one worker a CPU; tests/support/progress.py names
+# each test file as it starts and what still runs when the screen has been quiet for 20 s
+JOBS=${MODSCOPE_TEST_JOBS:-auto}
 if [ "${1:-}" = "--quick" ]; then
-  step "pytest, without the slow tests"
-  "$VENV/bin/pytest" -q -m "not slow"
+  step "pytest, without the slow tests ($JOBS workers)"
+  "$VENV/bin/pytest" -q -n "$JOBS" --durations=10 -m "not slow"
 else
-  step "pytest, the whole suite (slow tests included: several minutes)"
-  "$VENV/bin/pytest" -q
+  step "pytest, the whole suite, slow tests included ($JOBS workers; a few minutes)"
+  "$VENV/bin/pytest" -q -n "$JOBS" --durations=10
 fi
 done_step
 echo "== all checks passed in $((SECONDS - T0)) s"

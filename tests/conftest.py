@@ -1,12 +1,16 @@
-"""Provides the `needs` marker: a test that runs an external program is skipped, with a
-reason naming the program and the package that brings it, where the program is missing
-(./check.sh installs them with apt where it can; the rest of the suite runs anyway)."""
+"""Provides the `needs` marker and the suite's progress lines (tests/support/progress.py).
+
+A test marked `needs` runs an external program: where the program is missing it is
+skipped, with a reason naming the program and the package that brings it (./check.sh
+installs them with apt where it can; the rest of the suite runs anyway)."""
 
 from __future__ import annotations
 
 import shutil
 
 import pytest
+
+from tests.support import progress
 
 PACKAGES = {  # program -> the Debian package that has it
     "tshark": "tshark",
@@ -22,6 +26,7 @@ PACKAGES = {  # program -> the Debian package that has it
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    progress.register(config)
     config.addinivalue_line(
         "markers", "needs(*programs): skip, naming the program, where one is not installed"
     )
