@@ -8,12 +8,11 @@ for the dissector's hot path: a frozen dataclass's `__init__` must set every slo
 `object.__setattr__`, while these fill a plain object with the same slots and then give
 it its class, which Python allows because the layouts are the same.
 
-Measured before keeping it (issue 9; `benchmarks/bench_dissect.py` workload, best of 15
-runs of CPU time per frame, three alternating pairs of processes each way): this swap
-4.1-4.35 us per frame; plain slotted, not frozen dataclasses built by their constructors
-4.4-4.7 us (5-7% slower, and a kept dissection could then be changed by whoever reads
-it); frozen dataclasses built by their constructors 25-35% slower (modscope/pymodbus
-ratio 0.74 against 1.0-1.1 in the same runs). So the swap stays.
+Why the swap (on the `benchmarks/bench_dissect.py` workload): frozen dataclasses built
+by their constructors make a whole dissection a quarter to a third slower; plain
+slotted classes that are not frozen cost a little more than the swap, and would let
+whoever reads a kept dissection change it. The swap keeps them frozen at the cost of
+plain ones.
 """
 
 from __future__ import annotations

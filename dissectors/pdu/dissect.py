@@ -193,8 +193,9 @@ def _words_answer(
     """An answer to an FC 3 or 4 read (not from unit 0) whose byte count is the bytes
     that follow and twice the quantity its request (of the same code, address and
     quantity whole) asked for: what the schemas, `check_structure`, `pair` and `read`
-    make of it, read straight from the bytes (2 us against 8 for 10 registers). None for
-    any other answer: the full path takes it."""
+    make of it, read straight from the bytes: a polling capture is mostly such answers,
+    and the full path costs several times more. None for any other answer: the full
+    path takes it."""
     if size < 3 or len(request) < 6 or request[1] != plan.function:
         return None
     byte_count = body[2]

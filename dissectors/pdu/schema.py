@@ -97,9 +97,9 @@ class Record(Struct):  # type: ignore[misc]  # construct is untyped
 
     This reaches into construct's private parse hooks (`_parse`, `_parsereport`,
     `_subcons`), which is why construct is pinned below 2.11. construct's public API
-    would do it as a Struct with a `Tell` between fields, parsed by `parse`: measured
-    (issue 9) at 12.5 us against 3.3 us for a 10-register FC 3 response, and a truncated
-    frame would lose the fields read before the cut. So the hooks stay; the tests of
+    would do it as a Struct with a `Tell` between fields, parsed by `parse`: several
+    times slower on a register answer, and a truncated frame would lose the fields read
+    before the cut. So the hooks stay; the tests of
     every function code's vectors catch a construct release that changes them."""
 
     def __init__(self, *subcons: Any, **subconskw: Any) -> None:

@@ -21,7 +21,7 @@ def marking(on: Iterable[int]) -> bytes:
     for b in on:
         if 0 <= b < 256:
             table[b] = 1
-    return bytes(table)  # 1 us for a few values; 31 us a test of all 256 (per live pump)
+    return bytes(table)  # cheap for a few values; a test of all 256 is not (see _any_of)
 
 
 def both(a: bytes, b: bytes) -> bytes:
@@ -38,7 +38,8 @@ def flag_mask(flags: array[int], bits: int, start: int = 0, end: int | None = No
     """1 for each row of `flags[start:end]` with any of `bits` set.
 
     Read from the column's bytes a byte position at a time (`bytes.translate` on every
-    fourth byte): 1M rows in 3 ms, against 30 ms for `map(and_, ...)` over the ints."""
+    fourth byte), so the work per row is done in C rather than by `map(and_, ...)` over
+    the ints."""
     end = len(flags) if end is None else end
     raw = flags[start:end].tobytes()
     size = flags.itemsize
@@ -55,7 +56,6 @@ def flag_mask(flags: array[int], bits: int, start: int = 0, end: int | None = No
 def _any_of(bits: int) -> bytes:
     """The `marking` of the byte values with any of `bits` (at most 255 tables): made
     once, not on every call. A live capture asks for a mask of a few rows about a
-    thousand times a second (the statistics, per pump): the table cost 31 us of the
-    call's 32 (0.9 us now); live JSONL at 921600 baud, in-process, 110 us a frame
-    before, 90 after."""
+    thousand times a second (the statistics, per pump): making the table would be
+    nearly all of such a call's cost."""
     return marking(b for b in range(256) if b & bits)

@@ -41,9 +41,8 @@ READ_GAPS = 4096  # gaps between host reads that the read resolution is estimate
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 # Batches of reads (a reader's, at most MAX_BATCH_SPAN each) held and framed together,
-# up to this many bytes: the framer's cost per call, paid once for many. Reading, framing
-# and pairing 1M frames in-process (19k batches): 16 ms reads 0.54 -> 0.45 s, one frame
-# per packet 0.65 -> 0.64 s (what is left there is the reader's, per batch)
+# up to this many bytes: the framer's cost per call, paid once for many (what is left
+# per batch is the reader's)
 HOLD_BYTES = 1 << 19
 
 
@@ -273,8 +272,8 @@ class Pipeline:
         if self.labels != Labels.HINT or not any(
             d != Direction.UNKNOWN for ch in self.channels.values() for d in ch.hint_dir or ()
         ):
-            # nothing to check against: a passive tap labels every byte inbound (UNKNOWN);
-            # 0.3 s of 1.3 s for 200k frames of a recording before this test
+            # nothing to check against: a passive tap labels every byte inbound (UNKNOWN),
+            # and a walk over every new row for nothing would be a large share of indexing
             self._hint_checked = n
             return
         kind, channel, offset = store.kind, store.channel, store.offset

@@ -19,7 +19,7 @@ from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 
 NO_PARTNER = -1
 # plain ints for per-row tests: `int & IntFlag` goes through the enum's operator and
-# makes a new member each time (about 1 us, against 0.03 us for two ints)
+# makes a new member each time, many times the cost of `&` on two ints
 _ASCII, _MBAP, _BAD_CHECK = int(Flag.ASCII), int(Flag.MBAP), int(BAD_CHECK)
 _NOISE, _EVENT = int(Kind.NOISE), int(Kind.EVENT)
 _KINDS = {int(k): k for k in Kind}
@@ -135,7 +135,7 @@ class FrameStore:
         """Record answered requests: `pairs` (int64) is flat, request row then answer row."""
         partner, status, fc = self.partner, self.status, self.fc
         fast = core.FAST
-        if fast is not None:  # the compiled copy of the loop below; 1M frames: 0.14 s -> 4 ms
+        if fast is not None:  # the compiled copy of the loop below (one step a pair)
             fast.pair_rows(partner, status, fc, pairs)
             return
         for k in range(0, len(pairs), 2):

@@ -40,10 +40,8 @@ from sniffer.session.session import Session
 IDLE_QUIET = 0.02  # seconds without bytes after which the session is told the line is idle
 PUMP_SECONDS = 0.05  # longest wait of one pump for new chunks
 # a headless pump woken by a read or two lets more gather this long before it frames
-# them: a pump costs about the same for one read as for ten (live JSONL at 921600 baud,
-# reads every ms, in-process: 75 us a frame with a pump per read, 49 with five, 45 with
-# ten; bench_live.py, 25 s: 25.0% of a core with 5 ms, 23.0% with 10 ms, median latency
-# 5.1 and 9.2 ms); the listing is that much later, well within its 50 ms
+# them: a pump costs about the same for one read as for ten, so on a busy line gathering
+# saves much of the CPU; the listing is that much later, well within its 50 ms
 PUMP_GATHER = 0.010
 GATHER_READS = 4  # ... unless this many reads were waiting already
 RECORD_GATHER = 0.002  # seconds the recorder lets reads gather before writing them
@@ -440,8 +438,7 @@ class GlobalRows(Describer):
     ) -> Iterator[tuple[int, Shared | None]]:
         """The session's describer's walk (`Describer.contents`, answers with other
         values sharing a content too), renumbered: the live listing's rows cost what a
-        replay's do (in-process, 30k frames at 921600 baud in 1 ms reads, CPU time:
-        live JSONL 60 -> 32 us a frame, text 29 -> 19)."""
+        replay's do, rather than a lookup and a new content each."""
         base = self.session.base
         for i, shared in self.session.describer.contents((r - base for r in rows), values):
             yield i + base, shared

@@ -124,7 +124,7 @@ class Annotator:
             return
         # Only two sorts of row need a look, picked out with C-level scans of the columns:
         # the rows of bound units, and answers to FC 3 of the others (reads that may show
-        # a SunSpec device). 1M frames, nothing bound: 0.12 s instead of 0.49 s a row at a time.
+        # a SunSpec device). Every other row is skipped without a Python step of its own.
         bound = self.bindings
         units = store.unit[start:n].tobytes()
         answers = store.kind[start:n].tobytes().translate(_IS_RESPONSE)

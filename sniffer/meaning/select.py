@@ -279,7 +279,7 @@ class FilterJob:
         self.annotator = annotator
         self.describer = Describer(store, annotator, size=512)
         # 4 bytes a match (rows below 2**32: a store that size would not fit in memory):
-        # the transactions view of a 30M-row day holds 15M matches, 60 MB less than "Q"
+        # the transactions view of a 30M-row day holds 15M matches: 60 MB, half of "Q"
         self.rows: array[int] = array("I")
         self.scanned = 0  # rows whose columns were tested
         self.candidates: array[int] = array("I")  # rows waiting for a detail test

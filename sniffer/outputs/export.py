@@ -223,10 +223,9 @@ class PcapExporter:
     `Describer.shared`) but for its time and, for Modbus/TCP, its transaction id: the
     first such row's block is written by the pcapng writer and kept as a template,
     the next ones are that template with their time and id put in, and, for an answer
-    with other values, its bytes (see `_spliced`). Over the 100k-frame benchmark
-    (in-process, CPU time) 4.4 us a row; 17.0 before answers with other values shared
-    a content, 48 before the content cache. With the compiled core, 0.87 us (see
-    `_write_compiled`)."""
+    with other values, its bytes (see `_spliced`): a polling capture repeats a few
+    contents all day, so most rows never reach the pcapng writer. With the compiled
+    core the templates are filled in C (see `_write_compiled`)."""
 
     def __init__(
         self,
@@ -299,9 +298,9 @@ class PcapExporter:
         `Describer.contents`) and, for a Modbus/TCP packet, keys of rows whose packet
         differs only in the bytes spliced in (`ex_packet_key` says which), so that most
         writes, echoes and exceptions of a polling capture take no new template. The rows
-        it finds count as found for the describer's guard. On the 100k-frame benchmark
-        (in-process, CPU time) 0.87 us a row against 5.8 with `_rows` alone: 0.33 in the
-        compiled loop and 409 rows left to `_rows` at about 60 us each."""
+        it finds count as found for the describer's guard. What is left of the cost is
+        the few rows handed to `_rows`, each of which describes a content and makes its
+        template."""
         describer = self.describer
         store = describer.store
         store.sync()  # no column grows while the compiled loop holds them
@@ -441,8 +440,8 @@ def _spliced(tail: bytes, raw: bytes) -> _Spliced | None:
     that way (checked by making it again).
 
     An answer that differs from another only in its values is described alike (see
-    Describer.contents): its packet is the other's with its own bytes put in. 2 us a
-    row instead of describing and writing it (20 us)."""
+    Describer.contents): its packet is the other's with its own bytes put in, a small
+    part of the cost of describing and writing it."""
     n = len(raw)
     pdu_end = 5 + n - 3  # protocol id, length and unit (5 bytes), then the PDU: raw[1:-2]
     said = f"RTU {raw.hex(' ')}; CRC {raw[-2:].hex(' ')} right".encode()

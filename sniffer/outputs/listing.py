@@ -65,7 +65,7 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, bytes):
         return value.hex()
     if isinstance(value, tuple):
-        if _SCALARS.issuperset(map(type, value)):  # words or bits: 3 us, not 13 (120 words)
+        if _SCALARS.issuperset(map(type, value)):  # words or bits: one copy, no call each
             return list(value)
         return [_jsonable(v) for v in value]
     return value
@@ -339,7 +339,7 @@ def _spliced(first: str, second: str, raw: bytes) -> _Spliced | None:
     values field in the second, what follows the values' text), so that `_splice` makes
     those of an answer with other values (Describer.contents gives such answers one
     content); None if the parts do not end that way (checked by making them again).
-    3 us a row instead of describing and encoding it (30 us)."""
+    Splicing costs a row a small part of what describing and encoding it would."""
     n = len(raw)
     if n < 5 or (n - 5) % 2 or (n - 5) // 2 >= len(_WORDS):
         return None
@@ -357,8 +357,8 @@ def _values_text(raw: bytes) -> str:
     field says them (as `json.dumps` writes the list and `WordsField` the text)."""
     data = raw[3:-2]
     words = _WORDS[len(data) // 2].unpack(data)
-    # `0x0001 0x0002` from the bytes' hex in groups of two (0.3 us for 12 words, against
-    # 2.5 formatting each word)
+    # `0x0001 0x0002` from the bytes' hex in groups of two: one call in C rather than a
+    # format per word
     text = "0x" + data.hex(" ", 2).upper().replace(" ", " 0x") if data else ""
     return f'{", ".join(map(str, words))}], "text": "{text}'
 
@@ -489,10 +489,8 @@ class Lister:
         """Row `i`'s text line from what rows with its content share (see
         `Describer.shared`): made once per content, with the time and latency of the
         row put in; a request's line shows no latency, so none is measured for it.
-
-        On the 100k-frame benchmark (in-process, CPU time) 3.7 us a row; 16.9 before
-        `Describer.contents` and contents shared by answers with other values, 37
-        before the content cache."""
+        A polling capture repeats a few contents all day, so most rows cost only the
+        formatting of their time."""
         store = self.describer.store
         parts = shared.memo.get("text")
         if parts is None:
@@ -515,10 +513,9 @@ class Lister:
     def _json_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s JSONL line from what rows with its content share, with the row's
         index, times, channel and transaction put in. None for a gateway's row, whose
-        line says more: `_line` makes it.
-
-        On the 100k-frame benchmark (in-process, CPU time) 11.8 us a row; 30.6 before
-        `Describer.contents` and the values spliced in, 65 before the content cache."""
+        line says more: `_line` makes it. The parts a content decides are encoded once
+        for all its rows, so a row costs its own keys and, for an answer with other
+        values, the splice."""
         store = self.describer.store
         if i in store.links:
             return None
