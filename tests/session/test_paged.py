@@ -240,7 +240,7 @@ async def test_the_app_pages_a_capture_with_a_sidecar_and_shows_every_row(demo: 
         assert app.model.paged is not None
         assert app.model.published == len(full.store)
         # the estimate from the file's size counts each read of a batch as its packet
-        progress = app._index_progress()
+        progress = app.feeding.index_progress()
         assert progress is not None and 0.9 < progress <= 0.99
         await pilot.press("end")
         await pilot.pause()

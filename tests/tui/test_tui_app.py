@@ -381,7 +381,7 @@ async def test_w_watches_registers_and_opens_one() -> None:
         while panel.row_count < 7:
             assert time.monotonic() < deadline
             await pilot.pause(0.1)
-            app._watch()
+            app.watching.show()
         names = [k[3] for k in panel.keys]
         assert "Under Voltage Trip" in names
         k = names.index("Under Voltage Trip")
@@ -447,7 +447,7 @@ async def test_device_strings_are_shown_as_text_never_as_markup() -> None:
         assert HOSTILE_SHOWN[:15] in screen_text(app)
         await pilot.press("w")
         await pilot.pause(0.5)
-        app._watch()
+        app.watching.show()
         await pilot.pause()
         assert "[bold red]P" in screen_text(app)
         assert app.is_running  # nothing clicked app.quit

@@ -161,8 +161,8 @@ async def test_moves_in_the_watch_keep_their_order_with_the_keys_after_them() ->
     async with app.run_test(size=(120, 36)) as pilot:
         await ready(pilot, app)
         await pilot.press("w")
-        await until(pilot, lambda: app.watch_model is not None and app.watch_model.next >= 17)
-        app._watch()
+        await until(pilot, lambda: app.watching.watch is not None and app.watching.watch.next >= 17)
+        app.watching.show()
         await pilot.pause()
         keys = app.main.watch_panel.keys
         burst(app, ["tab", "x", "down", "x", "j", "j", "x"])

@@ -118,8 +118,8 @@ async def test_a_plot_from_a_partial_scan_says_so() -> None:
         app.pop_screen()
         await pilot.press("w")
         deadline = time.monotonic() + 10
-        while app._watch_progress() is not None:
+        while app.watching.progress() is not None:
             assert time.monotonic() < deadline
             await pilot.pause(0.05)
-        app._watch()
+        app.watching.show()
         assert app.main.lower.border_title == "register watch"

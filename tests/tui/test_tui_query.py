@@ -135,4 +135,4 @@ async def test_the_filter_bar_says_the_same_and_keeps_the_rows(text: str) -> Non
         assert app.main.filter_bar.has_class("-error")
         assert str(caught.value) in screen_text(app).replace("\n", "")
         assert app.frames.count == before
-        assert app.applied_filter == ""
+        assert app.filtering.applied == ""

@@ -56,10 +56,10 @@ async def test_x_picks_and_r_shows_the_table_enter_goes_to_the_frame() -> None:
         await ready(pilot, app)
         await pilot.press("w")
         deadline = time.monotonic() + 10
-        while app.watch_model is None or app.watch_model.next < app.model.shown:
+        while app.watching.watch is None or app.watching.watch.next < app.model.shown:
             assert time.monotonic() < deadline
             await pilot.pause(0.05)
-        app._watch()
+        app.watching.show()
         await pilot.press("tab")
         assert app.focused is app.main.watch_panel
         panel = app.main.watch_panel

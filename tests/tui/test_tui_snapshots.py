@@ -41,12 +41,12 @@ def after(*keys: str, watch: bool = False) -> Callable[[Pilot[Any]], Awaitable[N
             await _idle(pilot, app)
         if watch:
             deadline = time.monotonic() + 20
-            w = app.watch_model
+            w = app.watching.watch
             while w is None or w.next < app.model.shown:
                 assert time.monotonic() < deadline
                 await pilot.pause(0.05)
-                w = app.watch_model
-            app._watch()
+                w = app.watching.watch
+            app.watching.show()
         await _idle(pilot, app)
 
     return run

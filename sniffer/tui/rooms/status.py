@@ -1,0 +1,79 @@
+"""Provides the status line's room: what the status bar says (source, line, rows, rate,
+errors, indexing, recording, losses), on the main screen and the screens that show it."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from sniffer.tui.feed import LiveStatus, live_status
+from sniffer.tui.rooms.base import Room
+from sniffer.tui.screens.ladder import LadderScreen
+from sniffer.tui.screens.regtable import TableScreen
+from sniffer.tui.widgets.status import StatusInfo
+
+if TYPE_CHECKING:
+    from sniffer.tui.app import ModscopeApp
+
+
+class StatusLine(Room):
+    """Gathers the status bar's facts from the rooms and shows them."""
+
+    def __init__(self, app: ModscopeApp) -> None:
+        super().__init__(app)
+        self._rate_mark: tuple[float, int] = (time.monotonic(), 0)
+        self._rate: float | None = None
+
+    def reset_rate(self) -> None:
+        """The rows start over (a restart): the rate is measured again."""
+        self._rate_mark, self._rate = (time.monotonic(), 0), None
+
+    def measure_rate(self) -> None:
+        """Rows a second while they arrive, over a second or more (called every tick)."""
+        now = time.monotonic()
+        mark_t, mark_rows = self._rate_mark
+        rows = self.model.published
+        if rows < mark_rows:  # a restart (s) began again from the first row
+            self._rate_mark, self._rate = (now, rows), None
+        elif now - mark_t >= 1.0:
+            self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
+            self._rate_mark = (now, rows)
+
+    def show(self) -> None:
+        app = self.app
+        model, session = self.model, app.session
+        stats = session.stats
+        errors = sum(u.check_errors for u in list(stats.units.values())) + stats.noise_spans
+        rate = self._rate
+        if model.done:  # the capture's own rate
+            span = model.latest - model.origin
+            rate = model.published / span if span > 0 else None
+        live = app.live
+        status = live_status(live) if live is not None else LiveStatus()
+        line = session.line.describe()
+        if session.mode != session.line.mode:
+            line += f" ({session.mode})"
+        info = StatusInfo(
+            source=Path(session.source).name if live is None else session.source,
+            line=line,
+            rows=model.published,
+            bytes=model.reader.bytes_total,
+            errors=errors,
+            rate=rate,
+            indexing=not model.done and live is None and app.pacing.speed is None,
+            paused=app.paused,
+            following=self.frames.following,
+            speed="1x" if app.pacing.speed else "",
+            recording=Path(status.recording).name if status.recording else "",
+            recorded_bytes=status.recorded_bytes,
+            losses=status.lost_bytes,
+            note=app.feeding.note or status.failure,
+            live=live is not None,
+            reconnecting=status.reconnecting,
+            progress=app.feeding.index_progress(),
+        )
+        self.main.status.show(info)
+        screen = app.screen
+        if isinstance(screen, LadderScreen | TableScreen):
+            screen.status.show(info)
