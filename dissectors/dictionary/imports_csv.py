@@ -13,6 +13,7 @@ from pathlib import Path
 from .build import FORMAT, Builder
 from .device import DeviceDictionary
 from .errors import DictionaryError, nearest, raise_all
+from .limits import MAX_DIGITS, check_size
 from .reader import Source
 from .textfile import read_text
 from .tomlpos import LineMap
@@ -43,6 +44,10 @@ _CSV_NUMBERS = ("scale", "offset", "min", "max")
 
 def _csv_number(text: str, decimal_comma: bool = False) -> int | float | None:
     text = text.strip()
+    if len(text) > MAX_DIGITS:
+        # a hex integer this long converts, but Python refuses to print it in decimal,
+        # and no register address or value needs a thousand digits
+        return None
     if decimal_comma and re.fullmatch(r"[+-]?[0-9]+,[0-9]+", text):
         text = text.replace(",", ".")
     try:
@@ -128,6 +133,7 @@ def import_csv(path: str | Path) -> DeviceDictionary:
     """
     name = str(path)
     text = read_text(Path(path))
+    check_size(name, text)
     rows = [
         (number, line)
         for number, line in enumerate(text.splitlines(), start=1)

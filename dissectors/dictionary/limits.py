@@ -5,7 +5,7 @@ levels. Files far outside that are damage or an attack, and must be refused fast
 DictionaryError naming the file, the line and the limit, never by running out of memory,
 time or Python's recursion depth:
 
-- size: at most `MAX_BYTES` characters of text;
+- size: at most `MAX_BYTES` characters of text (CSV register lists too);
 - nesting: at most `MAX_DEPTH` levels of arrays, tables and mappings (tomllib and PyYAML
   build nested values by recursion and would end in a RecursionError);
 - YAML aliases: the document with every alias expanded may hold at most `MAX_NODES`
@@ -48,7 +48,8 @@ def _line(text: str, pos: int) -> int:
     return text.count("\n", 0, pos) + 1
 
 
-def _too_big(path: str, text: str) -> None:
+def check_size(path: str, text: str) -> None:
+    """Refuse text over MAX_BYTES characters, naming the file."""
     if len(text) > MAX_BYTES:
         raise DictionaryError(
             path,
@@ -115,7 +116,7 @@ def _dotted_line(text: str) -> int | None:
 
 def check_toml(path: str, text: str) -> None:
     """Refuse TOML text over the size, bracket nesting or digit limits (module doc)."""
-    _too_big(path, text)
+    check_size(path, text)
     depth = 0
     for match in _TOML_TOKENS.finditer(text):
         token = match.group()
@@ -156,7 +157,7 @@ def check_yaml(path: str, text: str) -> None:
     syntax error stops the check quietly: the real load reports it with its line."""
     import yaml
 
-    _too_big(path, text)
+    check_size(path, text)
     sizes: dict[str, int] = {}
     # one open collection: (anchor, values counted inside it so far)
     open_: list[tuple[str | None, int]] = []

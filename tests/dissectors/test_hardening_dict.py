@@ -9,7 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from dissectors.dictionary import DictionaryError, import_home_assistant, load_dictionary
+from dissectors.dictionary import (
+    DictionaryError,
+    import_csv,
+    import_home_assistant,
+    load_dictionary,
+)
 from dissectors.dictionary.bus import load_bus
 from dissectors.dictionary.limits import MAX_DEPTH, MAX_DIGITS, check_yaml, load_toml
 from sniffer.cli import main
@@ -126,6 +131,25 @@ def test_yaml_number_of_4300_digits_names_file_and_line(tmp_path: Path) -> None:
     with pytest.raises(DictionaryError) as caught:
         import_home_assistant(path)
     assert (caught.value.path, caught.value.line) == (str(path), 4)
+
+
+@pytest.mark.parametrize("column", ["address", "max"])
+def test_csv_hex_number_of_5000_digits_names_file_and_line(tmp_path: Path, column: str) -> None:
+    # a hex integer converts whatever its length, but Python cannot print one this long
+    # in decimal: the error message itself used to raise a bare ValueError
+    row = {"address": "0", "max": "100"} | {column: "0x" + "9" * 5000}
+    text = f"table,address,name,max\nholding,{row['address']},t,{row['max']}\n"
+    path = write(tmp_path, "big.csv", text)
+    with pytest.raises(DictionaryError) as caught:
+        import_csv(path)
+    assert (caught.value.path, caught.value.line) == (str(path), 2)
+
+
+def test_oversized_csv_is_refused_before_parsing(tmp_path: Path) -> None:
+    path = write(tmp_path, "huge.csv", "table,address,name\n" + "# padding\n" * 500_000)
+    with pytest.raises(DictionaryError) as caught:
+        import_csv(path)
+    assert "over the limit" in caught.value.message
 
 
 def test_oversized_file_is_refused_before_parsing(tmp_path: Path) -> None:
