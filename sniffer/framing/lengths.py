@@ -7,7 +7,8 @@ code that the framer's inline fast paths and the compiled core (`sniffer._core.r
 read. Where the fast paths cannot decide, `RtuLengths.candidates` tests every length the
 rules, the open request's predicted answer and the exception envelope allow, in order of
 preference, and `RtuLengths.silence_framed` frames what no rule knows by the silences
-around it. The search only reads: what was found, and what it predicts, is the framer's.
+around it. The search only reads: the open request is the framer's, passed in, and so is
+what it makes of the length found.
 """
 
 from __future__ import annotations

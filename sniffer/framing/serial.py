@@ -6,7 +6,9 @@ each position it asks the function-code registry which lengths a frame starting 
 could have (as a request, as a response, as the exact answer the last request predicts,
 as an exception), tests those lengths shortest first, and lets the CRC decide. Silence
 is used only where lengths cannot help: to frame unknown function codes, and to tell a
-frame with a bad CRC from noise when the timing is exact.
+frame with a bad CRC from noise when the timing is exact. The framer's inline fast paths
+(and their compiled copy) take the common frames; the search for the rest, and the
+length tables the fast paths read, are `sniffer.framing.lengths.RtuLengths`.
 
 Every byte fed in leaves in exactly one frame or one noise span, in order.
 """
