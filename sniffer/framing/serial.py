@@ -6,7 +6,9 @@ each position it asks the function-code registry which lengths a frame starting 
 could have (as a request, as a response, as the exact answer the last request predicts,
 as an exception), tests those lengths shortest first, and lets the CRC decide. Silence
 is used only where lengths cannot help: to frame unknown function codes, and to tell a
-frame with a bad CRC from noise when the timing is exact.
+frame with a bad CRC from noise when the timing is exact. The framer's inline fast paths
+(and their compiled copy) take the common frames; the search for the rest, and the
+length tables the fast paths read, are `sniffer.framing.lengths.RtuLengths`.
 
 Every byte fed in leaves in exactly one frame or one noise span, in order.
 """
@@ -22,17 +24,18 @@ from typing import TYPE_CHECKING, Any
 
 from dissectors.checks import crc16, lrc
 from dissectors.envelope import ascii_body
-from dissectors.functions import (
-    EXCEPTION_LENGTH,
-    FUNCTIONS,
-    IMPOSSIBLE,
-    NEED_MORE,
-    AnswerRule,
-    FunctionSpec,
-    LengthRule,
-    fixed,
-)
+from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, FunctionSpec
 from sniffer import core
+from sniffer.framing.lengths import (
+    ECHO,
+    FIXED,
+    INF,
+    MAX_RTU,
+    MIN_RTU,
+    WALKED,
+    RtuLengths,
+    compile_rules,
+)
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
 
@@ -40,46 +43,15 @@ if TYPE_CHECKING:
     from sniffer.framing.store import FrameStore
     from sniffer.sources.reads import Reads
 
-MAX_RTU = 256
-FIXED = AnswerRule.FIXED
-ECHO = AnswerRule.ECHO
-WALKED = -3  # the answer's length needs the rule's walker
-NO_ANSWER = -4  # the code has no answer rule
 MAX_ASCII = 513
 MAX_NOISE = 256  # bytes in one noise row; longer noise is shown in pieces
-MIN_RTU = 4
-INF = float("inf")
 # a chunk may seem this much faster than the line before its stamps count as inconsistent
 # (a USB adapter hands over a read up to about a millisecond after its first bytes came)
 TOO_FAST_SLACK = 0.002
 # a lone chunk (not a batch of reads) shorter than this is framed by the Python fast
 # path even where the compiled one is built: calling out costs about as much as framing
-# a few frames in Python. In-process, 300k frames fed one chunk at a time (median CPU s,
-# compiled / pure): one frame a chunk 0.90 / 0.90 (1.21 when every chunk called out),
-# 8 frames (~200 bytes) 0.34 / 0.42, 64 frames 0.17 / 0.35
+# a few frames in Python, so only a chunk of many frames gains by it
 FAST_MIN_BYTES = 128
-
-
-# A length rule and the kind of frame it describes (the fast paths use their own tables)
-_Rule = tuple[LengthRule, int]
-_EXCEPTION_RULE: _Rule = (fixed(EXCEPTION_LENGTH), int(Kind.EXCEPTION))
-
-
-def _compile_rules(
-    direction: Direction, functions: Mapping[int, FunctionSpec]
-) -> list[tuple[_Rule, ...]]:
-    table: list[tuple[_Rule, ...]] = [() for _ in range(256)]
-    for code, spec in functions.items():
-        rules: list[_Rule] = []
-        if spec.request_length is not None and direction != Direction.SLAVE:
-            rules.append((spec.request_length, int(Kind.REQUEST)))
-        if spec.response_length is not None and direction != Direction.MASTER:
-            rules.append((spec.response_length, int(Kind.RESPONSE)))
-        table[code] = tuple(rules)
-    if direction != Direction.MASTER:
-        for code in range(1, 128):
-            table[code | 0x80] = (_EXCEPTION_RULE,)
-    return table
 
 
 @dataclass(slots=True)
@@ -237,7 +209,7 @@ class _Framer:
         self.timeline = _Timeline(line, exact_timing)
         self.pos = len(self.stream)  # offset of the next undecided byte
         self.timeline.offset = self.pos
-        self.rules = _compile_rules(direction, functions)
+        self.rules = compile_rules(direction, functions)
         self.pair_inline = False  # rows are paired as they are framed (RTU fast path)
         self.pending_unit = -1  # the last request, awaiting its answer
         self.pending_fc = -1
@@ -292,46 +264,9 @@ class RtuFramer(_Framer):
     """Frames one channel of RTU bytes into `out`."""
 
     def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
-        direction = self.direction
         self.noise_start = -1  # offset where the current noise span began
-        # the exact answer length a request implies (none on a channel of requests only):
-        # the registry's AnswerRule spread over lists the fast path indexes by code
-        self.answer: list[AnswerRule | None] = [None] * 256
-        self.answer_pos = [NO_ANSWER] * 256
-        self.answer_base = [0] * 256
-        self.answer_item = [1] * 256
-        self.answer_up = [0] * 256
-        self.answer_byte = [1] * 256
-        for code, spec in functions.items():
-            rule = spec.answer
-            if rule is None or direction == Direction.MASTER:
-                continue
-            self.answer[code] = rule
-            self.answer_pos[code] = WALKED if rule.walker is not None else rule.quantity_pos
-            self.answer_base[code] = rule.base
-            self.answer_item[code] = rule.per_item
-            self.answer_up[code] = rule.round_up
-            self.answer_byte[code] = rule.per_byte
-        # request lengths for the fast path: base, plus the byte at count_pos if not 0
-        self.request_base = [0] * 256
-        self.request_count = [0] * 256
-        for code, spec in functions.items():
-            r = spec.request_length
-            if r is None or direction == Direction.SLAVE or r.walker or r.count_size > 1:
-                continue
-            self.request_base[code] = r.base
-            self.request_count[code] = r.count_pos if r.count_size else 0
-        self.tables = (
-            self.request_base,
-            self.request_count,
-            self.answer_pos,
-            self.answer_base,
-            self.answer_item,
-            self.answer_up,
-            self.answer_byte,
-        )
-        # the same, flat, for the compiled fast paths (sniffer.core)
-        self.table_bytes = array("q", [v for table in self.tables for v in table]).tobytes()
+        # the lengths a frame may have, and the search where the fast paths cannot decide
+        self.lengths = RtuLengths(self.direction, functions, self.rules, self.timeline)
         self._appenders_of: FrameStore | None = None  # the store `_appenders` write into
         self._appenders: tuple[Callable[[Any], None], ...] = ()
         self.pending_len = 0
@@ -381,8 +316,7 @@ class RtuFramer(_Framer):
         """Frame from `self.pos` to the end of `buf`; or, given `reads` (a batch whose
         bytes are in `buf` from offset `base`), read by read: each read joins the timeline
         and the scan stops at its end, exactly as if each read had been fed alone. One
-        call for a batch rather than one a read: 1.9 -> 1.7 us a frame on a recording of
-        one frame per packet (in-process, 200k frames)."""
+        call for a whole batch spares a call and this set-up for every read."""
         end = self.scan_end = len(buf)
         (
             request_base,
@@ -392,7 +326,7 @@ class RtuFramer(_Framer):
             answer_item,
             answer_up,
             answer_byte,
-        ) = self.tables
+        ) = self.lengths.tables
         check = crc16
         tl = self.timeline
         out = self.out
@@ -480,7 +414,7 @@ class RtuFramer(_Framer):
                         inline
                         and pos >= cur_start
                         # a counted answer whose byte count is not the one its request
-                        # asked for goes the slow way (see _candidates)
+                        # asked for goes the slow way (see RtuLengths.candidates)
                         and (fc != pf or answer_pos[pf] < 0 or buf[pos + 2] == pl - 5)
                         and check(buf[pos:stop]) == 0
                     ):
@@ -539,7 +473,7 @@ class RtuFramer(_Framer):
                                     pu, pf, pfx, pl = unit, fc, fc | 0x80, length
                                     pdl = t0 + length * cur_rate + timeout
                                 elif ap == WALKED:
-                                    walked = self._predict(buf, pos, length, fc)
+                                    walked = self.lengths.predict(buf, pos, length, fc)
                                     if walked is not None:
                                         pu, pf, pfx, pl = unit, fc, fc | 0x80, walked
                                 if pl > MAX_RTU:
@@ -550,11 +484,13 @@ class RtuFramer(_Framer):
                 self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
                 self.pending_row = pr
                 self.pending_deadline = pdl
-                found, kind, waiting = self._candidates(buf, pos, end, unit, fc, final)
+                found, kind, waiting = self.lengths.candidates(
+                    buf, pos, end, unit, fc, final, pu, pf, pl, pdl
+                )
                 if not found and waiting:
                     break
                 if not found:
-                    found, kind, waiting = self._silence_framed(buf, pos, end, fc, final)
+                    found, kind, waiting = self.lengths.silence_framed(buf, pos, end, fc, final)
                     if waiting:
                         break
                 if not found:
@@ -646,7 +582,7 @@ class RtuFramer(_Framer):
             boundaries,
         ) = fast.rtu_scan(
             buf,
-            self.table_bytes,
+            self.lengths.table_bytes,
             self.pos,
             end,
             final,
@@ -697,10 +633,6 @@ class RtuFramer(_Framer):
             tl.forget_before(self.pos)
         return slow, k, prev, end
 
-    def _predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
-        rule = self.answer[fc]
-        return None if rule is None else rule.length(buf[pos : pos + length])
-
     def flush(self) -> None:
         """Complete the rows the fast path appended and record the pairs it found."""
         out = self.out
@@ -712,109 +644,6 @@ class RtuFramer(_Framer):
             if self.pair_inline:
                 out.pair_rows(self.pairs)
             del self.pairs[:]
-
-    def _candidates(
-        self,
-        buf: bytearray,
-        pos: int,
-        end: int,
-        unit: int,
-        fc: int,
-        final: bool,
-    ) -> tuple[int, int, bool]:
-        """Test every length the registry allows at `pos`: (length, kind, waiting)."""
-        waiting = False
-        # (length, preference, kind): the answer the last request predicts is preferred
-        # (0); any other frame is more likely a request (1) than an answer nobody asked
-        # for (2)
-        cands: list[tuple[int, int, int]] = []
-        pending = unit == self.pending_unit and (fc & 0x7F) == self.pending_fc
-        if pending and (fc & 0x80 or not self._expired(pos)):
-            if fc & 0x80:
-                cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
-            else:
-                # A counted answer whose byte count is not the one its request asked for
-                # is still the answer (a slave's mistake, shown as a problem), unless a
-                # request passes its check in the same bytes: a request followed by a 00
-                # byte passes the CRC one byte longer, at the length an unanswered
-                # request's answer would have.
-                counted = self.answer_pos[fc] >= 0
-                agrees = not counted or buf[pos + 2] == self.pending_len - 5
-                cands.append((self.pending_len, 0 if agrees else 3, int(Kind.RESPONSE)))
-        for rule, rkind in self.rules[fc]:
-            length = rule.length(buf, pos, end)
-            if length == IMPOSSIBLE:
-                continue
-            if length == NEED_MORE:
-                waiting = waiting or not final
-                continue
-            if MIN_RTU <= length <= MAX_RTU:
-                cands.append((length, PREFERENCE[rkind], rkind))
-        if len(cands) > 1:
-            cands.sort()
-        for n, (length, prio, ckind) in enumerate(cands):
-            if pos + length > end:
-                return 0, 0, waiting or not final
-            if crc16(buf[pos : pos + length]) == 0:
-                if prio and n + 1 < len(cands):
-                    # A frame followed by 0x00 bytes passes the CRC at every length up
-                    # to the last zero, and a frame whose CRC ends in 0x00 passes one
-                    # byte short: a longer candidate that also passes is told apart by
-                    # preference, never by length.
-                    return self._zero_trap(
-                        buf, pos, end, cands[n + 1 :], length, prio, ckind, final
-                    )
-                return length, ckind, False
-        return 0, 0, waiting
-
-    def _expired(self, pos: int) -> bool:
-        """Whether the echo the open request awaits can no longer start at `pos`."""
-        return (
-            self.pending_deadline != INF and self.timeline.start_time(pos) > self.pending_deadline
-        )
-
-    def _silence_framed(
-        self, buf: bytearray, pos: int, end: int, fc: int, final: bool
-    ) -> tuple[int, int, bool]:
-        """A frame no length rule knows (user or unknown function codes), bounded by
-        silence on both sides, with a right CRC: (length, kind, waiting)."""
-        tl = self.timeline
-        if not tl.is_boundary(pos):
-            return 0, 0, False
-        nxt = tl.next_boundary(pos)
-        if nxt is None:
-            if not final:
-                return 0, 0, end - pos <= MAX_RTU  # its end is not seen yet
-            nxt = end
-        length = nxt - pos
-        if MIN_RTU <= length <= MAX_RTU and crc16(buf[pos : pos + length]) == 0:
-            return length, int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN), False
-        return 0, 0, False
-
-    def _zero_trap(
-        self,
-        buf: bytearray,
-        pos: int,
-        end: int,
-        longer: list[tuple[int, int, int]],
-        length: int,
-        prio: int,
-        kind: int,
-        final: bool,
-    ) -> tuple[int, int, bool]:
-        best = (prio, length, kind)
-        for length2, prio2, kind2 in longer:
-            if prio2 >= best[0] or length2 == length:
-                continue
-            if pos + length2 > end:
-                if pos + length < end and any(buf[pos + length : end]):
-                    continue  # not all zeros after the shorter frame: no ambiguity
-                if not final:
-                    return 0, 0, True  # wait for the bytes that decide
-                continue
-            if not any(buf[pos + length : pos + length2]) and crc16(buf[pos : pos + length2]) == 0:
-                best = (prio2, length2, kind2)
-        return best[1], best[2], False
 
     # -- output (the slow path) ----------------------------------------------------------
 
@@ -829,10 +658,10 @@ class RtuFramer(_Framer):
         if kind == Kind.REQUEST:
             self.pending_unit = -1
             self.pending_deadline = INF
-            predicted = self._predict(buf, pos, length, fc) if unit != 0 else None
+            predicted = self.lengths.predict(buf, pos, length, fc) if unit != 0 else None
             if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                 self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
-                if self.answer_pos[fc] == ECHO:
+                if self.lengths.answer_pos[fc] == ECHO:
                     end_time = self.timeline.end_time(pos + length - 1)
                     self.pending_deadline = end_time + self.timeout
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
@@ -907,9 +736,6 @@ class RtuFramer(_Framer):
 
 # the empty batch the compiled fast paths get when there is none
 _NO_READS: tuple[array[int], array[float], array[float]] = (array("q"), array("d"), array("d"))
-
-# preference of a length rule's kind when it is not the answer the open request predicts
-PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
 
 
 class AsciiFramer(_Framer):

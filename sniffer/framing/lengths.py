@@ -1,0 +1,246 @@
+"""Provides the RTU framer's length search: which lengths a frame starting at a position of
+the stream may have, and which of them its CRC confirms.
+
+The function-code registry's length rules are compiled here once per channel: as rules by
+code, which both framers test a frame's length against, and, for RTU, as the tables by
+code that the framer's inline fast paths and the compiled core (`sniffer._core.rtu_scan`)
+read. Where the fast paths cannot decide, `RtuLengths.candidates` tests every length the
+rules, the open request's predicted answer and the exception envelope allow, in order of
+preference, and `RtuLengths.silence_framed` frames what no rule knows by the silences
+around it. The search only reads: the open request is the framer's, passed in, and so is
+what it makes of the length found.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Mapping
+from typing import Protocol
+
+from dissectors.checks import crc16
+from dissectors.functions import (
+    EXCEPTION_LENGTH,
+    IMPOSSIBLE,
+    NEED_MORE,
+    AnswerRule,
+    FunctionSpec,
+    LengthRule,
+    fixed,
+)
+from sniffer.model import Direction
+from sniffer.vocab import Kind
+
+MAX_RTU = 256
+MIN_RTU = 4
+FIXED = AnswerRule.FIXED
+ECHO = AnswerRule.ECHO
+WALKED = -3  # the answer's length needs the rule's walker
+NO_ANSWER = -4  # the code has no answer rule
+INF = float("inf")
+
+# preference of a length rule's kind when it is not the answer the open request predicts
+PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
+
+# A length rule and the kind of frame it describes (the fast paths use their own tables)
+Rule = tuple[LengthRule, int]
+_EXCEPTION_RULE: Rule = (fixed(EXCEPTION_LENGTH), int(Kind.EXCEPTION))
+
+
+def compile_rules(
+    direction: Direction, functions: Mapping[int, FunctionSpec]
+) -> list[tuple[Rule, ...]]:
+    """The length rules a frame of each code may follow on a channel of `direction`."""
+    table: list[tuple[Rule, ...]] = [() for _ in range(256)]
+    for code, spec in functions.items():
+        rules: list[Rule] = []
+        if spec.request_length is not None and direction != Direction.SLAVE:
+            rules.append((spec.request_length, int(Kind.REQUEST)))
+        if spec.response_length is not None and direction != Direction.MASTER:
+            rules.append((spec.response_length, int(Kind.RESPONSE)))
+        table[code] = tuple(rules)
+    if direction != Direction.MASTER:
+        for code in range(1, 128):
+            table[code | 0x80] = (_EXCEPTION_RULE,)
+    return table
+
+
+class Silences(Protocol):
+    """What the search needs of the framer's timeline: when a byte started, and where
+    silence of at least t3.5 came before one."""
+
+    def start_time(self, pos: int) -> float: ...
+
+    def is_boundary(self, pos: int) -> bool: ...
+
+    def next_boundary(self, pos: int) -> int | None: ...
+
+
+class RtuLengths:
+    """The length rules of one RTU channel, and the search the framer's slow path makes
+    with them.
+
+    `tables` spreads the registry's request lengths and answer rules over lists indexed
+    by function code, for the framer's inline fast paths; `table_bytes` is the same, flat,
+    for the compiled ones. A request length is kept only where it is a base plus at most
+    one count byte; the others, and every answer no formula gives, are left to the rules.
+    """
+
+    def __init__(
+        self,
+        direction: Direction,
+        functions: Mapping[int, FunctionSpec],
+        rules: list[tuple[Rule, ...]],
+        silences: Silences,
+    ) -> None:
+        self.rules = rules
+        self.silences = silences
+        # the exact answer length a request implies (none on a channel of requests only)
+        self.answer: list[AnswerRule | None] = [None] * 256
+        self.answer_pos = [NO_ANSWER] * 256
+        answer_base = [0] * 256
+        answer_item = [1] * 256
+        answer_up = [0] * 256
+        answer_byte = [1] * 256
+        for code, spec in functions.items():
+            rule = spec.answer
+            if rule is None or direction == Direction.MASTER:
+                continue
+            self.answer[code] = rule
+            self.answer_pos[code] = WALKED if rule.walker is not None else rule.quantity_pos
+            answer_base[code] = rule.base
+            answer_item[code] = rule.per_item
+            answer_up[code] = rule.round_up
+            answer_byte[code] = rule.per_byte
+        # a request's length: base, plus the byte at count_pos if not 0
+        request_base = [0] * 256
+        request_count = [0] * 256
+        for code, spec in functions.items():
+            r = spec.request_length
+            if r is None or direction == Direction.SLAVE or r.walker or r.count_size > 1:
+                continue
+            request_base[code] = r.base
+            request_count[code] = r.count_pos if r.count_size else 0
+        # in the order `sniffer._core.rtu_scan` reads them, 256 entries each
+        self.tables = (
+            request_base,
+            request_count,
+            self.answer_pos,
+            answer_base,
+            answer_item,
+            answer_up,
+            answer_byte,
+        )
+        self.table_bytes = array("q", [v for table in self.tables for v in table]).tobytes()
+
+    def predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
+        """The length of the answer the request at `pos` asks for (None: no rule says)."""
+        rule = self.answer[fc]
+        return None if rule is None else rule.length(buf[pos : pos + length])
+
+    def candidates(
+        self,
+        buf: bytearray,
+        pos: int,
+        end: int,
+        unit: int,
+        fc: int,
+        final: bool,
+        pending_unit: int,
+        pending_fc: int,
+        pending_len: int,
+        deadline: float,
+    ) -> tuple[int, int, bool]:
+        """Test every length the registry allows at `pos`, and the answer the open request
+        (`pending_*`, awaited until `deadline` when it is echoed) predicts: (length, kind,
+        waiting)."""
+        waiting = False
+        # (length, preference, kind): the answer the last request predicts is preferred
+        # (0); any other frame is more likely a request (1) than an answer nobody asked
+        # for (2)
+        cands: list[tuple[int, int, int]] = []
+        pending = unit == pending_unit and (fc & 0x7F) == pending_fc
+        if pending and (fc & 0x80 or not self._expired(pos, deadline)):
+            if fc & 0x80:
+                cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
+            else:
+                # A counted answer whose byte count is not the one its request asked for
+                # is still the answer (a slave's mistake, shown as a problem), unless a
+                # request passes its check in the same bytes: a request followed by a 00
+                # byte passes the CRC one byte longer, at the length an unanswered
+                # request's answer would have.
+                counted = self.answer_pos[fc] >= 0
+                agrees = not counted or buf[pos + 2] == pending_len - 5
+                cands.append((pending_len, 0 if agrees else 3, int(Kind.RESPONSE)))
+        for rule, rkind in self.rules[fc]:
+            length = rule.length(buf, pos, end)
+            if length == IMPOSSIBLE:
+                continue
+            if length == NEED_MORE:
+                waiting = waiting or not final
+                continue
+            if MIN_RTU <= length <= MAX_RTU:
+                cands.append((length, PREFERENCE[rkind], rkind))
+        if len(cands) > 1:
+            cands.sort()
+        for n, (length, prio, ckind) in enumerate(cands):
+            if pos + length > end:
+                return 0, 0, waiting or not final
+            if crc16(buf[pos : pos + length]) == 0:
+                if prio and n + 1 < len(cands):
+                    # A frame followed by 0x00 bytes passes the CRC at every length up
+                    # to the last zero, and a frame whose CRC ends in 0x00 passes one
+                    # byte short: a longer candidate that also passes is told apart by
+                    # preference, never by length.
+                    return _zero_trap(buf, pos, end, cands[n + 1 :], length, prio, ckind, final)
+                return length, ckind, False
+        return 0, 0, waiting
+
+    def _expired(self, pos: int, deadline: float) -> bool:
+        """Whether an echoed answer awaited until `deadline` can no longer start at `pos`."""
+        return deadline != INF and self.silences.start_time(pos) > deadline
+
+    def silence_framed(
+        self, buf: bytearray, pos: int, end: int, fc: int, final: bool
+    ) -> tuple[int, int, bool]:
+        """A frame no length rule knows (user or unknown function codes), bounded by
+        silence on both sides, with a right CRC: (length, kind, waiting)."""
+        silences = self.silences
+        if not silences.is_boundary(pos):
+            return 0, 0, False
+        nxt = silences.next_boundary(pos)
+        if nxt is None:
+            if not final:
+                return 0, 0, end - pos <= MAX_RTU  # its end is not seen yet
+            nxt = end
+        length = nxt - pos
+        if MIN_RTU <= length <= MAX_RTU and crc16(buf[pos : pos + length]) == 0:
+            return length, int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN), False
+        return 0, 0, False
+
+
+def _zero_trap(
+    buf: bytearray,
+    pos: int,
+    end: int,
+    longer: list[tuple[int, int, int]],
+    length: int,
+    prio: int,
+    kind: int,
+    final: bool,
+) -> tuple[int, int, bool]:
+    """Of a frame of `length` and the `longer` candidates that pass the CRC too because
+    only zeros lie between, the preferred one (waiting while the bytes that decide are
+    still to come)."""
+    best = (prio, length, kind)
+    for length2, prio2, kind2 in longer:
+        if prio2 >= best[0] or length2 == length:
+            continue
+        if pos + length2 > end:
+            if pos + length < end and any(buf[pos + length : end]):
+                continue  # not all zeros after the shorter frame: no ambiguity
+            if not final:
+                return 0, 0, True  # wait for the bytes that decide
+            continue
+        if not any(buf[pos + length : pos + length2]) and crc16(buf[pos : pos + length2]) == 0:
+            best = (prio2, length2, kind2)
+    return best[1], best[2], False
