@@ -21,6 +21,7 @@ from sniffer.live.scan import (
     Trial,
     format_of,
     live_command,
+    parse_format,
     scan,
 )
 from sniffer.text import plain
@@ -53,8 +54,6 @@ def _bauds(text: str | None) -> tuple[int, ...]:
 def _formats(text: str | None) -> tuple[str, ...]:
     if not text:
         return FORMATS
-    from sniffer.live.scan import parse_format
-
     found = tuple(part.strip().upper() for part in text.split(",") if part.strip())
     for part in found:
         try:
