@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import TextIO
 
 import sniffer.live.scan as scanning
+from sniffer.analysis.linescore import format_of, parse_format
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
 from sniffer.live.port import PortError
@@ -19,9 +20,7 @@ from sniffer.live.scan import (
     PortListener,
     ScanResult,
     Trial,
-    format_of,
     live_command,
-    parse_format,
     scan,
 )
 from sniffer.text import plain
@@ -105,7 +104,7 @@ def _wanted_formats(args: argparse.Namespace) -> tuple[str, ...]:
     """The scan's formats that agree with the line flags given beside --baud auto."""
     out = []
     for text in FORMATS:
-        bytesize, parity, stopbits = scanning.parse_format(text)
+        bytesize, parity, stopbits = parse_format(text)
         if args.bytesize is not None and args.bytesize != bytesize:
             continue
         if args.parity is not None and args.parity != parity:

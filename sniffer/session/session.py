@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from sniffer.analysis.baud import estimate_line
 from sniffer.analysis.stats import Stats
 from sniffer.framing.pipeline import MERGE_SLACK, Pipeline
 from sniffer.framing.store import FrameStore
@@ -381,6 +383,8 @@ def open_session(
     read to its end.
     """
     options = options or ReadOptions()
+    if options.estimator is None:  # a logic capture without --baud: its line measured
+        options = replace(options, estimator=estimate_line)
     capture = open_capture(path, options)
     line = options.line(capture.info.line)
     session = Session(
