@@ -32,6 +32,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from sniffer.framing.pipeline import Pipeline
 from sniffer.framing.store import COLUMNS, FrameStore
 from sniffer.model import Stamp
 from sniffer.session.index import shifted_partners
@@ -67,8 +68,6 @@ def wanted(session: Session, live: bool, speed: float | None) -> bool:
     """Whether the TUI should page a capture's rows: a capture file read as fast as it
     can be (not a live line, not at its own speed) that gets a sidecar index, on a serial
     line (network captures are not windowed: `Session.settled`)."""
-    from sniffer.framing.pipeline import Pipeline
-
     return not live and speed is None and session.indexing and type(session.pipeline) is Pipeline
 
 
