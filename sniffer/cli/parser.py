@@ -10,19 +10,33 @@ from __future__ import annotations
 
 import argparse
 
+# each command's module by its full name: `from sniffer.cli import ...` would reach for
+# the package, whose __init__ imports this module
+import sniffer.cli.dictcmd
+import sniffer.cli.diff
+import sniffer.cli.export
+import sniffer.cli.live
+import sniffer.cli.manual
+import sniffer.cli.ports
+import sniffer.cli.record
+import sniffer.cli.replay
+import sniffer.cli.scan
+import sniffer.cli.serve
+import sniffer.cli.tui
 from sniffer import __version__, core
-from sniffer.cli import (
-    dictcmd,
-    diff,
-    export,
-    live,
-    manual,
-    ports,
-    record,
-    replay,
-    scan,
-    serve,
-    tui,
+
+# in the order `modscope --help` lists them (`manual` last: see build_parser)
+COMMANDS = (
+    sniffer.cli.replay,
+    sniffer.cli.live,
+    sniffer.cli.scan,
+    sniffer.cli.record,
+    sniffer.cli.ports,
+    sniffer.cli.export,
+    sniffer.cli.diff,
+    sniffer.cli.dictcmd,
+    sniffer.cli.tui,
+    sniffer.cli.serve,
 )
 
 EPILOG = """\
@@ -55,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--version", action="version", version=f"modscope {__version__} ({core.describe()})"
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve):
+    for module in COMMANDS:
         module.register(sub)
-    manual.register(sub, build_parser)
+    sniffer.cli.manual.register(sub, build_parser)  # describes the parser: given the builder
     return parser
