@@ -20,12 +20,12 @@ dissectors free of sniffer, Textual and pyserial, Textual only in the TUI, the f
 in the pipelines, and no cycle between the packages of any package. Those replace the
 checks this file made of the same rules by reading the source.
 
-What import-linter cannot say is read here with ast: a cycle between modules that runs
-through an import inside a function (grimp sees those imports but names no cycle
-between modules of one package when a package `__init__` closes it), which imports
-happen inside functions and why, and that every exception the contracts list is an
-import that never runs when its module loads. Imports under `if TYPE_CHECKING:` never
-run and count only where a test says so.
+What import-linter cannot say is read here with ast: a cycle that runs through a
+package's own `__init__` (acyclic_siblings compares siblings, never a package with its
+children), counting imports inside functions, and `from pkg import x` as importing
+`pkg`; which imports are made inside functions, and why; and that every exception the
+contracts list is an import that never runs when its module loads. Imports under
+`if TYPE_CHECKING:` never run, so they count only where a test says so.
 """
 
 from __future__ import annotations
@@ -61,8 +61,7 @@ LAZY = {
     ("dissectors.checks", "fastcrc"): "the fast CRC where installed, else pure Python",
     ("dissectors.dictionary.imports_ha", "yaml"): "the optional imports extra (PyYAML)",
     ("dissectors.dictionary.limits", "yaml"): "the optional imports extra (PyYAML)",
-    # a device dictionary's own function codes are compiled only when one brings some
-    ("dissectors.pdu.registry", "dissectors.pdu.vendor"): "vendor codes, when a dictionary has",
+    ("dissectors.pdu.registry", "dissectors.pdu.vendor"): "a dictionary's own codes, if any",
 }
 
 
@@ -230,6 +229,13 @@ def test_every_exception_to_a_contract_never_runs_when_its_module_loads() -> Non
         where = IMPORTS[importer]
         assert imported not in where[TOP], text
         assert imported in where[FUNCTION] | where[TYPING], text
+
+
+def test_the_sidecar_knows_the_session_state_not_the_session() -> None:
+    # it writes and reads back a SessionState; the Session that owns one uses the sidecar
+    index = IMPORTS["sniffer.session.index"]
+    assert "sniffer.session.state" in index[TOP]
+    assert "sniffer.session.session" not in index[TOP] | index[FUNCTION] | index[TYPING]
 
 
 def test_the_layers_name_every_package_of_sniffer() -> None:
