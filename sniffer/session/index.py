@@ -54,14 +54,14 @@ from sniffer.sources import Capture
 from sniffer.vocab import Kind
 
 MAGIC = b"MODSCOPE-INDEX\n\0"
-FORMAT = 2  # 1: one CRC over the whole file, read whole (now stale: indexed again)
+FORMAT = 2  # the file's layout: a sidecar of another format is ignored (indexed again)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
 # a block keeps its rows' columns in the order of sniffer.framing.store.COLUMNS
 _PREFIX = struct.Struct("<QI")  # the header's length and CRC-32
-# rows a block: 65,536 rows are about 4 MB, read and checked in about 10 ms, so the TUI
-# has its first screen after one block whatever the size of the capture
+# rows a block: 65,536 rows are about 4 MB, little to read and check before the TUI's
+# first screen, whatever the size of the capture
 BLOCK = 1 << 16
 
 
@@ -494,8 +494,8 @@ def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
     `at_least` made `p + by`, and every other one none (-1): `at_least` 0 moves rows
     numbered in a segment into the whole capture (`by` its base), `at_least` the base
     and `by` minus it the other way, a partner in a block dropped before becoming none.
-    In the compiled core where it runs (5 ms a block of 65,536 rows here, 0.05 ms
-    there: some 2 s of a 30M-row day, written or read back windowed)."""
+    In the compiled core where it runs: a windowed sidecar shifts every partner of the
+    capture, written or read back."""
     fast = core.FAST
     if fast is not None:
         return bytes(fast.shift_partners(partner, at_least, by))
@@ -506,9 +506,8 @@ def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
 def _plus(column: array[int] | memoryview, by: int) -> bytes:
     """The bytes of `column` (unsigned words: offsets) with `by` added to every value;
     every result must fit its word (a word never carries into the next). The column is
-    taken as one big integer and `by` times a word of 1 at every row added to it, in C:
-    for 65,536 offsets 1.1-1.5 ms, where `array(map(add, ...))` takes 3-6 ms (about
-    1.5 s of a 30M-frame day's sidecar, written or read back)."""
+    taken as one big integer and `by` times a word of 1 at every row added to it: one
+    addition in C rather than a Python step per offset of the capture."""
     raw = column.tobytes()
     size = column.itemsize
     total = int.from_bytes(raw, sys.byteorder) + by * _ones(len(raw) // size, size)
@@ -522,7 +521,8 @@ def _ones(rows: int, size: int) -> int:
 
 
 def _stats_header(state: SessionState) -> dict[str, Any]:
-    """The per-unit statistics (recounting them costs about 0.5 us a row)."""
+    """The per-unit statistics (saved: recounting them would take a pass over every
+    row)."""
     stats = state.stats
     base = state.base  # (a windowed session: rows numbered in the whole capture)
     return {

@@ -50,8 +50,8 @@ HOT: tuple[str, ...] = ("kind", "unit", "fc", "flags", "channel", "partner", "st
 COLD: tuple[str, ...] = ("offset", "length", "t", "t_end")
 # what is read from the sidecar at a time: a page of a column (4096 rows: 32 KiB of
 # times) or of a block's bytes (64 KiB). Whole blocks (512 KiB of times, some 2 MB of
-# bytes) made the screen following the newest rows of a day's indexing read a quarter
-# as much again as the capture itself.
+# bytes) would have the screen that follows the newest rows of a day's indexing read a
+# quarter as much again as the capture itself.
 PAGE = 4096
 BYTES_PAGE = 1 << 16
 # bytes of pages kept

@@ -245,7 +245,7 @@ class Session:
         such only once it is known. A whole store counts its rows at the end, or at the
         first progress (0.25 s in, the resolution long known), and a windowed replay must
         count them alike; one whose reads never come close enough to tell (a slow poll,
-        a read a second) keeps every row, as before windows."""
+        a read a second) keeps every row, as a whole store does."""
         store = self.store
         return store.stamps != Stamp.READ_END or store.resolution > 0
 
