@@ -10,34 +10,23 @@ from __future__ import annotations
 
 import argparse
 
-# each command's module by its full name: `from sniffer.cli import ...` would reach for
-# the package, whose __init__ imports this module
-import sniffer.cli.dictcmd
-import sniffer.cli.diff
-import sniffer.cli.export
-import sniffer.cli.live
-import sniffer.cli.manual
-import sniffer.cli.ports
-import sniffer.cli.record
-import sniffer.cli.replay
-import sniffer.cli.scan
-import sniffer.cli.serve
-import sniffer.cli.tui
+# the command modules by full name: the package's __init__ imports this module, and
+# naming the package here (`from sniffer.cli import ...`) would read as a cycle
+import sniffer.cli.dictcmd as dictcmd
+import sniffer.cli.diff as diff
+import sniffer.cli.export as export
+import sniffer.cli.live as live
+import sniffer.cli.manual as manual
+import sniffer.cli.ports as ports
+import sniffer.cli.record as record
+import sniffer.cli.replay as replay
+import sniffer.cli.scan as scan
+import sniffer.cli.serve as serve
+import sniffer.cli.tui as tui
 from sniffer import __version__, core
 
-# in the order `modscope --help` lists them (`manual` last: see build_parser)
-COMMANDS = (
-    sniffer.cli.replay,
-    sniffer.cli.live,
-    sniffer.cli.scan,
-    sniffer.cli.record,
-    sniffer.cli.ports,
-    sniffer.cli.export,
-    sniffer.cli.diff,
-    sniffer.cli.dictcmd,
-    sniffer.cli.tui,
-    sniffer.cli.serve,
-)
+# in the order `modscope --help` lists them (then `manual`: see build_parser)
+COMMANDS = (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve)
 
 EPILOG = """\
 examples:
@@ -71,5 +60,5 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
-    sniffer.cli.manual.register(sub, build_parser)  # describes the parser: given the builder
+    manual.register(sub, build_parser)  # describes the parser: given the builder
     return parser
