@@ -16,15 +16,28 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import compress
-from pathlib import Path
 
+from sniffer.analysis.linescore import Sample, format_of, parse_format, score
 from sniffer.framing.columns import both, but_not, flag_mask, marking
 from sniffer.framing.store import FrameStore
-from sniffer.live.scan import Sample, format_of, parse_format, score
 from sniffer.model import Chunk, LineSettings
-from sniffer.sources.base import ReadOptions
-from sniffer.sources.sigrok import UartDecoder, bit_levels
+from sniffer.sources.base import LineGuess, ReadOptions
+from sniffer.sources.sigrok import UartDecoder
 from sniffer.vocab import BAD_CHECK, Flag, Kind
+
+__all__ = [
+    "COMMON_BAUDS",
+    "FORMATS",
+    "BaudGuess",
+    "LineGuess",
+    "SpeedCheck",
+    "choose_format",
+    "describe_choice",
+    "estimate_baud",
+    "estimate_line",
+    "pulse_widths",
+    "wrong_speed",
+]
 
 COMMON_BAUDS = (
     300, 600, 1200, 2400, 4800, 9600, 14400, 19200, 28800, 38400, 56000, 57600,
@@ -92,14 +105,6 @@ def estimate_baud(samplerate: float, levels: Sequence[bytes]) -> BaudGuess | Non
     return BaudGuess(baud, measured, bit, count or len(single), common)
 
 
-@dataclass(frozen=True, slots=True)
-class LineGuess:
-    """The line settings chosen for a capture, and the sentence that says so."""
-
-    line: LineSettings
-    note: str
-
-
 def choose_format(
     baud: int,
     decode: Callable[[LineSettings], tuple[list[Chunk], int, int]],
@@ -151,9 +156,8 @@ class SpeedCheck:
         store.sync()
         n = len(store)
         kinds = store.kind[start:n].tobytes()
-        # one valid frame is enough: the speed is right (the columns scanned in C: a row
-        # at a time, with flag operators, this cost about 2.5 us a row when no frame was
-        # valid)
+        # one valid frame is enough: the speed is right (the columns are scanned in C, not
+        # a row at a time: bytes read at the wrong speed have no valid frame to stop at)
         if 1 in but_not(kinds.translate(_IS_FRAME), flag_mask(store.flags, BAD_CHECK, start, n)):
             self.valid = True
             return
@@ -196,7 +200,9 @@ def estimate_line(
     samplerate: float, levels: Sequence[bytes], options: ReadOptions
 ) -> LineGuess | None:
     """The line settings of logic levels (one bytes string of 0/1 per probe), keeping
-    whatever the options give (data bits, parity, stop bits, mode)."""
+    whatever the options give (data bits, parity, stop bits, mode): the
+    `sniffer.sources.base.LineEstimator` a session gives the readers (a sigrok capture
+    replayed without --baud)."""
     guess = estimate_baud(samplerate, levels)
     if guess is None:
         return None
@@ -236,12 +242,3 @@ def estimate_line(
             return LineGuess(line, describe_choice(guess, line, why))
         return None  # a few pulses and no frame confirm nothing: keep the defaults
     return LineGuess(line, describe_choice(guess, line, why))
-
-
-def estimate_sigrok(
-    path: Path, samplerate: float, unitsize: int, members: Sequence[str],
-    numbers: Sequence[int], options: ReadOptions, limit: int = 1 << 22,
-) -> LineGuess | None:  # fmt: skip
-    """`estimate_line` on the first `limit` samples of the chosen probes of a session."""
-    levels = bit_levels(path, unitsize, members, numbers, options.invert, limit)
-    return estimate_line(samplerate, levels, options)

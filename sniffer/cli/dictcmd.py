@@ -7,8 +7,20 @@ import argparse
 from pathlib import Path
 from typing import TextIO
 
+from dissectors.dictionary import (
+    builtin_models,
+    check_dictionary,
+    describe,
+    file_format,
+    load_dictionaries,
+    load_dictionary,
+    load_model,
+)
+from dissectors.dictionary.loader import FORMAT_NAMES
+from sniffer.analysis.draft import draft, units_seen
 from sniffer.cli.options import SubParsers, add_line_options, read_options
 from sniffer.errors import UsageError
+from sniffer.session.session import open_session
 from sniffer.text import plain, plain_lines
 
 DRAFT_EPILOG = """\
@@ -20,17 +32,6 @@ examples:
 
 
 def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from dissectors.dictionary import (
-        builtin_models,
-        check_dictionary,
-        describe,
-        file_format,
-        load_dictionaries,
-        load_dictionary,
-        load_model,
-    )
-    from dissectors.dictionary.loader import FORMAT_NAMES
-
     if args.action == "list":
         for name, path in sorted(builtin_models().items()):
             d = load_dictionary(path)
@@ -66,9 +67,6 @@ def cmd_dict(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def cmd_draft(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.analysis.draft import draft, units_seen
-    from sniffer.session.session import open_session
-
     session, capture = open_session(Path(args.capture), read_options(args))
     session.ingest(capture.chunks())
     for w in capture.warnings:

@@ -6,14 +6,13 @@ import argparse
 from pathlib import Path
 from typing import TextIO
 
+from sniffer.analysis.diff import diff_stores
 from sniffer.cli.options import SubParsers, add_line_options, add_network_options, read_options
+from sniffer.session.session import open_session
 from sniffer.text import plain
 
 
 def cmd_diff(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.analysis.diff import diff_stores
-    from sniffer.session.session import open_session
-
     stores = []
     for name in (args.a, args.b):
         session, capture = open_session(Path(name), read_options(args))

@@ -41,6 +41,8 @@ from sniffer.outputs.export import (
 )
 from sniffer.outputs.listing import Lister
 from sniffer.outputs.parallel import workers_for, write_binary, write_text
+from sniffer.outputs.parquet import ParquetError, write_parquet
+from sniffer.session.session import open_session
 from sniffer.text import plain
 
 EXPORT_EXAMPLES = """\
@@ -70,8 +72,6 @@ def output_format(path: str, fmt: str | None) -> str:
 
 
 def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.session.session import open_session
-
     source = Path(args.file)
     fmt = output_format(args.output, args.format)
     what = args.what
@@ -103,8 +103,6 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     status = finish_read(capture, session, err)
     describer = session.describer
     if fmt == "parquet":
-        from sniffer.outputs.parquet import ParquetError, write_parquet
-
         if args.output == "-":
             raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")
         try:

@@ -12,8 +12,9 @@ import os
 import sys
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TextIO
+from typing import TextIO
 
+from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
 from sniffer.cli.lines import (
@@ -48,25 +49,22 @@ from sniffer.live.recorder import parse_size
 from sniffer.meaning.select import FilterJob
 from sniffer.outputs.export import PcapExporter
 from sniffer.outputs.listing import Lister
+from sniffer.outputs.mqtt.command import (
+    MQTT_QUIET,
+    add_mqtt_options,
+    live_publisher,
+    mqtt_session,
+    mqtt_source,
+    published_bindings,
+)
 from sniffer.session.session import Session
 from sniffer.vocab import Status
-
-if TYPE_CHECKING:
-    from sniffer.analysis.pollcycle import PollCycles
 
 RENDER_ROWS = 256  # rows rendered between two looks at the output and at Ctrl-C
 STOP_GRACE = 0.5  # seconds the last rows get to reach the output after a stop
 
 
 def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.outputs.mqtt.command import (
-        MQTT_QUIET,
-        live_publisher,
-        mqtt_session,
-        mqtt_source,
-        published_bindings,
-    )
-
     source = mqtt_source(args, notifier(err))  # a bus another modscope publishes
     if source is None and args.baud == AUTO:
         scan_for_live(args, err)  # the line's settings into args, before anything opens
@@ -224,8 +222,6 @@ class Summary:
         """`whole`: the poll cycle covers the whole capture, not only the rows of its
         window still in memory: the requests of each segment are counted before it goes
         (8 bytes each: asked for with --stats)."""
-        from sniffer.analysis.pollcycle import PollCycles
-
         self.cycles: PollCycles | None = None
         if whole is not None:
             cycles = self.cycles = PollCycles()
@@ -243,8 +239,6 @@ class Summary:
             self.write()
 
     def write(self) -> None:
-        from sniffer.analysis.pollcycle import cycle_table, poll_cycles
-
         session = self.session
         session.store.sync()
         session.stats.update()
@@ -437,7 +431,5 @@ def register(sub: SubParsers) -> None:
         help="print the statistics and poll cycle to stderr every S seconds (default 10); "
         "they are printed once anyway when the capture ends",
     )
-    from sniffer.outputs.mqtt.command import add_mqtt_options
-
     add_mqtt_options(p)
     p.set_defaults(func=cmd_live)

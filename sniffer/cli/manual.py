@@ -4,8 +4,9 @@ man page, both generated from the same argparse definitions as `--help`."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from datetime import date
+from functools import partial
 from typing import TextIO
 
 from sniffer import __version__
@@ -147,22 +148,24 @@ def man_page(parser: argparse.ArgumentParser) -> str:
     return "\n".join(out)
 
 
-def cmd_completion(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.cli import build_parser
+Build = Callable[[], argparse.ArgumentParser]
+"""Makes the whole command line's parser (`sniffer.cli.parser.build_parser`)."""
 
-    parser = build_parser()
+
+def cmd_completion(args: argparse.Namespace, out: TextIO, err: TextIO, build: Build) -> int:
+    parser = build()
     out.write(bash_script(parser) if args.shell == "bash" else zsh_script(parser))
     return 0
 
 
-def cmd_man(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.cli import build_parser
-
-    out.write(man_page(build_parser()))
+def cmd_man(args: argparse.Namespace, out: TextIO, err: TextIO, build: Build) -> int:
+    out.write(man_page(build()))
     return 0
 
 
-def register(sub: SubParsers) -> None:
+def register(sub: SubParsers, build: Build) -> None:
+    """`completion` and `man`; `build` makes the parser they describe (passed in by the
+    parser module, which registers this one: importing it here would make a cycle)."""
     p = sub.add_parser(
         "completion",
         help="print a shell completion script",
@@ -175,7 +178,7 @@ def register(sub: SubParsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("shell", choices=("bash", "zsh"))
-    p.set_defaults(func=cmd_completion)
+    p.set_defaults(func=partial(cmd_completion, build=build))
     p = sub.add_parser(
         "man",
         help="print the man page (roff)",
@@ -183,4 +186,4 @@ def register(sub: SubParsers) -> None:
         epilog="read it:  modscope man | man -l -",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.set_defaults(func=cmd_man)
+    p.set_defaults(func=partial(cmd_man, build=build))

@@ -8,6 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from dissectors.dictionary.bus import parse_unit_binding
 from sniffer.errors import UsageError
 from sniffer.meaning.annotate import Binding, load_bindings
 from sniffer.model import LineSettings
@@ -184,8 +185,6 @@ def line_warnings(options: ReadOptions, from_file: LineSettings | None, path: st
 def bindings_for(args: argparse.Namespace, default_bus: Path | None = None) -> dict[int, Binding]:
     """Bindings from --bus and --unit (which win over the bus file); two --unit options
     for one address are a mistake, not a choice of the last."""
-    from dissectors.dictionary.bus import parse_unit_binding
-
     seen: dict[int, str] = {}
     for text in args.unit:
         try:

@@ -22,9 +22,11 @@ from sniffer.cli.lines import (
     status,
     stop_requests,
 )
-from sniffer.cli.options import SubParsers
+from sniffer.cli.options import SubParsers, add_device_options, bindings_for
 from sniffer.errors import UsageError
+from sniffer.framing.pipeline import LIVE_MERGE_SLACK
 from sniffer.live.engine import WINDOW_ROWS, LiveCapture
+from sniffer.outputs.mqtt.command import add_mqtt_options, live_publisher
 from sniffer.session.session import Session
 
 if TYPE_CHECKING:
@@ -48,10 +50,6 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     publisher: BusPublisher | None = None
     if args.mqtt:
         # publishing needs the frames: the session frames what is recorded, as live does
-        from sniffer.cli.options import bindings_for
-        from sniffer.framing.pipeline import LIVE_MERGE_SLACK
-        from sniffer.outputs.mqtt.command import live_publisher
-
         try:
             bindings = bindings_for(args)
             session = Session(
@@ -131,9 +129,6 @@ def register(sub: SubParsers) -> None:
     )
     add_port_options(p)
     add_recording_options(p, required=True)
-    from sniffer.cli.options import add_device_options
-    from sniffer.outputs.mqtt.command import add_mqtt_options
-
     add_device_options(p)
     add_mqtt_options(p)
     p.set_defaults(func=cmd_record)

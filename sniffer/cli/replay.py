@@ -4,15 +4,14 @@ statistics or the TUI."""
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
-import tempfile
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TextIO
 
-from sniffer.cli.filtering import Selection, add_filter_options
+from sniffer.analysis.baud import SpeedCheck, wrong_speed
+from sniffer.analysis.gateway_report import server_table
+from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
+from sniffer.cli.filtering import add_filter_options, query_of
 from sniffer.cli.heap import settle
 from sniffer.cli.options import (
     READ_EPILOG,
@@ -28,18 +27,15 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
+from sniffer.cli.replaying import stdin_copy, write_listing
+from sniffer.cli.together import replay_together
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
-from sniffer.meaning.query import Query
-from sniffer.outputs.listing import Lister
-from sniffer.outputs.parallel import workers_for, write_text
-from sniffer.session.session import Session
+from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
+from sniffer.session.index import DamagedError
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
 from sniffer.sources import Capture
 from sniffer.text import plain
-
-if TYPE_CHECKING:
-    from sniffer.analysis.baud import SpeedCheck
-    from sniffer.analysis.pollcycle import PollCycles
 
 
 def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -49,8 +45,6 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             raise UsageError("give the capture once: as FILE or as -r FILE")
         files = [args.read]
     if len(files) > 1:
-        from sniffer.cli.together import replay_together
-
         return replay_together(args, files, out, err)
     if args.offset:
         raise UsageError("--offset is for several files replayed together; give two files")
@@ -62,23 +56,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return _replay(args, out, err, None)
 
 
-@contextmanager
-def stdin_copy() -> Iterator[Path]:
-    """Standard input kept in a temporary file (readers look at a file's content)."""
-    with tempfile.TemporaryDirectory(prefix="modscope-") as folder:
-        path = Path(folder) / "stdin"
-        with path.open("wb") as f:
-            shutil.copyfileobj(sys.stdin.buffer, f, 1 << 20)
-        yield path
-
-
 def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | None) -> int:
-    from sniffer.analysis.baud import wrong_speed
-    from sniffer.analysis.pollcycle import cycle_table, poll_cycles
-    from sniffer.cli.filtering import query_of
-    from sniffer.session.index import DamagedError
-    from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
-
     query = query_of(args)
     path = Path(args.file) if args.file else DEMO_CAPTURE
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
@@ -99,11 +77,9 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     )
     told = line_warnings(options, capture.info.recorded_line, str(path))
     if getattr(args, "mqtt", None):
-        from sniffer.outputs.mqtt.command import cmd_replay_mqtt
-
         return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
     if use_tui:
-        from sniffer.tui.app import run_tui
+        from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
         def reopen() -> tuple[Session, Capture]:
             return open_session(path, options, bindings=bindings, timeout=args.timeout)
@@ -140,8 +116,6 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
         out.write(session.stats.table(labels) + "\n\n")
         if session.store.servers:
-            from sniffer.analysis.gateway_report import server_table
-
             out.write(server_table(session.store) + "\n\n")
         found = poll_cycles(session.store) if cycles is None else cycles.cycles()
         out.write(cycle_table(found, labels) + "\n")
@@ -151,9 +125,8 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 
 
 # rows a replay keeps in memory when nothing needs them all at the end (`--stats`): about
-# 4 MB of store (65 bytes a row), whatever the size of the capture. `replay --stats` of
-# 1M frames (16 ms reads, no sidecar) peaked at 75 MB with 1 << 16, 96 MB with 1 << 18,
-# 129 MB with 1 << 20 (every row kept: 133 MB), in about the same CPU time
+# 4 MB of store (65 bytes a row), whatever the size of the capture; a larger window
+# holds more memory and saves no work
 REPLAY_WINDOW = 1 << 16
 
 
@@ -165,9 +138,6 @@ def _windowed(
     when no sidecar keeps their values), the sidecar index is written (or read) a
     segment at a time. The network server table and a network capture's rows are not
     windowed (`Session.settled`: they stay in one store)."""
-    from sniffer.analysis.baud import SpeedCheck
-    from sniffer.analysis.pollcycle import PollCycles
-
     cycles, speed = PollCycles(), SpeedCheck()
 
     def segment(s: Session) -> None:
@@ -178,39 +148,6 @@ def _windowed(
         session.stats.bound()  # (a sidecar saves the values themselves)
     session.ingest(capture.chunks(), progress.reading, window=REPLAY_WINDOW, segment=segment)
     return cycles, speed
-
-
-def write_listing(
-    out: TextIO, args: argparse.Namespace, session: Session, query: Query | None
-) -> None:
-    """The rows a filter and -c let through, in the format asked for (text by default),
-    by `--jobs` processes over ranges of rows when that pays (see `sniffer.outputs.parallel`).
-
-    Not windowed (every row stays in the store, unlike `--stats`): the workers take
-    ranges of one store, the filter and relative times count from its rows, a row is
-    described with what the annotator learnt from the whole capture (SunSpec models,
-    parameter windows found later), and the warnings come before the rows; listing
-    each segment as it goes, as live does, would change some of that."""
-    fmt = args.format or "text"
-    selection = Selection(session, query, args.count)
-    origin = selection.origin()  # what relative times count from, in every range
-    rows = selection.take(len(session.store), final=True)
-
-    def write(stream: TextIO, part: Sequence[int], first: bool) -> int:
-        lister = Lister(
-            stream,
-            fmt,
-            session.describer,
-            absolute=args.time == "abs",
-            raw_csv=args.raw_csv,
-            header=first,
-        )
-        lister.origin = origin
-        return lister.write(part, flush=False)
-
-    jobs = workers_for(getattr(args, "jobs", 1), len(rows), out)
-    write_text(out, rows, jobs, write)
-    out.flush()
 
 
 REPLAY_EXAMPLES = """\
@@ -281,7 +218,5 @@ def register(sub: SubParsers) -> None:
         metavar="S",
         help="longest a gateway takes to put a TCP request on the serial line (default 1 s)",
     )
-    from sniffer.outputs.mqtt.command import add_mqtt_options
-
     add_mqtt_options(p, replay=True)
     p.set_defaults(func=cmd_replay)

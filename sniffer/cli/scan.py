@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import TextIO
 
 import sniffer.live.scan as scanning
+from sniffer.analysis.linescore import format_of, parse_format
 from sniffer.cli.options import SubParsers
 from sniffer.errors import UsageError
 from sniffer.live.port import PortError
@@ -19,7 +20,6 @@ from sniffer.live.scan import (
     PortListener,
     ScanResult,
     Trial,
-    format_of,
     live_command,
     scan,
 )
@@ -53,8 +53,6 @@ def _bauds(text: str | None) -> tuple[int, ...]:
 def _formats(text: str | None) -> tuple[str, ...]:
     if not text:
         return FORMATS
-    from sniffer.live.scan import parse_format
-
     found = tuple(part.strip().upper() for part in text.split(",") if part.strip())
     for part in found:
         try:
@@ -106,7 +104,7 @@ def _wanted_formats(args: argparse.Namespace) -> tuple[str, ...]:
     """The scan's formats that agree with the line flags given beside --baud auto."""
     out = []
     for text in FORMATS:
-        bytesize, parity, stopbits = scanning.parse_format(text)
+        bytesize, parity, stopbits = parse_format(text)
         if args.bytesize is not None and args.bytesize != bytesize:
             continue
         if args.parity is not None and args.parity != parity:

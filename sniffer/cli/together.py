@@ -9,7 +9,15 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import TextIO
 
+from sniffer.analysis.gateway_report import gateway_table, server_table
+from sniffer.cli.filtering import query_of
+from sniffer.cli.options import bindings_for, read_options
+from sniffer.cli.replaying import stdin_copy, write_listing
+from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
+from sniffer.session.multifile import align, link_files, merge
+from sniffer.session.session import open_session
+from sniffer.session.verdict import ALL_READ, READ_WITH_WARNINGS
 from sniffer.text import plain
 
 
@@ -37,15 +45,6 @@ def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
 
 
 def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
-    from sniffer.analysis.gateway_report import gateway_table, server_table
-    from sniffer.cli.filtering import query_of
-    from sniffer.cli.options import bindings_for, read_options
-    from sniffer.cli.replay import stdin_copy, write_listing
-    from sniffer.cli.verdicts import finish_read
-    from sniffer.session.multifile import align, link_files, merge
-    from sniffer.session.session import open_session
-    from sniffer.session.verdict import ALL_READ, READ_WITH_WARNINGS
-
     if files.count("-") > 1:
         raise UsageError("standard input (-) can be given once")
     if args.timeout is not None and not args.timeout > 0:
@@ -110,7 +109,7 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
         and "-" not in files
     )
     if use_tui:
-        from sniffer.tui.app import run_tui
+        from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
         return run_tui(merged)
     if args.stats:

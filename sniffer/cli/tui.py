@@ -16,12 +16,18 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.errors import UsageError
+from sniffer.live.engine import LiveCapture
+from sniffer.outputs.mqtt.command import (
+    MQTT_QUIET,
+    mqtt_session,
+    open_mqtt_source,
+    published_bindings,
+)
+from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
 
 
 def capture_path(args: argparse.Namespace) -> Path:
     """The capture FILE names, or the bundled demo; UsageError if there is none."""
-    from sniffer.session.session import DEMO_CAPTURE
-
     if args.file:
         path = Path(args.file)
         if not path.is_file():
@@ -33,29 +39,19 @@ def capture_path(args: argparse.Namespace) -> Path:
 
 
 def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from sniffer.session.session import DEMO_BUS, open_session
-
     if args.file and args.file.lower().startswith(("mqtt://", "mqtts://")):
         return _watch(args)
     path = capture_path(args)
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
     options = read_options(args)
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
-    from sniffer.tui.app import run_tui
+    from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
     return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)
 
 
 def _watch(args: argparse.Namespace) -> int:
     """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
-    from sniffer.live.engine import LiveCapture
-    from sniffer.outputs.mqtt.command import (
-        MQTT_QUIET,
-        mqtt_session,
-        open_mqtt_source,
-        published_bindings,
-    )
-
     messages: list[str] = []
     reader = open_mqtt_source(args.file, args, messages.append)
     bindings = published_bindings(bindings_for(args), reader, messages.append)
@@ -63,7 +59,7 @@ def _watch(args: argparse.Namespace) -> int:
     capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
     capture.messages.extend(messages)
     reader.notify = capture.messages.append
-    from sniffer.tui.app import run_tui
+    from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
     capture.start()
     try:

@@ -22,6 +22,7 @@ from typing import Any
 from dissectors.functions import function_name
 from sniffer.framing.store import NO_PARTNER
 from sniffer.meaning.describe import Describer
+from sniffer.outputs.export import register_records, transaction_records
 from sniffer.outputs.listing import KIND_NAMES
 from sniffer.vocab import STATUS_NAMES, Kind
 
@@ -154,8 +155,6 @@ def frame_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, 
 
 
 def transaction_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
-    from sniffer.outputs.export import transaction_records
-
     store = describer.store
     for rec in transaction_records(describer, rows):
         j = rec["response"]
@@ -169,8 +168,6 @@ def transaction_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict
 
 
 def register_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
-    from sniffer.outputs.export import register_records
-
     for rec in register_records(describer, rows):
         value = rec["value"]
         rec["time"] = _time(rec["t"])

@@ -41,28 +41,27 @@ from collections.abc import Callable, Mapping
 from functools import cache, lru_cache
 from itertools import compress
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from sniffer import __version__, core
+from sniffer.analysis.stats import UnitStats
 from sniffer.framing.columns import marking
-from sniffer.framing.store import COLUMNS, NO_PARTNER
+from sniffer.framing.store import COLUMNS, NO_PARTNER, FrameStore
+from sniffer.meaning.annotate import Annotator
 from sniffer.model import Stamp
+from sniffer.session.state import SessionState
+from sniffer.sources import Capture
 from sniffer.vocab import Kind
 
-if TYPE_CHECKING:
-    from sniffer.framing.store import FrameStore
-    from sniffer.session.session import Session
-    from sniffer.sources import Capture
-
 MAGIC = b"MODSCOPE-INDEX\n\0"
-FORMAT = 2  # 1: one CRC over the whole file, read whole (now stale: indexed again)
+FORMAT = 2  # the file's layout: a sidecar of another format is ignored (indexed again)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
 # a block keeps its rows' columns in the order of sniffer.framing.store.COLUMNS
 _PREFIX = struct.Struct("<QI")  # the header's length and CRC-32
-# rows a block: 65,536 rows are about 4 MB, read and checked in about 10 ms, so the TUI
-# has its first screen after one block whatever the size of the capture
+# rows a block: 65,536 rows are about 4 MB, little to read and check before the TUI's
+# first screen, whatever the size of the capture
 BLOCK = 1 << 16
 
 
@@ -143,16 +142,17 @@ def code_fingerprint() -> str:
     return digest.hexdigest()
 
 
-def settings_key(session: Session, options: Any, timeout: float | None) -> str:
-    """What the rows of a capture depend on besides its bytes, as one hash."""
-    registry = session.annotator.registry
+def settings_key(annotator: Annotator, options: Any, timeout: float | None) -> str:
+    """What the rows of a capture depend on besides its bytes, as one hash (`annotator`:
+    the session's, not yet fed: its registry and bindings)."""
+    registry = annotator.registry
     picture = [
         FORMAT,
         code_fingerprint(),
         _plain(options),
         timeout,
         [[code, _plain(registry[code])] for code in sorted(registry)],
-        _plain(session.annotator.bindings),
+        _plain(annotator.bindings),
     ]
     return hashlib.sha256(json.dumps(picture, sort_keys=True).encode()).hexdigest()
 
@@ -161,8 +161,6 @@ def settings_key(session: Session, options: Any, timeout: float | None) -> str:
 
 
 def _row_bytes() -> int:
-    from sniffer.framing.store import FrameStore
-
     model = FrameStore()
     return sum(getattr(model, name).itemsize for name in COLUMNS)
 
@@ -212,12 +210,12 @@ def _block_parts(
     return parts
 
 
-def save(session: Session, capture: Capture, path: Path, key: str) -> Path | None:
+def save(state: SessionState, capture: Capture, path: Path, key: str) -> Path | None:
     """Write the sidecar of `path`; its location, or None when nowhere could take it."""
     who = identity(path)
     if who is None:
         return None
-    store = session.store
+    store = state.store
     store.sync()
     n = len(store)
     blocks = _blocks(store, n)
@@ -230,9 +228,9 @@ def save(session: Session, capture: Capture, path: Path, key: str) -> Path | Non
         for part in _block_parts(store, a, b, pieces, starts):
             crc = zlib.crc32(part, crc)
         table.append([b - a, pieces, crc])
-    tail, crc = _tail(session)
+    tail, crc = _tail(state)
     header = _header_of(
-        session,
+        state,
         capture,
         key,
         who,
@@ -276,11 +274,11 @@ def _publish(tmp: str, target: Path) -> None:
     os.replace(tmp, target)
 
 
-def _tail(session: Session) -> tuple[list[Any], int]:
+def _tail(state: SessionState) -> tuple[list[Any], int]:
     """The per-unit latencies and request times written after the blocks, and their
     CRC-32."""
     tail: list[Any] = []
-    for unit in session.stats.units.values():
+    for unit in state.stats.units.values():
         tail += [unit.latencies, unit.request_times]
     crc = 0
     for part in tail:
@@ -289,7 +287,7 @@ def _tail(session: Session) -> tuple[list[Any], int]:
 
 
 def _header_of(
-    session: Session,
+    state: SessionState,
     capture: Capture,
     key: str,
     who: dict[str, Any],
@@ -300,7 +298,7 @@ def _header_of(
     tail_crc: int,
     notes: dict[str, str],
 ) -> dict[str, Any]:
-    store = session.store
+    store = state.store
     return {
         "format": FORMAT,
         "key": key,
@@ -314,14 +312,14 @@ def _header_of(
         "stamps": store.stamps.name,
         "resolution": store.resolution,
         "fill_channel": store.fill_channel,
-        "mode": session.pipeline.mode,
-        "session_warnings": session.warnings,
-        "session_notes": session.notes,
-        "chunks": session.chunks,
+        "mode": state.pipeline.mode,
+        "session_warnings": state.warnings,
+        "session_notes": state.notes,
+        "chunks": state.chunks,
         "capture_warnings": capture.warnings,
         "data_bytes": capture.data_bytes,
         "channels": {str(ch): label for ch, label in capture.info.channels.items()},
-        "stats": _stats_header(session),
+        "stats": _stats_header(state),
     }
 
 
@@ -364,18 +362,18 @@ class Writer:
         except OSError:
             self.abandon()
 
-    def add(self, session: Session) -> None:
-        """Write the rows of the session's store (a segment, or the last rows)."""
+    def add(self, state: SessionState) -> None:
+        """Write the rows of the session's store (`state`: a segment, or the last rows)."""
         if self.out is None:
             return
-        store = session.store
+        store = state.store
         store.sync()
         n = len(store)
         blocks = _blocks(store, n)
         if blocks is None:
             self.abandon()
             return
-        base, bases = session.base, session.stream_base
+        base, bases = state.base, state.stream_base
         starts = dict.fromkeys(store.streams, 0)
         try:
             for a, b, pieces in blocks:
@@ -395,16 +393,16 @@ class Writer:
         for ch, data in store.streams.items():
             self.streams[ch] = bases.get(ch, 0) + len(data)
 
-    def close(self, session: Session, capture: Capture, key: str) -> Path | None:
+    def close(self, state: SessionState, capture: Capture, key: str) -> Path | None:
         """Finish the sidecar (after the last `add`): its location, or None."""
         out, target = self.out, self.target
         who = identity(self.path)
         if out is None or target is None or who is None:
             self.abandon()
             return None
-        tail, crc = _tail(session)
+        tail, crc = _tail(state)
         header = _header_of(
-            session,
+            state,
             capture,
             key,
             who,
@@ -496,8 +494,8 @@ def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
     `at_least` made `p + by`, and every other one none (-1): `at_least` 0 moves rows
     numbered in a segment into the whole capture (`by` its base), `at_least` the base
     and `by` minus it the other way, a partner in a block dropped before becoming none.
-    In the compiled core where it runs (5 ms a block of 65,536 rows here, 0.05 ms
-    there: some 2 s of a 30M-row day, written or read back windowed)."""
+    In the compiled core where it runs: a windowed sidecar shifts every partner of the
+    capture, written or read back."""
     fast = core.FAST
     if fast is not None:
         return bytes(fast.shift_partners(partner, at_least, by))
@@ -508,9 +506,8 @@ def shifted_partners(partner: memoryview, at_least: int, by: int) -> bytes:
 def _plus(column: array[int] | memoryview, by: int) -> bytes:
     """The bytes of `column` (unsigned words: offsets) with `by` added to every value;
     every result must fit its word (a word never carries into the next). The column is
-    taken as one big integer and `by` times a word of 1 at every row added to it, in C:
-    for 65,536 offsets 1.1-1.5 ms, where `array(map(add, ...))` takes 3-6 ms (about
-    1.5 s of a 30M-frame day's sidecar, written or read back)."""
+    taken as one big integer and `by` times a word of 1 at every row added to it: one
+    addition in C rather than a Python step per offset of the capture."""
     raw = column.tobytes()
     size = column.itemsize
     total = int.from_bytes(raw, sys.byteorder) + by * _ones(len(raw) // size, size)
@@ -523,10 +520,11 @@ def _ones(rows: int, size: int) -> int:
     return int.from_bytes((1).to_bytes(size, sys.byteorder) * rows, sys.byteorder)
 
 
-def _stats_header(session: Session) -> dict[str, Any]:
-    """The per-unit statistics (recounting them costs about 0.5 us a row)."""
-    stats = session.stats
-    base = session.base  # (a windowed session: rows numbered in the whole capture)
+def _stats_header(state: SessionState) -> dict[str, Any]:
+    """The per-unit statistics (saved: recounting them would take a pass over every
+    row)."""
+    stats = state.stats
+    base = state.base  # (a windowed session: rows numbered in the whole capture)
     return {
         "next": base + stats.next,
         "noise_bytes": stats.noise_bytes,
@@ -573,22 +571,22 @@ Progress = Callable[[int, int], None]
 
 
 def load(
-    session: Session,
+    state: SessionState,
     capture: Capture,
     path: Path,
     key: str,
     progress: Progress | None = None,
     should_stop: Callable[[], bool] | None = None,
     shown: bool = False,
-    segment: Callable[[Session], None] | None = None,
+    segment: Callable[[], None] | None = None,
     opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
 ) -> Path | None:
-    """Fill `session` and `capture` from a sidecar of `path` that still fits; its path,
-    or None (nothing was changed) when there is none.
+    """Fill a session's `state` and `capture` from a sidecar of `path` that still fits;
+    its path, or None (nothing was changed) when there is none.
 
-    `segment`: the rows are not kept. After each block but the last, `segment(session)`
-    is given its rows in the store (row `i` is row `session.base + i` of the capture,
-    offsets counted from `session.stream_base`), then they are dropped, as a windowed
+    `segment`: the rows are not kept. After each block but the last, `segment()` is
+    called with its rows in the store (row `i` is row `state.base + i` of the capture,
+    offsets counted from `state.stream_base`), then they are dropped, as a windowed
     `Session.ingest` drops its segments; the last block's rows stay. Rows handed to it
     are never taken back: a damaged block after the first raises `DamagedError`. (A
     block may begin with the answer to a request at the end of the block before: its
@@ -626,7 +624,7 @@ def load(
             if opened is not None:
                 opened(candidate, handle.fileno(), handle.tell(), header)
             filling = _Filling(
-                session, capture, header, handle, progress, shown, who["size"], segment
+                state, capture, header, handle, progress, shown, who["size"], segment
             )
             try:
                 if filling.run(should_stop):
@@ -640,7 +638,7 @@ def load(
                 pass
             _refused.add(stamp)
             if filling.handed_out:
-                raise DamagedError(f"{candidate}: damaged after {len(session.store):,} rows")
+                raise DamagedError(f"{candidate}: damaged after {len(state.store):,} rows")
             filling.undo()
     return None
 
@@ -664,8 +662,6 @@ def _header(
         return None
     if header.get("capture") != who:
         return None  # stale: the capture changed since it was indexed
-    from sniffer.framing.store import FrameStore
-
     model = FrameStore()
     for name in COLUMNS:
         if header["columns"].get(name) != getattr(model, name).typecode:
@@ -692,22 +688,22 @@ class _Filling:
 
     def __init__(
         self,
-        session: Session,
+        state: SessionState,
         capture: Capture,
         header: dict[str, Any],
         handle: Any,
         progress: Progress | None,
         shown: bool,
         capture_size: int,
-        segment: Callable[[Session], None] | None = None,
+        segment: Callable[[], None] | None = None,
     ) -> None:
-        self.session, self.capture, self.header, self.handle = session, capture, header, handle
+        self.state, self.capture, self.header, self.handle = state, capture, header, handle
         self.progress, self.shown = progress, shown
         self.segment = segment
         self.notes: dict[int, str] = {}  # (with `segment`) those of rows still to come
         self.handed_out = False
         self.stopped = False
-        store = session.store
+        store = state.store
         self.before = (store.stamps, store.resolution, store.fill_channel)
         self.streams_before = {ch: len(data) for ch, data in store.streams.items()}
         self.rows = int(header["rows"])
@@ -717,7 +713,7 @@ class _Filling:
 
     def run(self, should_stop: Callable[[], bool] | None) -> bool:
         """Read every block; False if one is damaged or `should_stop` said so."""
-        header, store = self.header, self.session.store
+        header, store = self.header, self.state.store
         # what the rows need to be shown: their notes, times and bytes' channels
         notes = {int(i): str(text) for i, text in header["notes"].items()}
         if self.segment is None:
@@ -731,23 +727,23 @@ class _Filling:
         for ch in streams:
             store.stream(ch)
         reach = {ch: len(store.streams[ch]) for ch in streams}
-        session = self.session
+        state = self.state
         blocks = header["blocks"]
         for k, (count, pieces, crc) in enumerate(blocks):
             if k and self.segment is not None:  # the rows before go (see `load`)
-                self.segment(session)
-                _drop(session)
+                self.segment()
+                _drop(state)
                 self.handed_out = True
             if not self._block(int(count), pieces, int(crc), streams, reach):
                 return False
             if self.progress is not None:
                 done = self.capture_size * self.handle.tell() // max(1, self.file_size)
-                self.progress(done, session.base + len(store))
+                self.progress(done, state.base + len(store))
                 self.handed_out = self.handed_out or bool(len(store))
             if should_stop is not None and should_stop():
                 self.stopped = True
                 return False
-        bases = session.stream_base
+        bases = state.stream_base
         return all(
             bases.get(ch, 0) + len(store.streams[ch]) == size for ch, size in streams.items()
         )
@@ -760,7 +756,7 @@ class _Filling:
         streams: dict[int, int],
         reach: dict[int, int],
     ) -> bool:
-        store = self.session.store
+        store = self.state.store
         size = count * self.row_bytes + sum(int(s) for _ch, s in pieces)
         data = self.handle.read(size)
         if len(data) != size or zlib.crc32(data) != crc:
@@ -782,26 +778,26 @@ class _Filling:
             at += piece
         if count and not _consistent(columns, reach, self.rows):
             return False
-        session = self.session
-        if session.base or any(session.stream_base.values()):
-            shifted = _local(columns, session.base, session.stream_base)
+        state = self.state
+        if state.base or any(state.stream_base.values()):
+            shifted = _local(columns, state.base, state.stream_base)
             if shifted is None:
                 return False  # a row before the bytes dropped with the rows before
             columns = shifted
         if self.notes:
-            end = session.base + len(store) + count
+            end = state.base + len(store) + count
             while self.notes:
                 i = next(iter(self.notes))
                 if i >= end:
                     break
-                store.notes[i - session.base] = self.notes.pop(i)
+                store.notes[i - state.base] = self.notes.pop(i)
         # into the store's own objects: views (the TUI's reader) hold on to its columns
         for ch, piece_bytes in added:
             store.streams[ch] += piece_bytes
         for name in COLUMNS:
             getattr(store, name).frombytes(columns[name].cast("B"))
         if self.shown:
-            self.session.annotator.update(store)  # before the rows are handed out
+            self.state.annotator.update(store)  # before the rows are handed out
         return True
 
     def tail(self, counts: list[int]) -> list[array[float]] | None:
@@ -819,26 +815,23 @@ class _Filling:
     def finish(self, tail: list[array[float]]) -> None:
         """What needs every row: pairing's and the annotator's state, the statistics, the
         warnings."""
-        session, capture, header = self.session, self.capture, self.header
-        n = len(session.store)
-        pipeline = session.pipeline
-        pipeline.mode = header["mode"]
-        pipeline.pairer.next = n
-        pipeline._hint_checked = n
-        session.warnings[:] = [str(w) for w in header["session_warnings"]]
-        session.notes[:] = [str(w) for w in header["session_notes"]]
-        session.chunks = int(header["chunks"])
+        state, capture, header = self.state, self.capture, self.header
+        n = len(state.store)
+        state.framed_already(header["mode"])
+        state.warnings[:] = [str(w) for w in header["session_warnings"]]
+        state.notes[:] = [str(w) for w in header["session_notes"]]
+        state.chunks = int(header["chunks"])
         capture.warnings[:] = [str(w) for w in header["capture_warnings"]]
         capture.data_bytes = int(header["data_bytes"])
         capture.finished = True
         for ch, label in header["channels"].items():
             capture.info.channels.setdefault(int(ch), str(label))
-        session.annotator.update(session.store)  # all rows, or those after the last block
-        _restore_stats(session, header["stats"], tail, n)
+        state.annotator.update(state.store)  # all rows, or those after the last block
+        _restore_stats(state, header["stats"], tail, n)
 
     def undo(self) -> None:
         """Take back the rows (and the little before them) of a damaged sidecar."""
-        store = self.session.store
+        store = self.state.store
         for name in COLUMNS:
             del getattr(store, name)[:]
         for ch in list(store.streams):
@@ -880,21 +873,21 @@ def _local(
     return out
 
 
-def _drop(session: Session) -> None:
+def _drop(state: SessionState) -> None:
     """Forget the rows in the session's store (a windowed load, see `load`): they count
-    in `session.base`, their bytes in `session.stream_base`."""
-    store = session.store
-    session.annotator.update(store)
+    in `state.base`, their bytes in `state.stream_base`."""
+    store = state.store
+    state.annotator.update(store)
     kinds = store.kind.tobytes()
-    session.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
+    state.frames_before += len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
     for ch, data in store.streams.items():
-        session.stream_base[ch] = session.stream_base.get(ch, 0) + len(data)
+        state.stream_base[ch] = state.stream_base.get(ch, 0) + len(data)
         del data[:]
-    session.base += len(store)
+    state.base += len(store)
     for name in COLUMNS:
         del getattr(store, name)[:]
     store.notes.clear()
-    session.forget_annotation()
+    state.forget_annotation()
 
 
 def _consistent(
@@ -918,11 +911,9 @@ def _consistent(
 
 
 def _restore_stats(
-    session: Session, saved: dict[str, Any], tail: list[array[float]], n: int
+    state: SessionState, saved: dict[str, Any], tail: list[array[float]], n: int
 ) -> None:
-    from sniffer.analysis.stats import UnitStats
-
-    stats = session.stats
+    stats = state.stats
     units = {}
     arrays = iter(tail)
     for u in saved["units"]:
@@ -938,7 +929,7 @@ def _restore_stats(
     stats.units.update(units)
     stats.noise_bytes, stats.noise_spans = int(saved["noise_bytes"]), int(saved["noise_spans"])
     stats.events = int(saved["events"])
-    base = session.base  # rows dropped before the store's (a windowed load)
+    base = state.base  # rows dropped before the store's (a windowed load)
     stats._open = {int(i) - base for i in saved["open"] if 0 <= int(i) - base < n}
     stats.next = min(max(0, int(saved["next"]) - base), n)
     stats.update()  # rows after `next`, if any

@@ -29,6 +29,7 @@ from sniffer.analysis.gateway import (
 )
 from sniffer.analysis.stats import Stats
 from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.framing.tcp import NetPipeline
 from sniffer.meaning.describe import Describer
 from sniffer.model import Stamp
 from sniffer.session.session import Session
@@ -172,8 +173,6 @@ def merge(
 
 
 def _network(session: Session) -> bool:
-    from sniffer.framing.tcp import NetPipeline
-
     return isinstance(session.pipeline, NetPipeline)
 
 

@@ -32,6 +32,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from sniffer.framing.pipeline import Pipeline
 from sniffer.framing.store import COLUMNS, FrameStore
 from sniffer.model import Stamp
 from sniffer.session.index import shifted_partners
@@ -49,8 +50,8 @@ HOT: tuple[str, ...] = ("kind", "unit", "fc", "flags", "channel", "partner", "st
 COLD: tuple[str, ...] = ("offset", "length", "t", "t_end")
 # what is read from the sidecar at a time: a page of a column (4096 rows: 32 KiB of
 # times) or of a block's bytes (64 KiB). Whole blocks (512 KiB of times, some 2 MB of
-# bytes) made the screen following the newest rows of a day's indexing read a quarter
-# as much again as the capture itself.
+# bytes) would have the screen that follows the newest rows of a day's indexing read a
+# quarter as much again as the capture itself.
 PAGE = 4096
 BYTES_PAGE = 1 << 16
 # bytes of pages kept
@@ -67,8 +68,6 @@ def wanted(session: Session, live: bool, speed: float | None) -> bool:
     """Whether the TUI should page a capture's rows: a capture file read as fast as it
     can be (not a live line, not at its own speed) that gets a sidecar index, on a serial
     line (network captures are not windowed: `Session.settled`)."""
-    from sniffer.framing.pipeline import Pipeline
-
     return not live and speed is None and session.indexing and type(session.pipeline) is Pipeline
 
 

@@ -1,28 +1,35 @@
 """Provides a capture session: a source's chunks framed, paired, annotated and counted.
 
-The CLI listing, the exports and the TUI all look at a capture through a Session.
+The CLI listing, the exports and the TUI all look at a capture through a Session. What
+the work leaves behind (rows, statistics, annotation, warnings) is its `SessionState`
+(`sniffer.session.state`), which the sidecar index (`sniffer.session.index`) writes and
+reads back.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
+from functools import partial
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Generic, TypeVar, overload
 
+from sniffer.analysis.baud import estimate_line
 from sniffer.analysis.stats import Stats
 from sniffer.framing.pipeline import MERGE_SLACK, Pipeline
 from sniffer.framing.store import FrameStore
+from sniffer.framing.tcp import NetPipeline
 from sniffer.meaning.annotate import Annotator, Binding
 from sniffer.meaning.describe import Describer
 from sniffer.model import Chunk, Labels, LineSettings, Stamp
+from sniffer.session import index as sidecar
+from sniffer.session.index import Writer
+from sniffer.session.state import SessionState
 from sniffer.sources import Capture, ReadOptions, open_capture
 from sniffer.sources.reads import Reads, batching
 from sniffer.vocab import Kind, Status
-
-if TYPE_CHECKING:
-    from sniffer.session.index import Writer
 
 
 def _demo_file(name: str) -> Path:
@@ -37,9 +44,46 @@ DEMO_BUS = _demo_file("demo-bus.toml")
 Progress = Callable[[int, int], None]
 """progress(bytes_done, frames_so_far)."""
 
+_T = TypeVar("_T")
+
+
+class _Kept(Generic[_T]):
+    """An attribute of a session held in its state (`Session.state`): read and set
+    through the session as well."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    @overload
+    def __get__(self, session: None, owner: type) -> _Kept[_T]: ...
+    @overload
+    def __get__(self, session: Session, owner: type) -> _T: ...
+    def __get__(self, session: Session | None, owner: type) -> _T | _Kept[_T]:
+        if session is None:
+            return self
+        value: _T = getattr(session.state, self.name)
+        return value
+
+    def __set__(self, session: Session, value: _T) -> None:
+        setattr(session.state, self.name, value)
+
 
 class Session:
-    """One capture being looked at: store, pipeline, annotation, statistics, details."""
+    """One capture being looked at: store, pipeline, annotation, statistics, details.
+
+    The rows and what was counted and learnt from them are in `state`; its attributes
+    read (and set) as the session's own."""
+
+    store = _Kept[FrameStore]()
+    pipeline = _Kept[Pipeline]()
+    annotator = _Kept[Annotator]()
+    stats = _Kept[Stats]()
+    warnings = _Kept[list[str]]()
+    notes = _Kept[list[str]]()
+    chunks = _Kept[int]()
+    base = _Kept[int]()
+    stream_base = _Kept[dict[int, int]]()
+    frames_before = _Kept[int]()
 
     def __init__(
         self,
@@ -59,39 +103,27 @@ class Session:
         which is then framed by `NetPipeline` (Modbus TCP, RTU over TCP/UDP)."""
         self.line = line
         self.source = source
-        self.store = FrameStore()
-        self.annotator = Annotator(bindings or {})
+        store = FrameStore()
+        annotator = Annotator(bindings or {})
         pipeline_class: type[Pipeline] = Pipeline
         extra: dict[str, Any] = {}
         if network is not None:
-            from sniffer.framing.tcp import NetPipeline
-
             pipeline_class = NetPipeline
             extra["channels"] = network
-        self.pipeline = pipeline_class(
+        pipeline = pipeline_class(
             line,
-            self.store,
+            store,
             exact_timing=exact_timing,
             timeout=timeout,
-            registry=self.annotator.registry,
+            registry=annotator.registry,
             merge_slack=merge_slack,
             labels=labels,
             stamps=stamps,
             resolution=resolution,
             **extra,
         )
-        self.stats = Stats(self.store)
-        self.describer = Describer(self.store, self.annotator)
-        self.warnings: list[str] = []
-        self.notes: list[str] = []  # what the user should know, not faults
-        self.chunks = 0
-        # rows of earlier segments (a windowed live capture, see new_segment): row i of
-        # `store` is row `base + i` of the capture
-        self.base = 0
-        # what the dropped rows leave behind: each channel's bytes before its stream's
-        # start (`stream_base`), and how many of them were frames (not noise or events)
-        self.stream_base: dict[int, int] = {}
-        self.frames_before = 0
+        self.state = SessionState(store, pipeline, annotator, Stats(store))
+        self.describer = Describer(store, annotator)
         self._contradiction_placed = False  # pipeline.first_contradiction counts from 0
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
         # the sidecar index (sniffer.session.index): where it came from, or what to save it as
@@ -108,8 +140,9 @@ class Session:
         return self.pipeline.mode or self.line.mode
 
     def feed(self, chunk: Chunk) -> None:
-        self.pipeline.feed(chunk)
-        self.chunks += len(chunk) if isinstance(chunk, Reads) else 1
+        state = self.state
+        state.pipeline.feed(chunk)
+        state.chunks += len(chunk) if isinstance(chunk, Reads) else 1
 
     def refresh(self) -> None:
         """Bring pairing, annotation state and statistics up to date with the store."""
@@ -212,28 +245,13 @@ class Session:
         such only once it is known. A whole store counts its rows at the end, or at the
         first progress (0.25 s in, the resolution long known), and a windowed replay must
         count them alike; one whose reads never come close enough to tell (a slow poll,
-        a read a second) keeps every row, as before windows."""
+        a read a second) keeps every row, as a whole store does."""
         store = self.store
         return store.stamps != Stamp.READ_END or store.resolution > 0
 
     def forget_annotation(self) -> None:
-        """The annotator's state carried into an emptied store (a new segment): what it
-        learnt stays, the rows it learnt it from are gone. With `annotator.keep_rows` the
-        rows it recorded stay too, numbered in the whole capture (the rows before the new
-        store's first are `self.base + len(self.store)` here: `new_segment` calls this
-        before it moves `base` on, `sniffer.session.index` after it emptied the store)."""
-        annotator = self.annotator
-        annotator.next = 0
-        if annotator.keep_rows:
-            annotator.base = annotator.sunspec.base = self.base + len(self.store)
-            return
-        for track in self.annotator.tracks.values():  # the parameter selected last
-            if track.rows:
-                track.rows, track.numbers = [-1], track.numbers[-1:]
-        for unit in self.annotator.sunspec.units.values():  # scale factors as they are
-            for history in unit.scale.values():
-                if history.rows:
-                    history.rows, history.values = [-1], history.values[-1:]
+        """See `SessionState.forget_annotation`."""
+        self.state.forget_annotation()
 
     def ingest(
         self,
@@ -278,18 +296,19 @@ class Session:
         if self._sidecar is not None and self.indexed_from is None and not len(self.store):
             # read back from the sidecar index where one fits: every row is there already
             # (here rather than in open_session: the TUI draws while this thread reads)
-            from sniffer.session import index as sidecar
-
             path, capture, key = self._sidecar
+            blocks = None  # each block read back is a segment (windowed)
+            if segment is not None and window is not None:
+                blocks = partial(segment, self)
             self.indexed_from = sidecar.load(
-                self,
+                self.state,
                 capture,
                 path,
                 key,
                 progress,
                 should_stop,
                 shown=shown,
-                segment=segment if window is not None else None,
+                segment=blocks,
                 opened=opened,
             )
         if self.indexed_from is not None:
@@ -300,9 +319,7 @@ class Session:
         done = 0
         writer = None
         if window is not None and self._sidecar is not None:
-            from sniffer.session import index as sidecar
-
-            writer = sidecar.Writer(self._sidecar[0])
+            writer = Writer(self._sidecar[0])
         retry = window or 0  # rows in the store before the next try at a new segment
         try:
             # readers may pass runs of reads as one batch (sniffer.sources.reads): the
@@ -327,7 +344,7 @@ class Session:
                             if segment is not None:
                                 segment(self)
                             if writer is not None:
-                                writer.add(self)
+                                writer.add(self.state)
                             if written is not None:
                                 written(self, _open(writer))
                             self.new_segment()
@@ -338,18 +355,16 @@ class Session:
             if segment is not None:
                 segment(self)
             if self._sidecar is not None:
-                from sniffer.session import index as sidecar
-
                 path, capture, key = self._sidecar
                 if capture.finished:  # read to its end
                     if writer is not None:
-                        writer.add(self)
+                        writer.add(self.state)
                         if written is not None:
                             written(self, _open(writer))
                             written = None
-                        writer.close(self, capture, key)
+                        writer.close(self.state, capture, key)
                     else:
-                        sidecar.save(self, capture, path, key)
+                        sidecar.save(self.state, capture, path, key)
                     self._sidecar = None
             if written is not None and window is not None:
                 written(self, None)  # the last segment, not in a sidecar
@@ -381,6 +396,8 @@ def open_session(
     read to its end.
     """
     options = options or ReadOptions()
+    if options.estimator is None:  # a logic capture without --baud: its line measured
+        options = replace(options, estimator=estimate_line)
     capture = open_capture(path, options)
     line = options.line(capture.info.line)
     session = Session(
@@ -402,14 +419,13 @@ def open_session(
 def _sidecar(
     session: Session, capture: Capture, path: Path, options: ReadOptions, timeout: float | None
 ) -> None:
-    from sniffer.session import index
-
     try:
-        if not index.enabled() or not path.is_file() or path.stat().st_size < index.MIN_SIZE:
+        if not sidecar.enabled() or not path.is_file() or path.stat().st_size < sidecar.MIN_SIZE:
             return
     except OSError:
         return
-    session._sidecar = (path, capture, index.settings_key(session, options, timeout))
+    key = sidecar.settings_key(session.annotator, options, timeout)
+    session._sidecar = (path, capture, key)
 
 
 def replay_file(

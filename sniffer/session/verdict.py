@@ -29,7 +29,7 @@ def read_verdict(capture: Capture, session: Session) -> Verdict:
     if capture.empty:
         return Verdict(NOTHING_USABLE, f"{path}: no serial data could be read from it")
     store = session.store
-    kinds = store.kind.tobytes()  # counted as bytes: 1M rows in 4 ms, not 27 (array.count)
+    kinds = store.kind.tobytes()  # counted as bytes: bytes.count runs in C, array.count not
     frames = len(kinds) - kinds.count(Kind.NOISE) - kinds.count(Kind.EVENT)
     frames += session.frames_before  # (a windowed session: those of the rows dropped)
     if frames == 0 and capture.data_bytes:

@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 from sniffer.model import Chunk, LineSettings, SourceInfo
 
@@ -16,6 +17,23 @@ MAX_CHANNEL = 255  # the frame store keeps a channel in one byte
 
 
 @dataclass(frozen=True, slots=True)
+class LineGuess:
+    """The line settings chosen for a capture, and the sentence that says so."""
+
+    line: LineSettings
+    note: str
+
+
+class LineEstimator(Protocol):
+    """Measures the line settings of logic levels (one bytes string of 0/1 per probe)
+    sampled at `samplerate`, keeping whatever `options` give; None: no estimate."""
+
+    def __call__(
+        self, samplerate: float, levels: Sequence[bytes], options: ReadOptions
+    ) -> LineGuess | None: ...
+
+
+@dataclass(frozen=True, slots=True)
 class ReadOptions:
     """Settings from the command line. None means: take it from the file, or the default.
 
@@ -23,6 +41,10 @@ class ReadOptions:
     two, the first carries the master's requests and the second the slaves' responses.
     `invert` is for logic captures of idle-low lines (the RS-232 side of a converter).
     `carrier` and `port` are for network captures (see `sniffer.sources.net`).
+    `estimator` measures a logic capture's line when no baud rate is given: choosing
+    the format means framing the characters, which is above the readers, so it is
+    passed in (`sniffer.session.session.open_session` passes
+    `sniffer.analysis.baud.estimate_line`); without one the defaults are used.
     """
 
     baud: int | None = None
@@ -34,6 +56,7 @@ class ReadOptions:
     invert: bool = False
     carrier: str | None = None  # network captures: "tcp", "rtu-over-tcp" or "rtu-over-udp"
     port: int | None = None  # network captures: the server's port; other traffic is left out
+    estimator: LineEstimator | None = None
 
     def line(self, from_file: LineSettings | None = None) -> LineSettings:
         """Line settings: command line first, then what the file recorded, then defaults."""

@@ -12,6 +12,9 @@ from __future__ import annotations
 import re
 import struct
 
+from sniffer.sources.logs import sniff_log
+from sniffer.sources.saleae import sniff_saleae
+
 HEAD_SIZE = 1 << 16
 
 PCAPNG = "pcapng"
@@ -101,8 +104,6 @@ def sniff(head: bytes) -> str:
         for match in OFFSET_LINE.finditer(text):
             if int(match[1], 16) == 0:
                 return HEXDUMP
-    from sniffer.sources import logs, saleae  # here: they must not be loaded by detect's users
-
-    if saleae.sniff_saleae(head):
+    if sniff_saleae(head):
         return SALEAE
-    return logs.sniff_log(head) or RAW
+    return sniff_log(head) or RAW

@@ -12,13 +12,14 @@ direction; two give channel 0 for the first (the master's requests, Direction.MA
 and channel 1 for the second (the slaves' responses, Direction.SLAVE). With no probe
 given, a capture with exactly one probe uses it; otherwise the reader lists the names.
 
-The line format comes from the options (default 19200 8E1: the file has none). The
-decoder scans the level string for falling edges (bytes.find, in C), samples each bit
-at its middle counted from that edge (so it resyncs on every start bit), and checks the
-start bit, parity and stop bits. Every character is its own chunk with exact times
-relative to the capture start: `t_start` at the start bit's edge, `t_end` at the end of
-the last stop bit. A parity or framing error gives an event chunk right after the
-character, which is still delivered.
+The line format comes from the options (default 19200 8E1: the file has none); with no
+baud rate given, `ReadOptions.estimator` (where set) measures it from the first
+`ESTIMATE_SAMPLES` samples of the chosen probes. The decoder scans the level string for
+falling edges (bytes.find, in C), samples each bit at its middle counted from that edge
+(so it resyncs on every start bit), and checks the start bit, parity and stop bits.
+Every character is its own chunk with exact times relative to the capture start:
+`t_start` at the start bit's edge, `t_end` at the end of the last stop bit. A parity or
+framing error gives an event chunk right after the character, which is still delivered.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from sniffer.sources.zipscan import Archive, ArchiveError
 READ_BLOCK = 1 << 22  # sample bytes decoded per step
 MIN_SAMPLES_PER_BIT = 3.0
 MAX_SAMPLERATE = 1e12
+ESTIMATE_SAMPLES = 1 << 22  # samples a line estimate looks at
 _RATE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgG]?)(?:[hH][zZ])?\s*$")
 _RATE_UNITS = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
 
@@ -306,12 +308,11 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
     numbers = _choose_probes(path, meta, options)
     line = options.line(None)
     notes: list[str] = []
-    if options.baud is None:  # measure it (sniffer/analysis/baud.py) and say what was chosen
-        from sniffer.analysis.baud import estimate_sigrok
-
-        guess = estimate_sigrok(
-            path, meta.samplerate, meta.unitsize, meta.members, numbers, options
+    if options.baud is None and options.estimator is not None:  # measure it, say the choice
+        levels = bit_levels(
+            path, meta.unitsize, meta.members, numbers, options.invert, ESTIMATE_SAMPLES
         )
+        guess = options.estimator(meta.samplerate, levels, options)
         if guess is not None:
             line = guess.line
             notes.append(f"{path}: {guess.note}")

@@ -18,6 +18,8 @@ from typing import Any, Protocol, runtime_checkable
 
 from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk
+from sniffer.session import index
+from sniffer.session.index import DamagedError
 from sniffer.session.paged import PagedStore
 from sniffer.session.session import Session
 from sniffer.sources.procio import bytes_read
@@ -213,9 +215,6 @@ def feed_capture(
         paged.take(session, writer)
         if not good_rows:  # the first rows: on screen now, not at the next progress
             progress(bytes_done, len(paged))
-
-    from sniffer.session import index
-    from sniffer.session.index import DamagedError
 
     paging: dict[str, Any] = {"opened": opened}
     if paged is not None:

@@ -13,22 +13,21 @@ from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
 from sniffer.analysis.baud import estimate_baud, estimate_line, wrong_speed
-from sniffer.framing.pipeline import frame_capture
-from sniffer.framing.store import FrameStore
-from sniffer.live.scan import (
+from sniffer.analysis.linescore import (
     BAUDS,
-    PortListener,
     Sample,
     Trial,
     candidates,
     decide,
     format_of,
-    live_command,
     parse_format,
-    scan,
     score,
 )
+from sniffer.framing.pipeline import frame_capture
+from sniffer.framing.store import FrameStore
+from sniffer.live.scan import PortListener, live_command, scan
 from sniffer.model import Chunk, LineSettings
+from sniffer.session.session import open_session
 from sniffer.sources import ReadOptions, open_capture
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 from tests.support.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
@@ -246,7 +245,8 @@ SIGROK = Path(__file__).parent.parent / "captures" / "sigrok"
 def test_sigrok_without_line_flags_measures_the_line(
     path: Path, probes: tuple[str, ...], invert: bool, setting: str, frames: int
 ) -> None:
-    capture = open_capture(path, ReadOptions(probes=probes, invert=invert))
+    # the session gives the reader the estimator (readers stand below the framing it needs)
+    _session, capture = open_session(path, ReadOptions(probes=probes, invert=invert), index=False)
     line = capture.info.line
     assert line is not None and f"{line.baud} {format_of(line)}" == setting
     notes = [w for w in capture.info.notes if "no --baud given" in w]
@@ -265,7 +265,8 @@ def test_sigrok_flags_given_are_kept() -> None:
     capture = open_capture(path, ReadOptions(probes=("RX", "TX"), baud=9600, parity="N"))
     assert not [w for w in capture.info.notes if "no --baud given" in w]
     # the line is 8N1: told it is odd parity, the estimate keeps that and shows the cost
-    capture = open_capture(path, ReadOptions(probes=("RX", "TX"), parity="O"))
+    options = ReadOptions(probes=("RX", "TX"), parity="O", estimator=estimate_line)
+    capture = open_capture(path, options)
     assert capture.info.line is not None
     assert (capture.info.line.baud, capture.info.line.parity) == (9600, "O")
     (note,) = [w for w in capture.info.notes if "no --baud given" in w]

@@ -16,6 +16,7 @@ from sniffer.meaning.select import row_words
 from sniffer.session import index
 from sniffer.session.paged import HOT, PagedStore, wanted
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
+from sniffer.session.state import SessionState
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture
 from sniffer.tui.model import ViewModel
 from sniffer.tui.render import Styles, columns_for
@@ -124,12 +125,12 @@ def test_a_sidecar_given_up_halfway_keeps_its_rows_and_the_rest_in_memory(
     add = index.Writer.add
     calls = [0]
 
-    def add_then_fail(self: index.Writer, session: Session) -> None:
+    def add_then_fail(self: index.Writer, state: SessionState) -> None:
         calls[0] += 1
         if calls[0] == 5:  # as if the disk filled up (the demo: some 25 segments)
             self.abandon()
             return
-        add(self, session)
+        add(self, state)
 
     monkeypatch.setattr(index.Writer, "add", add_then_fail)
     full = whole(demo)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import struct
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,7 @@ import pytest
 from dissectors.checks import crc16, with_crc
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.sources import CaptureError, ReadOptions, open_capture
+from sniffer.sources.base import LineGuess
 from sniffer.sources.sigrok import UartDecoder, parse_samplerate
 
 SIGROK = Path(__file__).parent.parent / "captures" / "sigrok"
@@ -220,6 +222,38 @@ def test_synthetic_exact_times_and_straddling_members(tmp_path: Path) -> None:
         assert chunk.direction == Direction.UNKNOWN
     assert chunks[1].t_start is not None and chunks[0].t_start is not None
     assert chunks[1].t_start - chunks[0].t_start == pytest.approx(per_char)
+
+
+def test_a_line_without_baud_is_measured_by_the_estimator_given(tmp_path: Path) -> None:
+    # choosing a format means framing the characters, which is above the readers: the
+    # reader hands the chosen probes' levels to the estimator in its options (a session
+    # passes sniffer.analysis.baud.estimate_line), and without one keeps the defaults
+    line = LineSettings(9600, 8, "N", 1)
+    frame = with_crc(bytes.fromhex("0103000a0001"))
+    levels = uart_levels(frame, line, 10, idle=57)
+    path = tmp_path / "one.sr"
+    write_session(path, {1: [1] * len(levels), 2: levels}, samplerate="96 kHz")
+    asked: list[tuple[float, list[bytes], ReadOptions]] = []
+
+    def estimator(
+        samplerate: float, levels: Sequence[bytes], options: ReadOptions
+    ) -> LineGuess | None:
+        asked.append((samplerate, list(levels), options))
+        return LineGuess(line, "measured at 9600 8N1")
+
+    options = ReadOptions(probes=("2",), estimator=estimator)
+    capture = open_capture(path, options)
+    assert asked == [(96000.0, [bytes(levels)], options)]
+    assert capture.info.line == line
+    assert capture.info.notes == (f"{path}: measured at 9600 8N1",)
+    assert b"".join(c.data for c in capture.chunks()) == frame
+
+    asked.clear()
+    given = open_capture(path, ReadOptions(probes=("2",), baud=9600, estimator=estimator))
+    assert asked == [] and given.info.notes == ()
+    defaults = open_capture(path, ReadOptions(probes=("2",)))
+    assert defaults.info.line == LineSettings() and defaults.info.notes == ()
+    assert b"".join(c.data for c in defaults.chunks()) != frame  # read at 19200 8E1
 
 
 def test_synthetic_parity_and_framing_errors_are_events(tmp_path: Path) -> None:

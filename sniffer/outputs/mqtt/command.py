@@ -6,7 +6,10 @@ import argparse
 from collections.abc import Callable, Mapping, Sequence
 from typing import TextIO
 
+from dissectors.dictionary.errors import DictionaryError
+from dissectors.dictionary.loader import load_model
 from sniffer.errors import UsageError
+from sniffer.framing.pipeline import LIVE_MERGE_SLACK
 from sniffer.live.port import PortSpec
 from sniffer.meaning.annotate import Binding
 from sniffer.outputs.mqtt import MqttError
@@ -173,8 +176,6 @@ def mqtt_session(
     """A session that frames the published chunks as the publisher did: its line
     settings, timing, response timeout and merge slack (from its `interface` message),
     unless --timeout says otherwise."""
-    from sniffer.framing.pipeline import LIVE_MERGE_SLACK
-
     return Session(
         reader.specs[0].line,
         bindings=bindings,
@@ -208,9 +209,6 @@ def published_bindings(
     """The watcher's bindings: those `given` (--bus, --unit, --dict) if any, else the
     units the publisher's `interface` names, where the model is one of modscope's
     dictionaries."""
-    from dissectors.dictionary.errors import DictionaryError
-    from dissectors.dictionary.loader import load_model
-
     if given:
         return dict(given)
     units = reader.interface.get("units")
