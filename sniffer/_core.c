@@ -1328,7 +1328,7 @@ done:
 }
 
 /* defined below, with the poll cycle's and the tallies' loops */
-static PyObject *py_poll_table(PyObject *self, PyObject *unused);
+static PyObject *py_poll_table(PyObject *self, PyObject *rules);
 static PyObject *py_poll_block(PyObject *self, PyObject *args);
 static PyObject *py_tally_latencies(PyObject *self, PyObject *args);
 static PyObject *py_tally_gaps(PyObject *self, PyObject *args);
@@ -1888,7 +1888,7 @@ static PyMethodDef methods[] = {
     {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
     {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
     {"ranked", py_ranked, METH_VARARGS, "Values at ranks of the sorted values, by selection."},
-    {"poll_table", py_poll_table, METH_NOARGS, "A table of the distinct keys of PollCycles.add."},
+    {"poll_table", py_poll_table, METH_O, "A table of the distinct keys of PollCycles.add."},
     {"poll_block", py_poll_block, METH_VARARGS, "PollCycles.add's requests of a block, grouped."},
     {"tally_latencies", py_tally_latencies, METH_VARARGS, "Tallies.add_latencies' counting."},
     {"tally_gaps", py_tally_gaps, METH_VARARGS, "Tallies.add_requests' counting."},
@@ -1932,10 +1932,19 @@ PyMODINIT_FUNC PyInit__core(void) {
 
 /* ---- the poll cycle's requests and the bounded statistics' tallies -------------------- */
 
-/* poll_table() -> a table of the distinct request keys met by one PollCycles.add
- * (sniffer/analysis/pollcycle.py): a key is a row's bytes, with its framing (flags & the `apart`
- * bits: ASCII, Modbus TCP) where it has any, and each maps to the group Python gave it
- * (one group per _Sent). The bytes are kept in an arena, the slots point into it. */
+/* poll_table(rules) -> a table of the distinct request keys met by one PollCycles.add
+ * (sniffer/analysis/pollcycle.py): a key is a row's bytes, with its framing (flags & the
+ * `apart` bits: ASCII, Modbus TCP) where it has any, or a write's identity (see
+ * write_identity), and each maps to the group Python gave it (one group per _Sent). The
+ * bytes are kept in an arena, the slots point into it.
+ * `rules` is the same-poll rule of the writes (sniffer/analysis/polls.py: core_rules), a
+ * tuple of (code, multiple, low, high, bits, values) for each code whose writes are keyed
+ * by their identity: a multiple write (address, quantity, byte count, values) whose
+ * quantity is from low to high and whose byte count is what the quantity needs (a byte
+ * for 8 values of a table of bits, else 2 a value), or a single write (address, value) of
+ * one of `values` (None: any value). */
+#define RULE_VALUES 8 /* the most values a single write's rule may list */
+
 typedef struct {
     uint64_t hash;
     Py_ssize_t at, size, group; /* group -1: an empty slot */
@@ -1943,9 +1952,21 @@ typedef struct {
 } PollKey;
 
 typedef struct {
+    unsigned char form; /* 0: writes of this code keep their bytes as their key */
+    unsigned char bits;
+    unsigned char n_values; /* 0: any value */
+    unsigned int low, high;
+    unsigned int values[RULE_VALUES];
+} PollRule;
+
+#define RULE_SINGLE 1
+#define RULE_MULTIPLE 2
+
+typedef struct {
     PollKey *slots;
     Py_ssize_t cap, used;
     Buf arena;
+    PollRule rules[256];
 } PollTable;
 
 static void poll_table_free(PyObject *capsule) {
@@ -1956,9 +1977,68 @@ static void poll_table_free(PyObject *capsule) {
     PyMem_Free(pt);
 }
 
-static PyObject *py_poll_table(PyObject *self, PyObject *unused) {
+/* One rule of poll_table's `rules` into `rules`. 0, or -1 with an exception set. */
+static int poll_rule(PyObject *item, PollRule *rules) {
+    int code, multiple, bits;
+    unsigned int low, high;
+    PyObject *values;
+    if (!PyTuple_Check(item) ||
+        !PyArg_ParseTuple(item, "ipIIpO", &code, &multiple, &low, &high, &bits, &values)) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError,
+                            "poll_table: a rule is (code, multiple, low, high, bits, values)");
+        return -1;
+    }
+    if (code < 0 || code > 255 || rules[code].form) {
+        PyErr_Format(PyExc_ValueError, "poll_table: code %d out of range or given twice", code);
+        return -1;
+    }
+    if (low > high || high > 0xFFFF) {
+        PyErr_SetString(PyExc_ValueError, "poll_table: quantities are 0 <= low <= high <= 65535");
+        return -1;
+    }
+    PollRule *r = &rules[code];
+    if (values != Py_None) {
+        if (!PyTuple_Check(values) || PyTuple_GET_SIZE(values) < 1 ||
+            PyTuple_GET_SIZE(values) > RULE_VALUES) {
+            PyErr_Format(PyExc_ValueError, "poll_table: values are None or 1 to %d ints",
+                         RULE_VALUES);
+            return -1;
+        }
+        for (Py_ssize_t k = 0; k < PyTuple_GET_SIZE(values); k++) {
+            long v = PyLong_AsLong(PyTuple_GET_ITEM(values, k));
+            if (v == -1 && PyErr_Occurred()) return -1;
+            if (v < 0 || v > 0xFFFF) {
+                PyErr_SetString(PyExc_ValueError, "poll_table: a value is 16 bits");
+                return -1;
+            }
+            r->values[k] = (unsigned int)v;
+        }
+        r->n_values = (unsigned char)PyTuple_GET_SIZE(values);
+    }
+    r->form = multiple ? RULE_MULTIPLE : RULE_SINGLE;
+    r->bits = (unsigned char)bits;
+    r->low = low;
+    r->high = high;
+    return 0;
+}
+
+static PyObject *py_poll_table(PyObject *self, PyObject *rules) {
+    PyObject *seq = PySequence_Fast(rules, "poll_table: the rules are a sequence");
+    if (seq == NULL) return NULL;
     PollTable *pt = PyMem_Calloc(1, sizeof(PollTable));
-    if (pt == NULL) return PyErr_NoMemory();
+    if (pt == NULL) {
+        Py_DECREF(seq);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t k = 0; k < PySequence_Fast_GET_SIZE(seq); k++) {
+        if (poll_rule(PySequence_Fast_GET_ITEM(seq, k), pt->rules) < 0) {
+            Py_DECREF(seq);
+            PyMem_Free(pt);
+            return NULL;
+        }
+    }
+    Py_DECREF(seq);
     PyObject *capsule = PyCapsule_New(pt, "modscope.poll_table", poll_table_free);
     if (capsule == NULL) PyMem_Free(pt);
     return capsule;
@@ -2016,33 +2096,39 @@ typedef struct {
 /* The framing of a key that is a write's identity (no flag of a row has this bit). */
 #define WRITE_KEY 0x80000000u
 
-/* Whether the RTU frame p[0..n) (unit, body, CRC) is a write that _plain_what
- * (sniffer/analysis/pollcycle.py) reads straight from its bytes: FC 6, FC 5 of FF00 or 0000, or
- * FC 15/16 whose quantity is in range and whose byte count is its bytes that follow and
- * what the quantity needs. Then `same` gets what its identity holds (unit, code, address,
- * quantity), so that writes of other values share one key: a master that writes
- * changing values made the poll cycle call back into Python for each (13.8k a million
- * frames, about 0.1 s of replay --stats' 0.6); tests/test_core_pollcycle.py holds the
- * groups to the Python walk's. */
-static int write_identity(const char *p, Py_ssize_t n, char *same) {
+/* Whether the RTU frame p[0..n) (unit, body, CRC) is a write the table's rules read
+ * (sniffer/analysis/polls.py: plain_identity reads it so too): a single write of a value
+ * its rule allows, or a multiple write whose quantity is in its rule's range and whose
+ * byte count is the bytes that follow and what the quantity needs. Then `same` gets what
+ * its identity holds (unit, code, address, quantity), so that writes of other values
+ * share one key and Python hears of the first only: a master that writes changing values
+ * would otherwise make a new key, and a call into Python, of each.
+ * tests/core/test_core_pollcycle.py holds the groups to the Python walk's. */
+static int write_identity(const PollRule *rules, const char *p, Py_ssize_t n, char *same) {
     const unsigned char *b = (const unsigned char *)p;
     Py_ssize_t size = n - 2; /* the body: the CRC left off */
     if (size < 6) return 0;
-    unsigned int fc = b[1], count;
-    if (size == 6) {
-        if (fc == 6 || (fc == 5 && ((b[4] == 0xFF && b[5] == 0) || (b[4] == 0 && b[5] == 0))))
-            count = 1;
-        else
-            return 0;
-    } else if ((fc == 15 || fc == 16) && size == 7 + b[6]) {
+    const PollRule *r = &rules[b[1]];
+    unsigned int count;
+    if (r->form == RULE_SINGLE) {
+        if (size != 6) return 0;
+        if (r->n_values) {
+            unsigned int value = (unsigned int)b[4] << 8 | b[5];
+            int found = 0;
+            for (int k = 0; k < r->n_values; k++) found |= r->values[k] == value;
+            if (!found) return 0;
+        }
+        count = 1;
+    } else if (r->form == RULE_MULTIPLE) {
+        if (size < 7 || size != 7 + b[6]) return 0;
         count = (unsigned int)b[4] << 8 | b[5];
-        unsigned int need = fc == 16 ? 2 * count : (count + 7) / 8;
-        if (count < 1 || count > (fc == 16 ? 123u : 1968u) || b[6] != need) return 0;
+        unsigned int need = r->bits ? (count + 7) / 8 : 2 * count;
+        if (count < r->low || count > r->high || b[6] != need) return 0;
     } else {
         return 0;
     }
     same[0] = (char)b[0];
-    same[1] = (char)fc;
+    same[1] = (char)b[1];
     same[2] = (char)b[2];
     same[3] = (char)b[3];
     same[4] = (char)(count >> 8);
@@ -2133,7 +2219,7 @@ static PyObject *py_poll_block(PyObject *self, PyObject *args) {
         const char *row_p = p;
         Py_ssize_t row_n = n;
         char same[6];
-        if (!framing && !(apart & WRITE_KEY) && write_identity(p, n, same)) {
+        if (!framing && !(apart & WRITE_KEY) && write_identity(pt->rules, p, n, same)) {
             p = same;
             n = 6;
             framing = WRITE_KEY;

@@ -15,11 +15,10 @@ from sniffer.analysis.pollcycle import (
     Gap,
     Poll,
     UnitCycle,
-    _dissected_what,
-    _plain_what,
     cycle_table,
     poll_cycles,
 )
+from sniffer.analysis.polls import dissected_identity, plain_identity
 from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.pipeline import frame_capture
 from sniffer.framing.store import COLUMNS, FrameStore
@@ -94,7 +93,7 @@ def cycles_row_by_row(store: FrameStore) -> dict[int, UnitCycle]:
     for i in range(len(store)):
         if store.kind[i] != Kind.REQUEST or store.flags[i] & BAD_CHECK:
             continue
-        identity, what = _dissected_what(store.view(i).body())
+        identity, what = dissected_identity(store.view(i).body())
         found = sendings.setdefault(store.unit[i], {}).setdefault(
             identity, (what, store.fc[i], [], 0)
         )
@@ -182,9 +181,9 @@ def test_requests_read_straight_from_their_bytes_as_the_dissector_reads_them(
     function: int, tail: bytes, unit: int
 ) -> None:
     body = bytes([unit, function]) + tail
-    found = _plain_what(body)
+    found = plain_identity(body)
     if found is not None:
-        assert found == _dissected_what(body)
+        assert found == dissected_identity(body)
 
 
 @pytest.mark.parametrize("function", [1, 2, 3, 4, 5, 6, 15, 16])
@@ -204,8 +203,8 @@ def test_well_formed_requests_are_read_straight_from_their_bytes(function: int) 
             tail = address.to_bytes(2, "big") + quantity.to_bytes(2, "big") + bytes([need])
             tail += rng.randbytes(need)
         body = bytes([rng.randrange(256), function]) + tail
-        assert _plain_what(body) is not None
-        assert _plain_what(body) == _dissected_what(body)
+        assert plain_identity(body) is not None
+        assert plain_identity(body) == dissected_identity(body)
 
 
 @pytest.mark.parametrize("seed", range(8))
