@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+from dataclasses import replace
 from itertools import pairwise
 
 import pytest
@@ -10,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from dissectors.functions import FUNCTIONS, Limit, Registry
 from sniffer.analysis import pollcycle
 from sniffer.analysis.pollcycle import (
     Gap,
@@ -18,7 +20,16 @@ from sniffer.analysis.pollcycle import (
     cycle_table,
     poll_cycles,
 )
-from sniffer.analysis.polls import dissected_identity, plain_identity
+from sniffer.analysis.polls import (
+    FRAMED_APART,
+    RULES,
+    Form,
+    core_rules,
+    dissected_identity,
+    frame_body,
+    plain_identity,
+    rules,
+)
 from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.pipeline import frame_capture
 from sniffer.framing.store import COLUMNS, FrameStore
@@ -232,3 +243,38 @@ def _part(store: FrameStore, a: int, b: int) -> FrameStore:
     for name in COLUMNS:
         getattr(part, name).extend(getattr(store, name)[a:b])
     return part
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_rows_body_is_the_one_the_store_gives_whatever_its_envelope(seed: int) -> None:
+    """`frame_body` of a row's bytes and flags is `FrameView.body` (RTU, ASCII, Modbus
+    TCP frames, damaged ones among them)."""
+    store = random_store(random.Random(seed), 1500, channels=2, odd_framing=True)
+    framed = {0: 0, int(Flag.ASCII): 0, int(Flag.MBAP): 0}
+    for i in range(len(store)):
+        if store.kind[i] in (Kind.NOISE, Kind.EVENT):
+            continue
+        assert frame_body(store.raw(i), store.flags[i]) == store.view(i).body()
+        framed[store.flags[i] & FRAMED_APART] += 1
+    assert min(framed.values()) > 10
+
+
+def test_the_rule_is_the_registrys() -> None:
+    """The rules follow the specs they are made from: a registry whose FC 16 takes at
+    most 60 registers, or that knows no FC 5, makes rules that say so."""
+    assert {code: r.form for code, r in RULES.items()} == {
+        1: Form.READ,
+        2: Form.READ,
+        3: Form.READ,
+        4: Form.READ,
+        5: Form.SINGLE,
+        6: Form.SINGLE,
+        15: Form.MULTIPLE,
+        16: Form.MULTIPLE,
+    }
+    assert (RULES[15].high, RULES[16].high, RULES[5].values) == (1968, 123, frozenset({0xFF00, 0}))
+    narrow = replace(FUNCTIONS[16], limits=(Limit("quantity", 1, 60),))
+    fewer = Registry(spec for code, spec in FUNCTIONS.items() if code != 5).with_specs([narrow])
+    found = rules(fewer)
+    assert 5 not in found and (found[16].low, found[16].high) == (1, 60)
+    assert (16, True, 1, 60, False, None) in core_rules(found)
