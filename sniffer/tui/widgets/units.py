@@ -213,6 +213,9 @@ FOLLOW_AGAIN_INDEXING = 0.25
 _SKIPPED = int(BAD_CHECK)  # the requests the poll cycle leaves out
 _REQUESTS = marking((int(Kind.REQUEST),))
 _MBAP = int(Flag.MBAP)
+# a request as sent: unit and bytes, or, framed otherwise than RTU, unit, framing and
+# bytes (a Modbus TCP frame's without its header, whose transaction id differs each time)
+_Sending = tuple[int, bytes] | tuple[int, int, bytes]
 
 
 class PollWatch:
@@ -229,10 +232,9 @@ class PollWatch:
         self.store: FrameStore | None = None
         self.next = 0
         self.polls: dict[int, dict[Identity, _Poll]] = {}
-        # each request as sent (unit, framing, bytes; a Modbus TCP frame's without its
-        # header, whose transaction id differs each time) -> its poll: a polling master
-        # sends the same bytes all day, so most rows skip the rule (up to SEEN of them)
-        self._seen: dict[tuple[int, int, bytes], _Poll] = {}
+        # each request as sent -> its poll: a polling master sends the same bytes all
+        # day, so most rows skip the rule (up to SEEN of them)
+        self._seen: dict[_Sending, _Poll] = {}
 
     def update(self, store: FrameStore, upto: int, budget: float | None = None) -> bool:
         """Take in rows below `upto` (rows another thread has finished writing), in
@@ -276,7 +278,9 @@ class PollWatch:
             raw = data[at : at + lengths[k]]
             u = unit[k]
             framing = f & FRAMED_APART
-            sent = (u, framing, mbap.body(raw) if framing & _MBAP else raw)
+            sent: _Sending = (
+                (u, framing, mbap.body(raw) if framing & _MBAP else raw) if framing else (u, raw)
+            )
             poll = seen.get(sent)
             if poll is None:
                 mine = self.polls.setdefault(u, {})
