@@ -12,14 +12,17 @@
  *    (sniffer/analysis/stats.py: Stats.update, nearest_rank, median_gap);
  *  - sunspec_rows: the first tests of SunSpecTracker.follow_rows (sniffer/meaning/sunspec.py);
  *  - join_reads: batches of reads held by the pipeline, as one (sniffer/framing/pipeline.py);
- *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped
- *    (sniffer/analysis/pollcycle.py: PollCycles.add);
+ *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped by the same-poll
+ *    rule Python hands over (sniffer/analysis/pollcycle.py: PollCycles.add; the rule:
+ *    sniffer/analysis/polls.py);
  *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
  *    (sniffer/analysis/stats.py: Tallies.add_latencies, Tallies.add_requests);
  *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
  *    content it has a template for (sniffer/outputs/export.py: PcapExporter.write, _rows);
  *  - shift_partners: a sidecar block's partners renumbered (sniffer/session/index.py:
- *    shifted_partners).
+ *    shifted_partners);
+ *  - constants: the product's numbers this file says itself, which
+ *    tests/core/test_core_constants.py holds to the Python that defines them.
  *
  * All are copies of the Python code named, which stays the reference and the fallback:
  * each stops where that code would do anything else and hands the position back, so the
@@ -54,8 +57,8 @@ static int buf_grow(Buf *b, Py_ssize_t n) {
 }
 
 /* Inlined where it is called, so that the copy of a value of a size known there (an
- * 8-byte time or offset) is a move, not a call to memcpy: reading 1M packets, the calls
- * were 3 % of replay --stats' whole profile. */
+ * 8-byte time or offset) is a move, not a call to memcpy: it runs for every column of
+ * every packet and row. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
@@ -102,6 +105,55 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
     return PyLong_FromLong(c);
 }
 
+/* ---- the product's numbers, where C must say them ------------------------------------ */
+
+/* Each is Python's too (sniffer/vocab.py, the registry of dissectors/pdu, the sources'
+ * limits): constants() says them all back, and tests/core/test_core_constants.py holds
+ * each to the Python it restates, so neither can change alone. */
+
+/* what a row is, what became of its transaction, and the flags the passes test or set
+ * (sniffer/vocab.py: Kind, Status, Flag, BAD_CHECK) */
+#define K_NOISE 0
+#define K_REQUEST 1
+#define K_RESPONSE 2
+#define K_EXCEPTION 3
+#define K_UNKNOWN 4
+#define K_EVENT 5
+#define S_OK 1
+#define S_EXCEPTION 2
+#define S_TIMEOUT 3
+#define S_ORPHAN 4
+#define S_BROADCAST 5
+#define S_OPEN 6
+#define S_BAD_ANSWER 7
+#define F_CHECK_BAD (1u << 0)
+#define F_NON_HEX (1u << 4)
+#define F_ENVELOPE_BAD (1u << 17)
+#define F_ASCII (1u << 24)
+#define BAD_CHECK_BITS (F_CHECK_BAD | F_NON_HEX | F_ENVELOPE_BAD)
+#define F_RETRY (1u << 11)
+#define F_LATE (1u << 12)
+#define F_ANSWERED_BROADCAST (1u << 13)
+
+/* the bit an answer's function code carries when it is an exception */
+#define EXCEPTION_BIT 0x80
+
+/* The function codes whose layouts the export's packet keys and SunSpec's first look
+ * read (the registry's families and tables: dissectors/pdu/bits.py, registers.py), and
+ * the lengths of their RTU requests (unit, PDU, CRC). */
+#define FC_READ(c) ((c) >= 1 && (c) <= 4)             /* family "read" */
+#define FC_READ_BITS(c) ((c) == 1 || (c) == 2)        /* ... of coils or discrete inputs */
+#define FC_READ_REGISTERS(c) ((c) == 3 || (c) == 4)   /* ... of registers */
+#define FC_WRITE_SINGLE(c) ((c) == 5 || (c) == 6)     /* family "write_single" */
+#define FC_WRITE_COIL(c) ((c) == 5)                   /* ... of a coil */
+#define FC_WRITE_MULTIPLE(c) ((c) == 15 || (c) == 16) /* family "write_multiple" */
+#define FC_WRITE_COILS(c) ((c) == 15)                 /* ... of coils */
+#define FC_READ_HOLDING 3 /* what SunSpec reads (sniffer/meaning/sunspec.py: READ_HOLDING) */
+#define TABLE_REQUEST_LENGTH 8 /* a read's or single write's request (its fixed length) */
+#define MULTIPLE_COUNT_AT 6    /* a multiple write's byte count: where it is, */
+#define MULTIPLE_BASE 9        /* and the request's length less the bytes it counts */
+#define READ_ANSWER_BASE 5     /* a read's answer's length less the bytes it counts */
+
 /* ---- pcapng: runs of data packets (link type 250 data records, link type 147) ---------- */
 
 #define BLOCK_EPB 6u
@@ -137,16 +189,14 @@ static int exact_quotient(uint64_t ticks, uint64_t tps, double *out) {
     int s = 53 - bits;
     uint64_t m;
     if (s == 0 || r >> (64 - s) == 0) {
-        /* the s bits of the fraction in one 64-bit division: r << s fits (nanosecond
-         * stamps of this century: r < 2**30, s = 22); reading 1M such packets, 17.5 ns
-         * a packet in the 128-bit division below (the bit count by a loop), 8.3 here */
+        /* the s bits of the fraction in one 64-bit division, the cheapest: r << s fits
+         * for the usual stamps (nanoseconds of this century: r < 2**30, s = 22) */
         uint64_t frac = r << s;
         m = q << s | frac / tps;
         r = frac % tps;
     } else {
 #ifdef __SIZEOF_INT128__
-        /* as the loop below computes them, in one division: reading 1M packets of
-         * nanosecond stamps, in-process: 0.30 -> 0.20 s */
+        /* as the loop below computes them, in one division rather than a step a bit */
         unsigned __int128 frac = (unsigned __int128)r << s;
         m = q << s | (uint64_t)(frac / tps);
         r = (uint64_t)(frac % tps);
@@ -459,7 +509,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
             goto done;
         }
     }
-    Py_ssize_t pfx = pf | 0x80;
+    Py_ssize_t pfx = pf | EXCEPTION_BIT;
     for (;;) { /* once, or once a read of the batch */
         if (batch) {
             if (k == count) break;
@@ -520,7 +570,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     double t1 = t0 + (double)length * cur_rate;
                     uint64_t o = (uint64_t)pos;
                     uint16_t l = (uint16_t)length;
-                    unsigned char kind = fc == pf ? 2 : 3, u = (unsigned char)unit,
+                    unsigned char kind = fc == pf ? K_RESPONSE : K_EXCEPTION, u = (unsigned char)unit,
                                   f = (unsigned char)fc;
                     if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
                         buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
@@ -557,7 +607,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         double t1 = t0 + (double)length * cur_rate;
                         uint64_t o = (uint64_t)pos;
                         uint16_t l = (uint16_t)length;
-                        unsigned char kind = 1, u = (unsigned char)unit, f = (unsigned char)fc;
+                        unsigned char kind = K_REQUEST, u = (unsigned char)unit, f = (unsigned char)fc;
                         if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
                             buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
                             buf_put(&c_kind, &kind, 1) < 0 || buf_put(&c_unit, &u, 1) < 0 ||
@@ -575,16 +625,16 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                                               (Py_ssize_t)answer_byte[fc]);
                                 pu = unit;
                                 pf = fc;
-                                pfx = fc | 0x80;
+                                pfx = fc | EXCEPTION_BIT;
                             } else if (ap == FIXED) {
                                 pu = unit;
                                 pf = fc;
-                                pfx = fc | 0x80;
+                                pfx = fc | EXCEPTION_BIT;
                                 pl = (Py_ssize_t)answer_base[fc];
                             } else if (ap == ECHO) {
                                 pu = unit;
                                 pf = fc;
-                                pfx = fc | 0x80;
+                                pfx = fc | EXCEPTION_BIT;
                                 pl = length;
                                 pdl = t0 + (double)length * cur_rate + timeout;
                             }
@@ -665,29 +715,6 @@ done:
 
 /* ---- the store's columns, for the passes over rows ------------------------------------ */
 
-/* The numbers these passes store or test, as sniffer/vocab.py defines them (the module's
- * VOCAB says them back; tests/test_core_rows.py holds them to vocab's). */
-#define K_NOISE 0
-#define K_REQUEST 1
-#define K_RESPONSE 2
-#define K_EXCEPTION 3
-#define K_UNKNOWN 4
-#define K_EVENT 5
-#define S_OK 1
-#define S_EXCEPTION 2
-#define S_TIMEOUT 3
-#define S_ORPHAN 4
-#define S_BROADCAST 5
-#define S_OPEN 6
-#define S_BAD_ANSWER 7
-#define F_CHECK_BAD (1u << 0)
-#define F_NON_HEX (1u << 4)
-#define F_ENVELOPE_BAD (1u << 17)
-#define F_ASCII (1u << 24)
-#define BAD_CHECK_BITS (F_CHECK_BAD | F_NON_HEX | F_ENVELOPE_BAD)
-#define F_RETRY (1u << 11)
-#define F_LATE (1u << 12)
-#define F_ANSWERED_BROADCAST (1u << 13)
 
 /* One column of a FrameStore (an array.array attribute) as a buffer of the type code
  * `code`, writable if asked. 0 on success; -1 with an exception set. */
@@ -776,7 +803,7 @@ static PyObject *py_pair_rows(PyObject *self, PyObject *args) {
         Py_ssize_t req = (Py_ssize_t)pairs[k], resp = (Py_ssize_t)pairs[k + 1];
         partner[req] = (int32_t)resp;
         partner[resp] = (int32_t)req;
-        status[req] = status[resp] = (fc[resp] & 0x80) ? S_EXCEPTION : S_OK;
+        status[req] = status[resp] = (fc[resp] & EXCEPTION_BIT) ? S_EXCEPTION : S_OK;
     }
     result = Py_None;
     Py_INCREF(result);
@@ -912,7 +939,7 @@ static PyObject *py_pair_update(PyObject *self, PyObject *args) {
         if (op >= 0 && (unit[op] == u || unit[op] == 0) && fc[op] == (fc[i] & 0x7F)) {
             /* _pair(op, i) */
             unsigned char st = (flags[i] & BAD_CHECK_BITS)   ? S_BAD_ANSWER
-                               : (fc[i] & 0x80) ? S_EXCEPTION
+                               : (fc[i] & EXCEPTION_BIT) ? S_EXCEPTION
                                                 : S_OK;
             partner[op] = (int32_t)i;
             partner[i] = (int32_t)op;
@@ -1025,7 +1052,7 @@ static PyObject *py_stats_scan(PyObject *self, PyObject *args) {
             }
         } else if (k == K_RESPONSE || k == K_EXCEPTION) {
             ut->responses += 1;
-            if (fc[i] & 0x80) {
+            if (fc[i] & EXCEPTION_BIT) {
                 int64_t row = i;
                 if (buf_put(&exceptions, &row, 8) < 0) goto done;
             }
@@ -1129,10 +1156,10 @@ static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
         int keep = 1;
         if (i >= 0 && i < n) {
             int64_t req = partner[i];
-            if (fc[i] != 3 || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
+            if (fc[i] != FC_READ_HOLDING || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
                 keep = 0;
             } else if (req >= 0 && req < n && !(flags[req] & F_ASCII)) {
-                if (length[req] < 8) {
+                if (length[req] < TABLE_REQUEST_LENGTH) {
                     keep = 0;
                 } else if (!known[unit[i]]) {
                     const char *p;
@@ -1328,7 +1355,7 @@ done:
 }
 
 /* defined below, with the poll cycle's and the tallies' loops */
-static PyObject *py_poll_table(PyObject *self, PyObject *unused);
+static PyObject *py_poll_table(PyObject *self, PyObject *rules);
 static PyObject *py_poll_block(PyObject *self, PyObject *args);
 static PyObject *py_tally_latencies(PyObject *self, PyObject *args);
 static PyObject *py_tally_gaps(PyObject *self, PyObject *args);
@@ -1540,32 +1567,38 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
         ex_put_u8(w, code) < 0)
         return -1;
     if (k == K_REQUEST) {
-        if (code >= 1 && code <= 6 && rn == 8) {
+        int single = FC_WRITE_SINGLE(code);
+        if ((FC_READ(code) || single) && rn == TABLE_REQUEST_LENGTH) {
             made = 1;
-            if (code != 6 && buf_put(w, r + 4, 2) < 0) return -1;
-        } else if ((code == 15 || code == 16) && rn >= 9 && rn == 9 + r[6]) {
-            made = code == 16 || r[6] == ((r[4] << 8 | r[5]) + 7) / 8;
-            if (made && (buf_put(w, r + 4, 3) < 0 || (code == 15 && buf_put(w, last, 1) < 0)))
+            if ((!single || FC_WRITE_COIL(code)) && buf_put(w, r + 4, 2) < 0) return -1;
+        } else if (FC_WRITE_MULTIPLE(code) && rn >= MULTIPLE_BASE &&
+                   rn == MULTIPLE_BASE + r[MULTIPLE_COUNT_AT]) {
+            int coils = FC_WRITE_COILS(code);
+            made = !coils || r[MULTIPLE_COUNT_AT] == ((r[4] << 8 | r[5]) + 7) / 8;
+            if (made && (buf_put(w, r + 4, 3) < 0 || (coils && buf_put(w, last, 1) < 0)))
                 return -1;
         }
-    } else if (code & 0x80) {
-        made = rn == 5 && qn >= 2;
+    } else if (code & EXCEPTION_BIT) {
+        made = rn == EXCEPTION_LENGTH && qn >= 2;
         if (made && (buf_put(w, r + 2, 1) < 0 || buf_put(w, q + 1, 1) < 0 ||
                      ex_put_u16(w, qn) < 0))
             return -1;
-    } else if (code == 5 || code == 6) {
-        made = rn == 8 && qn == 8 && memcmp(r, q, 8) == 0;
-        if (made && code == 5 && buf_put(w, r + 4, 2) < 0) return -1;
-    } else if (code == 15 || code == 16) {
-        made = rn == 8 && qn >= 7 && memcmp(r, q, 6) == 0;
-        if (made && (buf_put(w, r + 4, 2) < 0 || buf_put(w, q + 6, 1) < 0 ||
+    } else if (FC_WRITE_SINGLE(code)) {
+        made = rn == TABLE_REQUEST_LENGTH && qn == TABLE_REQUEST_LENGTH &&
+               memcmp(r, q, TABLE_REQUEST_LENGTH) == 0;
+        if (made && FC_WRITE_COIL(code) && buf_put(w, r + 4, 2) < 0) return -1;
+    } else if (FC_WRITE_MULTIPLE(code)) {
+        made = rn == TABLE_REQUEST_LENGTH && qn > MULTIPLE_COUNT_AT && memcmp(r, q, 6) == 0;
+        if (made && (buf_put(w, r + 4, 2) < 0 || buf_put(w, q + MULTIPLE_COUNT_AT, 1) < 0 ||
                      ex_put_u16(w, qn) < 0))
             return -1;
-    } else if (code >= 1 && code <= 4) {
-        Py_ssize_t need = code <= 2 ? (quantity + 7) / 8 : 2 * quantity;
-        made = qn == 8 && q[1] == code && rn == 5 + r[2] && r[2] == need;
+    } else if (FC_READ(code)) {
+        int bits = FC_READ_BITS(code);
+        Py_ssize_t need = bits ? (quantity + 7) / 8 : 2 * quantity;
+        made = qn == TABLE_REQUEST_LENGTH && q[1] == code && rn == READ_ANSWER_BASE + r[2] &&
+               r[2] == need;
         if (made && (buf_put(w, r + 2, 1) < 0 ||
-                     (code <= 2 && (buf_put(w, last, 1) < 0 || buf_put(w, q + 4, 2) < 0))))
+                     (bits && (buf_put(w, last, 1) < 0 || buf_put(w, q + 4, 2) < 0))))
             return -1;
     }
     return made;
@@ -1644,7 +1677,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     PyObject *result = NULL, *streams = NULL;
     /* the table's buffers, grown once: a run's blocks go out as bytes of up to about
      * EX_RUN_BYTES, which the allocator gives back and takes again without new pages
-     * (1M-byte runs cost page faults at every call: 0.05 us a row) */
+     * (far larger runs would fault pages in at every call) */
     Buf out = et->out, exact = et->exact, free_key = et->free_key, packet_key = et->packet_key;
     out.n = 0;
     Py_ssize_t done = 0, found = 0;
@@ -1685,7 +1718,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
         if (k != K_NOISE) {
             int in = ex_in_any(apart, unit[i]);
             if (in) goto in_or_fail;
-            if ((fc[i] & 0x80) && p != -1) {
+            if ((fc[i] & EXCEPTION_BIT) && p != -1) {
                 /* an exception its request may explain (describe.py: _explained) */
                 if ((in = ex_in(bound, unit[i])) || (in = ex_in(bound, unit[p])) ||
                     (in = ex_in(PyTuple_GET_ITEM(apart, 0), unit[p])))
@@ -1717,14 +1750,15 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
         const unsigned char *r = (const unsigned char *)raw, *q = (const unsigned char *)asked;
         ExSlot *s = ex_slot(et, ex_hash((const unsigned char *)exact.p, exact.n), exact.p,
                             exact.n);
-        /* the other keys, made only when the exact one is not found (0.36 -> 0.33 us a row) */
+        /* the other keys, made only when the exact one is not found (most rows are) */
         if (s->template == NULL && alike && (k == K_REQUEST || answer) &&
             !((flags[i] | (answer ? flags[p] : 0)) & valued)) {
             int in = ex_in(bound, unit[i]);
             if (in < 0) goto fail_item;
             if (!in && answer && k == K_RESPONSE && unit[i] && raw_n >= 5 &&
-                (r[1] == 3 || r[1] == 4) && asked_n >= 8 && q[1] == r[1] &&
-                raw_n == 5 + r[2] && r[2] == 2 * (q[4] << 8 | q[5])) { /* describe.py: _valueless */
+                FC_READ_REGISTERS(r[1]) && asked_n >= TABLE_REQUEST_LENGTH && q[1] == r[1] &&
+                raw_n == READ_ANSWER_BASE + r[2] &&
+                r[2] == 2 * (q[4] << 8 | q[5])) { /* describe.py: _valueless */
                 free_key.n = 0;
                 if (buf_put(&free_key, "F", 1) < 0 || buf_put(&free_key, raw, 3) < 0 ||
                     ex_put_u16(&free_key, raw_n) < 0 || ex_put_u32(&free_key, flags[i]) < 0 ||
@@ -1843,7 +1877,7 @@ done_:
 /* shift_partners(partner, at_least, by) -> bytes: the int32 partner column of a block
  * with each partner p at or above `at_least` moved to p + by and every other one (none,
  * or a row out of the range) made -1 (sniffer/session/index.py: shifted_partners, the
- * reference). 65,536 rows: about 0.05 ms, against 5 ms for the generator there. */
+ * reference), which is a generator over every row of the block. */
 static PyObject *py_shift_partners(PyObject *self, PyObject *args) {
     Py_buffer pv;
     long long at_least, by;
@@ -1877,6 +1911,120 @@ done:
     return result;
 }
 
+/* ---- the numbers said back ---------------------------------------------------------- */
+
+/* One entry of constants(): `value` (a new reference, or NULL with an exception set) put
+ * under `name`. 0, or -1 with an exception set. */
+static int put(PyObject *d, const char *name, PyObject *value) {
+    if (value == NULL) return -1;
+    int r = PyDict_SetItemString(d, name, value);
+    Py_DECREF(value);
+    return r;
+}
+
+/* The codes 0-255 marked in `marks`, as a tuple. */
+static PyObject *codes_marked(const unsigned char *marks) {
+    PyObject *list = PyList_New(0), *tuple = NULL;
+    if (list == NULL) return NULL;
+    for (int c = 0; c < 256; c++) {
+        if (!marks[c]) continue;
+        PyObject *code = PyLong_FromLong(c);
+        if (code == NULL || PyList_Append(list, code) < 0) {
+            Py_XDECREF(code);
+            Py_DECREF(list);
+            return NULL;
+        }
+        Py_DECREF(code);
+    }
+    tuple = PyList_AsTuple(list);
+    Py_DECREF(list);
+    return tuple;
+}
+
+/* constants() -> {name: value}: every number of the product this file says itself (see
+ * "the product's numbers" above, and the limits of the pcap walks and the RTU fast
+ * paths), the function-code tests as the tuple of the codes each holds for. */
+static PyObject *py_constants(PyObject *self, PyObject *unused) {
+    static const struct {
+        const char *name;
+        long long value;
+    } ints[] = {
+        {"NOISE", K_NOISE},
+        {"REQUEST", K_REQUEST},
+        {"RESPONSE", K_RESPONSE},
+        {"EXCEPTION", K_EXCEPTION},
+        {"UNKNOWN", K_UNKNOWN},
+        {"EVENT", K_EVENT},
+        {"S_OK", S_OK},
+        {"S_EXCEPTION", S_EXCEPTION},
+        {"S_TIMEOUT", S_TIMEOUT},
+        {"S_ORPHAN", S_ORPHAN},
+        {"S_BROADCAST", S_BROADCAST},
+        {"S_OPEN", S_OPEN},
+        {"S_BAD_ANSWER", S_BAD_ANSWER},
+        {"CHECK_BAD", F_CHECK_BAD},
+        {"NON_HEX", F_NON_HEX},
+        {"ENVELOPE_BAD", F_ENVELOPE_BAD},
+        {"ASCII", F_ASCII},
+        {"BAD_CHECK", BAD_CHECK_BITS},
+        {"RETRY", F_RETRY},
+        {"LATE", F_LATE},
+        {"ANSWERED_BROADCAST", F_ANSWERED_BROADCAST},
+        {"EXCEPTION_BIT", EXCEPTION_BIT},
+        {"FC_READ_HOLDING", FC_READ_HOLDING},
+        {"TABLE_REQUEST_LENGTH", TABLE_REQUEST_LENGTH},
+        {"MULTIPLE_COUNT_AT", MULTIPLE_COUNT_AT},
+        {"MULTIPLE_BASE", MULTIPLE_BASE},
+        {"READ_ANSWER_BASE", READ_ANSWER_BASE},
+        {"EXCEPTION_LENGTH", EXCEPTION_LENGTH},
+        {"MIN_RTU", MIN_RTU},
+        {"MAX_RTU", MAX_RTU},
+        {"FIXED", FIXED},
+        {"ECHO", ECHO},
+        {"WALKED", WALKED},
+        {"BLOCK_EPB", BLOCK_EPB},
+        {"MAX_BLOCK", MAX_BLOCK},
+        {"RTAC_HEADER_LEN", RTAC_HEADER_LEN},
+        {"RTAC_DATA_RX_START", RTAC_DATA_RX_START},
+        {"EPB_FLAGS", EPB_FLAGS},
+        {"MAX_BATCH_BYTES", MAX_BATCH_BYTES},
+    };
+    static const struct {
+        const char *name;
+        double value;
+    } floats[] = {
+        {"MAX_TIME", MAX_TIME},
+        {"RTAC_MAX_LEAD", RTAC_MAX_LEAD},
+        {"MAX_BATCH_SPAN", MAX_BATCH_SPAN},
+    };
+    unsigned char marks[7][256];
+    for (int c = 0; c < 256; c++) {
+        marks[0][c] = FC_READ(c);
+        marks[1][c] = FC_READ_BITS(c);
+        marks[2][c] = FC_READ_REGISTERS(c);
+        marks[3][c] = FC_WRITE_SINGLE(c);
+        marks[4][c] = FC_WRITE_COIL(c);
+        marks[5][c] = FC_WRITE_MULTIPLE(c);
+        marks[6][c] = FC_WRITE_COILS(c);
+    }
+    static const char *tests[7] = {
+        "FC_READ",       "FC_READ_BITS",      "FC_READ_REGISTERS", "FC_WRITE_SINGLE",
+        "FC_WRITE_COIL", "FC_WRITE_MULTIPLE", "FC_WRITE_COILS",
+    };
+    PyObject *d = PyDict_New();
+    if (d == NULL) return NULL;
+    for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++)
+        if (put(d, ints[k].name, PyLong_FromLongLong(ints[k].value)) < 0) goto fail;
+    for (size_t k = 0; k < sizeof floats / sizeof floats[0]; k++)
+        if (put(d, floats[k].name, PyFloat_FromDouble(floats[k].value)) < 0) goto fail;
+    for (int k = 0; k < 7; k++)
+        if (put(d, tests[k], codes_marked(marks[k])) < 0) goto fail;
+    return d;
+fail:
+    Py_DECREF(d);
+    return NULL;
+}
+
 static PyMethodDef methods[] = {
     {"crc16", py_crc16, METH_O, "CRC-16/MODBUS of a bytes-like object."},
     {"bulk_epbs", py_bulk_epbs, METH_VARARGS, "pcapng data packets (link types 250, 147) of one batch."},
@@ -1888,13 +2036,14 @@ static PyMethodDef methods[] = {
     {"sunspec_rows", py_sunspec_rows, METH_VARARGS, "The rows SunSpec's tracker may take."},
     {"join_reads", py_join_reads, METH_O, "Consecutive batches of reads as one."},
     {"ranked", py_ranked, METH_VARARGS, "Values at ranks of the sorted values, by selection."},
-    {"poll_table", py_poll_table, METH_NOARGS, "A table of the distinct keys of PollCycles.add."},
+    {"poll_table", py_poll_table, METH_O, "A table of the distinct keys of PollCycles.add."},
     {"poll_block", py_poll_block, METH_VARARGS, "PollCycles.add's requests of a block, grouped."},
     {"tally_latencies", py_tally_latencies, METH_VARARGS, "Tallies.add_latencies' counting."},
     {"tally_gaps", py_tally_gaps, METH_VARARGS, "Tallies.add_requests' counting."},
     {"export_table", py_export_table, METH_NOARGS, "A table of the export's packet templates."},
     {"export_rows", py_export_rows, METH_VARARGS, "PcapExporter.write's blocks of a run of rows."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
+    {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -1907,35 +2056,24 @@ PyMODINIT_FUNC PyInit__core(void) {
     crc_init();
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    /* the vocabulary the passes over rows were built with (see sniffer/vocab.py) */
-    PyObject *vocab = Py_BuildValue(
-        "{sisisisisisisisisisisisisisIsIsIsIsIsI}", "NOISE", K_NOISE, "REQUEST", K_REQUEST,
-        "RESPONSE", K_RESPONSE, "EXCEPTION", K_EXCEPTION, "UNKNOWN", K_UNKNOWN, "EVENT", K_EVENT,
-        "S_OK", S_OK, "S_EXCEPTION", S_EXCEPTION, "S_TIMEOUT", S_TIMEOUT, "S_ORPHAN", S_ORPHAN,
-        "S_BROADCAST", S_BROADCAST, "S_OPEN", S_OPEN, "S_BAD_ANSWER", S_BAD_ANSWER,
-        "CHECK_BAD", F_CHECK_BAD, "BAD_CHECK", BAD_CHECK_BITS, "RETRY", F_RETRY, "LATE", F_LATE,
-        "ANSWERED_BROADCAST", F_ANSWERED_BROADCAST, "ASCII", F_ASCII);
-    if (vocab == NULL || PyModule_AddObject(m, "VOCAB", vocab) < 0) {
-        Py_XDECREF(vocab);
-        Py_DECREF(m);
-        return NULL;
-    }
-    /* the batch limits the pcap walks cut at (sniffer/sources/reads.py says the same) */
-    PyObject *limits = Py_BuildValue("(dn)", MAX_BATCH_SPAN, (Py_ssize_t)MAX_BATCH_BYTES);
-    if (limits == NULL || PyModule_AddObject(m, "BATCH_LIMITS", limits) < 0) {
-        Py_XDECREF(limits);
-        Py_DECREF(m);
-        return NULL;
-    }
     return m;
 }
 
 /* ---- the poll cycle's requests and the bounded statistics' tallies -------------------- */
 
-/* poll_table() -> a table of the distinct request keys met by one PollCycles.add
- * (sniffer/analysis/pollcycle.py): a key is a row's bytes, with its framing (flags & the `apart`
- * bits: ASCII, Modbus TCP) where it has any, and each maps to the group Python gave it
- * (one group per _Sent). The bytes are kept in an arena, the slots point into it. */
+/* poll_table(rules) -> a table of the distinct request keys met by one PollCycles.add
+ * (sniffer/analysis/pollcycle.py): a key is a row's bytes, with its framing (flags & the
+ * `apart` bits: ASCII, Modbus TCP) where it has any, or a write's identity (see
+ * write_identity), and each maps to the group Python gave it (one group per _Sent). The
+ * bytes are kept in an arena, the slots point into it.
+ * `rules` is the same-poll rule of the writes (sniffer/analysis/polls.py: core_rules), a
+ * tuple of (code, multiple, low, high, bits, values) for each code whose writes are keyed
+ * by their identity: a multiple write (address, quantity, byte count, values) whose
+ * quantity is from low to high and whose byte count is what the quantity needs (a byte
+ * for 8 values of a table of bits, else 2 a value), or a single write (address, value) of
+ * one of `values` (None: any value). */
+#define RULE_VALUES 8 /* the most values a single write's rule may list */
+
 typedef struct {
     uint64_t hash;
     Py_ssize_t at, size, group; /* group -1: an empty slot */
@@ -1943,9 +2081,21 @@ typedef struct {
 } PollKey;
 
 typedef struct {
+    unsigned char form; /* 0: writes of this code keep their bytes as their key */
+    unsigned char bits;
+    unsigned char n_values; /* 0: any value */
+    unsigned int low, high;
+    unsigned int values[RULE_VALUES];
+} PollRule;
+
+#define RULE_SINGLE 1
+#define RULE_MULTIPLE 2
+
+typedef struct {
     PollKey *slots;
     Py_ssize_t cap, used;
     Buf arena;
+    PollRule rules[256];
 } PollTable;
 
 static void poll_table_free(PyObject *capsule) {
@@ -1956,9 +2106,68 @@ static void poll_table_free(PyObject *capsule) {
     PyMem_Free(pt);
 }
 
-static PyObject *py_poll_table(PyObject *self, PyObject *unused) {
+/* One rule of poll_table's `rules` into `rules`. 0, or -1 with an exception set. */
+static int poll_rule(PyObject *item, PollRule *rules) {
+    int code, multiple, bits;
+    unsigned int low, high;
+    PyObject *values;
+    if (!PyTuple_Check(item) ||
+        !PyArg_ParseTuple(item, "ipIIpO", &code, &multiple, &low, &high, &bits, &values)) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_TypeError,
+                            "poll_table: a rule is (code, multiple, low, high, bits, values)");
+        return -1;
+    }
+    if (code < 0 || code > 255 || rules[code].form) {
+        PyErr_Format(PyExc_ValueError, "poll_table: code %d out of range or given twice", code);
+        return -1;
+    }
+    if (low > high || high > 0xFFFF) {
+        PyErr_SetString(PyExc_ValueError, "poll_table: quantities are 0 <= low <= high <= 65535");
+        return -1;
+    }
+    PollRule *r = &rules[code];
+    if (values != Py_None) {
+        if (!PyTuple_Check(values) || PyTuple_GET_SIZE(values) < 1 ||
+            PyTuple_GET_SIZE(values) > RULE_VALUES) {
+            PyErr_Format(PyExc_ValueError, "poll_table: values are None or 1 to %d ints",
+                         RULE_VALUES);
+            return -1;
+        }
+        for (Py_ssize_t k = 0; k < PyTuple_GET_SIZE(values); k++) {
+            long v = PyLong_AsLong(PyTuple_GET_ITEM(values, k));
+            if (v == -1 && PyErr_Occurred()) return -1;
+            if (v < 0 || v > 0xFFFF) {
+                PyErr_SetString(PyExc_ValueError, "poll_table: a value is 16 bits");
+                return -1;
+            }
+            r->values[k] = (unsigned int)v;
+        }
+        r->n_values = (unsigned char)PyTuple_GET_SIZE(values);
+    }
+    r->form = multiple ? RULE_MULTIPLE : RULE_SINGLE;
+    r->bits = (unsigned char)bits;
+    r->low = low;
+    r->high = high;
+    return 0;
+}
+
+static PyObject *py_poll_table(PyObject *self, PyObject *rules) {
+    PyObject *seq = PySequence_Fast(rules, "poll_table: the rules are a sequence");
+    if (seq == NULL) return NULL;
     PollTable *pt = PyMem_Calloc(1, sizeof(PollTable));
-    if (pt == NULL) return PyErr_NoMemory();
+    if (pt == NULL) {
+        Py_DECREF(seq);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t k = 0; k < PySequence_Fast_GET_SIZE(seq); k++) {
+        if (poll_rule(PySequence_Fast_GET_ITEM(seq, k), pt->rules) < 0) {
+            Py_DECREF(seq);
+            PyMem_Free(pt);
+            return NULL;
+        }
+    }
+    Py_DECREF(seq);
     PyObject *capsule = PyCapsule_New(pt, "modscope.poll_table", poll_table_free);
     if (capsule == NULL) PyMem_Free(pt);
     return capsule;
@@ -2016,33 +2225,39 @@ typedef struct {
 /* The framing of a key that is a write's identity (no flag of a row has this bit). */
 #define WRITE_KEY 0x80000000u
 
-/* Whether the RTU frame p[0..n) (unit, body, CRC) is a write that _plain_what
- * (sniffer/analysis/pollcycle.py) reads straight from its bytes: FC 6, FC 5 of FF00 or 0000, or
- * FC 15/16 whose quantity is in range and whose byte count is its bytes that follow and
- * what the quantity needs. Then `same` gets what its identity holds (unit, code, address,
- * quantity), so that writes of other values share one key: a master that writes
- * changing values made the poll cycle call back into Python for each (13.8k a million
- * frames, about 0.1 s of replay --stats' 0.6); tests/test_core_pollcycle.py holds the
- * groups to the Python walk's. */
-static int write_identity(const char *p, Py_ssize_t n, char *same) {
+/* Whether the RTU frame p[0..n) (unit, body, CRC) is a write the table's rules read
+ * (sniffer/analysis/polls.py: plain_identity reads it so too): a single write of a value
+ * its rule allows, or a multiple write whose quantity is in its rule's range and whose
+ * byte count is the bytes that follow and what the quantity needs. Then `same` gets what
+ * its identity holds (unit, code, address, quantity), so that writes of other values
+ * share one key and Python hears of the first only: a master that writes changing values
+ * would otherwise make a new key, and a call into Python, of each.
+ * tests/core/test_core_pollcycle.py holds the groups to the Python walk's. */
+static int write_identity(const PollRule *rules, const char *p, Py_ssize_t n, char *same) {
     const unsigned char *b = (const unsigned char *)p;
     Py_ssize_t size = n - 2; /* the body: the CRC left off */
     if (size < 6) return 0;
-    unsigned int fc = b[1], count;
-    if (size == 6) {
-        if (fc == 6 || (fc == 5 && ((b[4] == 0xFF && b[5] == 0) || (b[4] == 0 && b[5] == 0))))
-            count = 1;
-        else
-            return 0;
-    } else if ((fc == 15 || fc == 16) && size == 7 + b[6]) {
+    const PollRule *r = &rules[b[1]];
+    unsigned int count;
+    if (r->form == RULE_SINGLE) {
+        if (size != 6) return 0;
+        if (r->n_values) {
+            unsigned int value = (unsigned int)b[4] << 8 | b[5];
+            int found = 0;
+            for (int k = 0; k < r->n_values; k++) found |= r->values[k] == value;
+            if (!found) return 0;
+        }
+        count = 1;
+    } else if (r->form == RULE_MULTIPLE) {
+        if (size < 7 || size != 7 + b[6]) return 0;
         count = (unsigned int)b[4] << 8 | b[5];
-        unsigned int need = fc == 16 ? 2 * count : (count + 7) / 8;
-        if (count < 1 || count > (fc == 16 ? 123u : 1968u) || b[6] != need) return 0;
+        unsigned int need = r->bits ? (count + 7) / 8 : 2 * count;
+        if (count < r->low || count > r->high || b[6] != need) return 0;
     } else {
         return 0;
     }
     same[0] = (char)b[0];
-    same[1] = (char)fc;
+    same[1] = (char)b[1];
     same[2] = (char)b[2];
     same[3] = (char)b[3];
     same[4] = (char)(count >> 8);
@@ -2133,7 +2348,7 @@ static PyObject *py_poll_block(PyObject *self, PyObject *args) {
         const char *row_p = p;
         Py_ssize_t row_n = n;
         char same[6];
-        if (!framing && !(apart & WRITE_KEY) && write_identity(p, n, same)) {
+        if (!framing && !(apart & WRITE_KEY) && write_identity(pt->rules, p, n, same)) {
             p = same;
             n = 6;
             framing = WRITE_KEY;

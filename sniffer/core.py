@@ -15,6 +15,10 @@ the extension is missing, and takes over wherever the compiled loop meets anythi
 so both cores give the same rows, pairs, tables and packets, bit for bit (the export's
 loop lets more rows share a packet template than the Python one, only rows whose packets
 are the same but for the bytes it splices in: see `ex_packet_key` in sniffer/_core.c).
+Where a loop needs a number of the product (a kind, a flag, a function code's family or
+length, a limit of the readers) it is given it as a table (the RTU framer's length
+rules, the poll cycle's same-poll rule) or says it back in `_core.constants()`, which
+tests/core/test_core_constants.py holds to the Python that defines it.
 
 `MODSCOPE_PURE_PYTHON=1` forces the pure-Python core. `modscope --version` says which
 runs, and why not the compiled one.

@@ -31,7 +31,7 @@ _READ_NOUNS = {
     "holding_registers": "holding register",
 }
 _WRITE_NOUNS = {"coils": "coil", "holding_registers": "register"}
-_COIL_STATES = {0xFF00: "ON", 0x0000: "OFF"}
+COIL_STATES = {0xFF00: "ON", 0x0000: "OFF"}  # the values a write of one coil may carry
 
 
 def checked_values(
@@ -115,7 +115,7 @@ def write_single(w: Work) -> None:
         w.summary = f"write {_WRITE_NOUNS.get(w.table, 'value')}"
         return
     if w.table in BIT_TABLES:
-        state = _COIL_STATES.get(value)
+        state = COIL_STATES.get(value)
         if state is None:
             w.problem(
                 "coil-value",

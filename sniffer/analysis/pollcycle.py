@@ -1,10 +1,11 @@
 """Provides the poll cycle: per unit, which requests the master repeats, how often, how
 steadily, and where the cycle stalled.
 
-A request repeats when the same bytes (unit, function, address, count; written values
-left out) are sent again. Its period is the median time between two sendings, its
-jitter the spread of those times (95th minus 5th percentile), and a gap is a wait of
-more than twice the period: the master stopped polling, or the unit was skipped.
+A request repeats when the same poll (`sniffer.analysis.polls`: unit, function, address,
+quantity; written values left out) is sent again. Its period is the median time between
+two sendings, its jitter the spread of those times (95th minus 5th percentile), and a
+gap is a wait of more than twice the period: the master stopped polling, or the unit was
+skipped.
 """
 
 from __future__ import annotations
@@ -14,11 +15,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import compress, repeat
 from operator import add, lt, sub
-from typing import Any
+from typing import Any, cast
 
-from dissectors.dissect import dissect
-from dissectors.values import Role
 from sniffer import core
+from sniffer.analysis.polls import FRAMED_APART, core_rules, frame_body, poll_identity
 from sniffer.framing.columns import both, but_not, flag_mask, marking
 from sniffer.framing.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
@@ -69,84 +69,14 @@ class UnitCycle:
         return sorted({g for p in self.polls for g in p.gaps}, key=lambda g: g.start)
 
 
-_TABLE_WORDS = {
-    "holding_registers": "holding",
-    "input_registers": "input",
-    "coils": "coil",
-    "discrete_inputs": "input bit",
-}
-_READS = {1: "coils", 2: "discrete_inputs", 3: "holding_registers", 4: "input_registers"}
-
-
-def _what(body: bytes) -> tuple[tuple[object, ...], str]:
-    """The request's identity (values written left out) and a short description."""
-    return _plain_what(body) or _dissected_what(body)
-
-
-def _dissected_what(body: bytes) -> tuple[tuple[object, ...], str]:
-    """`_what` as the dissector reads the request: any function code, any damage."""
-    d = dissect(body, Role.REQUEST)
-    address = d.field("address")
-    quantity = d.field("quantity")
-    start = address.value if address is not None and isinstance(address.value, int) else None
-    count = quantity.value if quantity is not None and isinstance(quantity.value, int) else None
-    table = _READS.get(d.function) or (d.data[0].table if d.data else None)
-    if count is None and d.data:
-        count = len(d.data[0].values)
-    if table is None or start is None:
-        return (d.function, body[2:]), f"FC {d.function}"
-    return (d.function, start, count), _describe(d.function, table, start, count)
-
-
-def _describe(function: int, table: str, start: int, count: int | None) -> str:
-    word = _TABLE_WORDS.get(table, table)
-    span = f"{start}" if not count or count == 1 else f"{start}-{start + count - 1}"
-    verb = "write" if function in (5, 6, 15, 16) else "read"
-    return f"{verb} {word} {span}"
-
-
-_COILS_OR_REGISTERS = {5: "coils", 6: "holding_registers", 15: "coils", 16: "holding_registers"}
-_MOST = {15: 1968, 16: 123}  # the quantities a multiple write may carry
-
-
-def _plain_what(body: bytes) -> tuple[tuple[object, ...], str] | None:
-    """`_dissected_what` of a well-formed read or write (FC 1-6, 15, 16), read straight
-    from its bytes; None for anything else. Writes whose values change make a new body
-    each time: dissecting each costs about 8 us, reading it here under 1 us (1M frames,
-    13k distinct writes: 0.11 s against 0.01 s).
-    tests/analysis/test_pollcycle.py holds it to `_dissected_what` on valid and damaged bodies."""
-    size = len(body)
-    if size < 6:
-        return None
-    function = body[1]
-    start = (body[2] << 8) | body[3]
-    if size == 6:
-        if 1 <= function <= 4:
-            count = (body[4] << 8) | body[5]
-            return (function, start, count), _describe(function, _READS[function], start, count)
-        if function == 6 or (function == 5 and body[4:6] in (b"\xff\x00", b"\x00\x00")):
-            return (function, start, 1), _describe(
-                function, _COILS_OR_REGISTERS[function], start, 1
-            )
-        return None
-    if function in _MOST and size == 7 + body[6]:
-        count = (body[4] << 8) | body[5]
-        need = 2 * count if function == 16 else (count + 7) // 8
-        if 1 <= count <= _MOST[function] and body[6] == need:
-            table = _COILS_OR_REGISTERS[function]
-            return (function, start, count), _describe(function, table, start, count)
-    return None
-
-
 _IS_REQUEST = marking((Kind.REQUEST,))  # kind byte -> 0/1
-_FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC
+_CORE_RULES = core_rules()  # the same-poll rule of writes, as the compiled core takes it
 _RETRY = int(Flag.RETRY)
 
 
 # rows looked at a block at a time: what a block's keys hold is freed before the next,
 # so the memory the poll cycle takes beyond the times it keeps does not grow with the
-# capture (the whole 1M-frame capture at once took 80 MB more at its peak; a 30M-frame
-# day, 2.4 GB)
+# capture (a day's capture keyed at once would hold every request's bytes at once)
 BLOCK = 1 << 16
 # keys the compiled table keeps from one `add` to the next: past this many it starts
 # again, so that requests that never repeat (Modbus TCP's transaction ids make each
@@ -199,8 +129,7 @@ class PollCycles:
             flag_mask(store.flags, BAD_CHECK, start, n),
         )
         # a polling master sends the same requests all day: each distinct request (its
-        # bytes) is taken apart once a call (1M frames, 500k requests: 0.36 s, against
-        # 1.15 s looking up a dissection and the columns row by row)
+        # bytes) is taken apart once a call, not once a row
         found: dict[object, _Sent] = {}
         t = store.t
         for lo in range(start, n, BLOCK):
@@ -229,10 +158,10 @@ class PollCycles:
         the first time (`_sent`, as `add` does) and each group once a block: its times
         appended in the order of their rows, its retries counted."""
         if self._table is None or self._keys > TABLE_KEYS:
-            # the keys met, as `add`'s `found`, kept for the segments that follow: a
-            # windowed replay's every segment handed the same requests to Python again
-            # (a day of a polling master: its few hundred requests 458 times)
-            self._table = fast.poll_table()
+            # the keys met, as `add`'s `found`, kept for the segments that follow, so
+            # that a windowed replay does not hand the same requests to Python again
+            # at each segment; the rule says which writes share a key
+            self._table = fast.poll_table(_CORE_RULES)
             self._groups = []
             self._number = {}
             self._keys = 0
@@ -251,22 +180,22 @@ class PollCycles:
         for lo in range(start, n, BLOCK):
             hi = min(lo + BLOCK, n)
             for group, times, retries in fast.poll_block(
-                table, store, lo, hi, resolve, request, BAD_CHECK, _RETRY, _FRAMED_APART
+                table, store, lo, hi, resolve, request, BAD_CHECK, _RETRY, FRAMED_APART
             ):
                 sent = groups[group]
                 sent.times.frombytes(times)
                 sent.retries += retries
 
     def _sent(self, store: FrameStore, key: object, i: int) -> _Sent:
-        """Where the sendings of row `i`'s request (`key`: its bytes) are counted."""
-        # the key is the row's bytes (and framing), so it fixes the unit and body too
+        """Where the sendings of row `i`'s request (`key`: its bytes, with its framing
+        where it has any) are counted."""
         if isinstance(key, bytes):
-            unit, body = store.unit[i], key[:-2]
+            framing, raw = 0, key
         else:
-            view = store.view(i)
-            unit, body = view.unit, view.body()
-        identity, what = _what(body)  # writes with other values: the same identity
-        requests = self.sendings.setdefault(unit, {})
+            framing, raw = cast(tuple[int, bytes], key)
+        # writes with other values: the same identity
+        identity, what = poll_identity(frame_body(raw, framing))
+        requests = self.sendings.setdefault(store.unit[i], {})
         sent = requests.get(identity)
         if sent is None:
             sent = requests[identity] = _Sent(what, store.fc[i])
@@ -303,8 +232,8 @@ def _keys(store: FrameStore, lo: int, rows: bytes) -> list[object]:
     lengths = list(compress(store.length[lo:hi], rows))
     keys: list[object]
     if len(store.streams) == 1:
-        # the bytes these rows lie in, copied once; a comprehension slices faster than
-        # map(slice): 65 ms, not 120, for 1M frames
+        # the bytes these rows lie in, copied once, then sliced by a comprehension (a
+        # map of slice objects costs a call more a row)
         (data,) = store.streams.values()
         first = min(starts)
         seg = bytes(data[first : max(map(add, starts, lengths))])
@@ -318,11 +247,11 @@ def _keys(store: FrameStore, lo: int, rows: bytes) -> list[object]:
             bytes(streams[ch][at : at + size])
             for ch, at, size in zip(channels, starts, lengths, strict=True)
         ]
-    apart = both(rows, flag_mask(store.flags, _FRAMED_APART, lo, hi))
+    apart = both(rows, flag_mask(store.flags, FRAMED_APART, lo, hi))
     if 1 in apart:
         framing = compress(store.flags[lo:hi], rows)
         keys = [
-            (how & _FRAMED_APART, key) if odd else key
+            (how & FRAMED_APART, key) if odd else key
             for odd, how, key in zip(compress(apart, rows), framing, keys, strict=True)
         ]
     return keys
@@ -378,8 +307,8 @@ def _picked_waits(times: array[float]) -> tuple[float, float, float, float] | No
     """The 5th, 50th and 95th percentile (nearest rank) and the longest of the waits
     between `times` (at least three), from the compiled core: the values sorted() would
     put at those ranks, found by selection (sniffer/_core.c: ranked). None where only a
-    sort says (no compiled core, a NaN or a negative zero among the waits). 1M frames:
-    the poll cycle's table 0.075 -> 0.02 s."""
+    sort says (no compiled core, a NaN or a negative zero among the waits). Selection
+    rather than a sort: a busy poll's waits are many, and only four ranks are asked."""
     fast = core.FAST
     if fast is None:
         return None

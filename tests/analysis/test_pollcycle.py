@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+from dataclasses import replace
 from itertools import pairwise
 
 import pytest
@@ -10,15 +11,24 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from dissectors.functions import FUNCTIONS, Limit, Registry
 from sniffer.analysis import pollcycle
 from sniffer.analysis.pollcycle import (
     Gap,
     Poll,
     UnitCycle,
-    _dissected_what,
-    _plain_what,
     cycle_table,
     poll_cycles,
+)
+from sniffer.analysis.polls import (
+    FRAMED_APART,
+    RULES,
+    Form,
+    core_rules,
+    dissected_identity,
+    frame_body,
+    plain_identity,
+    rules,
 )
 from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.pipeline import frame_capture
@@ -94,7 +104,7 @@ def cycles_row_by_row(store: FrameStore) -> dict[int, UnitCycle]:
     for i in range(len(store)):
         if store.kind[i] != Kind.REQUEST or store.flags[i] & BAD_CHECK:
             continue
-        identity, what = _dissected_what(store.view(i).body())
+        identity, what = dissected_identity(store.view(i).body())
         found = sendings.setdefault(store.unit[i], {}).setdefault(
             identity, (what, store.fc[i], [], 0)
         )
@@ -182,9 +192,9 @@ def test_requests_read_straight_from_their_bytes_as_the_dissector_reads_them(
     function: int, tail: bytes, unit: int
 ) -> None:
     body = bytes([unit, function]) + tail
-    found = _plain_what(body)
+    found = plain_identity(body)
     if found is not None:
-        assert found == _dissected_what(body)
+        assert found == dissected_identity(body)
 
 
 @pytest.mark.parametrize("function", [1, 2, 3, 4, 5, 6, 15, 16])
@@ -204,8 +214,8 @@ def test_well_formed_requests_are_read_straight_from_their_bytes(function: int) 
             tail = address.to_bytes(2, "big") + quantity.to_bytes(2, "big") + bytes([need])
             tail += rng.randbytes(need)
         body = bytes([rng.randrange(256), function]) + tail
-        assert _plain_what(body) is not None
-        assert _plain_what(body) == _dissected_what(body)
+        assert plain_identity(body) is not None
+        assert plain_identity(body) == dissected_identity(body)
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -233,3 +243,38 @@ def _part(store: FrameStore, a: int, b: int) -> FrameStore:
     for name in COLUMNS:
         getattr(part, name).extend(getattr(store, name)[a:b])
     return part
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_rows_body_is_the_one_the_store_gives_whatever_its_envelope(seed: int) -> None:
+    """`frame_body` of a row's bytes and flags is `FrameView.body` (RTU, ASCII, Modbus
+    TCP frames, damaged ones among them)."""
+    store = random_store(random.Random(seed), 1500, channels=2, odd_framing=True)
+    framed = {0: 0, int(Flag.ASCII): 0, int(Flag.MBAP): 0}
+    for i in range(len(store)):
+        if store.kind[i] in (Kind.NOISE, Kind.EVENT):
+            continue
+        assert frame_body(store.raw(i), store.flags[i]) == store.view(i).body()
+        framed[store.flags[i] & FRAMED_APART] += 1
+    assert min(framed.values()) > 10
+
+
+def test_the_rule_is_the_registrys() -> None:
+    """The rules follow the specs they are made from: a registry whose FC 16 takes at
+    most 60 registers, or that knows no FC 5, makes rules that say so."""
+    assert {code: r.form for code, r in RULES.items()} == {
+        1: Form.READ,
+        2: Form.READ,
+        3: Form.READ,
+        4: Form.READ,
+        5: Form.SINGLE,
+        6: Form.SINGLE,
+        15: Form.MULTIPLE,
+        16: Form.MULTIPLE,
+    }
+    assert (RULES[15].high, RULES[16].high, RULES[5].values) == (1968, 123, frozenset({0xFF00, 0}))
+    narrow = replace(FUNCTIONS[16], limits=(Limit("quantity", 1, 60),))
+    fewer = Registry(spec for code, spec in FUNCTIONS.items() if code != 5).with_specs([narrow])
+    found = rules(fewer)
+    assert 5 not in found and (found[16].low, found[16].high) == (1, 60)
+    assert (16, True, 1, 60, False, None) in core_rules(found)

@@ -31,6 +31,7 @@ from hypothesis import strategies as st
 from dissectors.checks import lrc, with_crc
 from sniffer.analysis import pollcycle, stats
 from sniffer.analysis.pollcycle import PollCycles, cycle_table
+from sniffer.analysis.polls import FRAMED_APART, RULES, Form, core_rules, plain_identity
 from sniffer.analysis.stats import Tallies
 from sniffer.framing.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
@@ -76,6 +77,32 @@ def _request_body(rng: random.Random) -> bytes:
     return bytes([unit, rng.choice((3, 16, 0x41))]) + bytes(rng.randrange(0, 5))  # damaged
 
 
+def _write_body(rng: random.Random) -> bytes:
+    """A write of a code the same-poll rule reads (sniffer.analysis.polls.RULES), at and
+    next to the edges of what the rule takes: quantities one below, at and one above the
+    registry's limits, byte counts that fit or are one off (or wrapped past 255), the
+    values a single write may carry and their neighbours. Few units and addresses, so
+    that the same write comes again with other values."""
+    rule = rng.choice([r for r in RULES.values() if r.form != Form.READ])
+    head = bytes([rng.choice((1, 2, 0)), rule.code, 0, rng.choice((4, 5))])
+    if rule.form == Form.SINGLE:
+        allowed = sorted(rule.values or ())
+        near = [v + d for v in allowed for d in (-1, 0, 0, 1) if 0 <= v + d <= 0xFFFF]
+        value = rng.choice((*near, 0xFFFF, rng.getrandbits(16)) if near else (rng.getrandbits(16),))
+        return head + value.to_bytes(2, "big")
+    low, high = rule.low, rule.high
+    count = rng.choice(
+        (low - 1, low, low + 1, high - 1, high, high + 1, 0xFFFF, rng.randrange(low, high + 1))
+    )
+    count = max(0, min(count, 0xFFFF))
+    need = rule.value_bytes(count)
+    size = rng.choice((need, need, need, need + 1, need - 1, 0)) % 256
+    data = bytes(rng.getrandbits(8) for _ in range(size))
+    if rng.random() < 0.1:  # the bytes that follow are not what the byte count says
+        data = data[:-1] if data and rng.random() < 0.5 else data + b"\x00"
+    return head + count.to_bytes(2, "big") + bytes([size]) + data
+
+
 def _raw(rng: random.Random, body: bytes) -> tuple[bytes, int]:
     """The bytes of a request row and its framing flags."""
     how = rng.random()
@@ -87,10 +114,13 @@ def _raw(rng: random.Random, body: bytes) -> tuple[bytes, int]:
     return with_crc(body), 0
 
 
-def _poll_rows(rng: random.Random, n: int, channels: int, nan: bool) -> list[Row]:
+def _poll_rows(
+    rng: random.Random, n: int, channels: int, nan: bool, writes: bool = False
+) -> list[Row]:
     rows: list[Row] = []
     t = 1_700_000_000.0
-    bodies = [_request_body(rng) for _ in range(rng.randrange(1, 12))]
+    body_of = _write_body if writes else _request_body
+    bodies = [body_of(rng) for _ in range(rng.randrange(1, 12))]
     for _ in range(n):
         t += rng.choice((0.0, 0.001, 0.02, 0.1, 0.1, 0.1, 0.25, 1.0))
         if rng.random() < 0.02:
@@ -105,7 +135,7 @@ def _poll_rows(rng: random.Random, n: int, channels: int, nan: bool) -> list[Row
         if what < 0.13:
             rows.append((channel, b"", int(Kind.EVENT), int(Flag.LINE_EVENT), when, 0))
             continue
-        body = rng.choice(bodies) if rng.random() < 0.8 else _request_body(rng)
+        body = rng.choice(bodies) if rng.random() < 0.8 - 0.5 * writes else body_of(rng)
         raw, flags = _raw(rng, body)
         kind = Kind.REQUEST if what < 0.85 else rng.choice((Kind.RESPONSE, Kind.UNKNOWN))
         if rng.random() < 0.15:
@@ -187,6 +217,24 @@ def test_the_poll_cycle_is_the_same_with_either_core(
         assert _poll_run(fast, rows, steps, segments) == _poll_run(None, rows, steps, segments)
 
 
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 10**6),
+    n=st.integers(0, 200),
+    steps=st.lists(st.integers(1, 60), min_size=1, max_size=8),
+    block=st.sampled_from((1, 5, 1 << 16)),
+)
+def test_writes_at_the_edges_of_the_rule_are_grouped_as_python_groups_them(
+    seed: int, n: int, steps: list[int], block: int
+) -> None:
+    """Mostly writes of FC 5, 6, 15 and 16 at the edges of the rule (`_write_body`), their
+    values changing: the compiled groups are the Python walk's."""
+    fast = _compiled()
+    rows = _poll_rows(random.Random(seed), n, 1, False, writes=True)
+    with patched(pollcycle, "BLOCK", block):
+        assert _poll_run(fast, rows, steps, [False]) == _poll_run(None, rows, steps, [False])
+
+
 def test_the_poll_cycle_of_many_rows_is_the_same_with_either_core() -> None:
     fast = _compiled()
     rows = _poll_rows(random.Random(5), 20_000, 1, False)
@@ -206,7 +254,7 @@ def _poll(fast: ModuleType, table: object, store: FrameStore, hi: int, resolve: 
         int(Kind.REQUEST),
         BAD_CHECK,
         int(Flag.RETRY),
-        pollcycle._FRAMED_APART,
+        FRAMED_APART,
     )
 
 
@@ -236,7 +284,7 @@ def test_poll_block_keys_rows_as_the_python_keys_do() -> None:
         met.append((key, i))
         return 0 if isinstance(key, bytes) else 1
 
-    table = fast.poll_table()
+    table = fast.poll_table(core_rules())
     got = _poll(fast, table, store, len(store), resolve)
     assert met == [(rtu, 0), ((int(Flag.ASCII), ascii_raw), 1), ((int(Flag.MBAP), mbap_raw), 3)]
     assert [(g, array("d", times).tolist(), r) for g, times, r in got] == [
@@ -268,11 +316,11 @@ def test_an_error_in_resolve_comes_back_from_poll_block() -> None:
     def resolve(key: object, i: int) -> int:
         raise KeyError("no")
 
-    args = (int(Kind.REQUEST), BAD_CHECK, int(Flag.RETRY), pollcycle._FRAMED_APART)
+    args = (int(Kind.REQUEST), BAD_CHECK, int(Flag.RETRY), FRAMED_APART)
     with pytest.raises(KeyError):
-        fast.poll_block(fast.poll_table(), store, 0, 1, resolve, *args)
+        fast.poll_block(fast.poll_table(core_rules()), store, 0, 1, resolve, *args)
     with pytest.raises(ValueError):
-        fast.poll_block(fast.poll_table(), store, 0, 1, lambda key, i: -1, *args)
+        fast.poll_block(fast.poll_table(core_rules()), store, 0, 1, lambda key, i: -1, *args)
 
 
 # -- the tallies -----------------------------------------------------------------------------
@@ -380,8 +428,8 @@ def test_the_compiled_tallies_round_ties_to_even_and_keep_the_first_zero() -> No
 def test_poll_block_hands_over_a_write_once_whatever_values_it_writes() -> None:
     """A well-formed write (FC 5 of FF00 or 0000, FC 6, FC 15/16 with a quantity in range
     and a byte count that fits) is one key whatever it writes: `resolve` sees its first
-    row only. A write `_plain_what` does not read (FC 5 of another value) keeps its own
-    bytes as its key."""
+    row only. A write `plain_identity` does not read (FC 5 of another value) keeps its
+    own bytes as its key."""
     fast = _compiled()
     store = FrameStore()
     bodies = [
@@ -408,7 +456,7 @@ def test_poll_block_hands_over_a_write_once_whatever_values_it_writes() -> None:
         met.append(i)
         return len(met) - 1
 
-    got = _poll(fast, fast.poll_table(), store, len(store), resolve)
+    got = _poll(fast, fast.poll_table(core_rules()), store, len(store), resolve)
     assert met == [0, 2, 4, 5, 7, 9]
     assert [(g, array("d", times).tolist()) for g, times, _ in got] == [
         (0, [0.0, 1.0, 10.0]),
@@ -418,3 +466,91 @@ def test_poll_block_hands_over_a_write_once_whatever_values_it_writes() -> None:
         (4, [7.0, 8.0]),
         (5, [9.0]),
     ]
+
+
+_WRITES = [
+    bytes([1, 6, 0, 4, 0, 1]),
+    bytes([1, 6, 0, 4, 0, 2]),
+    bytes([1, 5, 0, 4, 0xFF, 0]),
+    bytes([1, 5, 0, 4, 0, 0]),
+    bytes([1, 16, 0, 9, 0, 1, 2, 0, 1]),
+    bytes([1, 16, 0, 9, 0, 1, 2, 0, 2]),
+]
+
+
+def _met(rules: object) -> list[int]:
+    """The rows of `_WRITES` whose keys `poll_block` hands over under `rules`."""
+    fast = _compiled()
+    store = FrameStore()
+    _grow(store, [(0, with_crc(b), int(Kind.REQUEST), 0, 0.0, 0) for b in _WRITES])
+    met: list[int] = []
+
+    def resolve(key: object, i: int) -> int:
+        met.append(i)
+        return len(met) - 1
+
+    _poll(fast, fast.poll_table(rules), store, len(store), resolve)
+    return met
+
+
+def test_the_compiled_core_keys_writes_by_the_rules_it_is_given() -> None:
+    """The rule comes from Python: no rules, and every write keeps its own bytes; a rule
+    of FC 6 that allows only the value 1, and FC 6 of 2 keeps its own; no rule of FC 16
+    (a read is already its identity), and FC 16 writes keep theirs."""
+    assert _met(core_rules()) == [0, 2, 4]
+    assert _met(()) == [0, 1, 2, 3, 4, 5]
+    six = [(6, False, 0, 0xFFFF, False, (1,))]
+    assert _met(six) == [0, 1, 2, 3, 4, 5]
+    assert _met([*six, *(r for r in core_rules() if r[0] != 6)]) == [0, 1, 2, 4]
+    # FC 16 of quantity 1 out of a rule's range (2-123): each its own key
+    sixteen = [r if r[0] != 16 else (16, True, 2, 123, False, None) for r in core_rules()]
+    assert _met(sixteen) == [0, 2, 4, 5]
+
+
+@pytest.mark.parametrize(
+    ("rules", "error"),
+    [
+        ([(6, False, 0, 0xFFFF, False, None)] * 2, ValueError),  # a code twice
+        ([(256, False, 0, 0xFFFF, False, None)], ValueError),
+        ([(16, True, 5, 4, False, None)], ValueError),  # low above high
+        ([(16, True, 0, 0x10000, False, None)], ValueError),
+        ([(5, False, 0, 0xFFFF, True, tuple(range(9)))], ValueError),  # too many values
+        ([(5, False, 0, 0xFFFF, True, ())], ValueError),
+        ([(5, False, 0, 0xFFFF, True, (0x10000,))], ValueError),
+        ([(5, False, 0, 0xFFFF, True, ("a",))], TypeError),
+        ([(5, False, 0)], TypeError),
+        ([[5, False, 0, 0xFFFF, True, None]], TypeError),
+        (5, TypeError),
+    ],
+)
+def test_poll_table_refuses_rules_it_cannot_follow(rules: object, error: type[Exception]) -> None:
+    with pytest.raises(error):
+        _compiled().poll_table(rules)
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 120))
+def test_poll_block_hands_over_each_write_as_the_python_rule_reads_it(seed: int, n: int) -> None:
+    """The keys `resolve` hears of are those of the Python rule: one for each identity of
+    a write `plain_identity` reads (whatever it writes), and one for each other frame's
+    bytes. (The groups alone would not tell: Python puts a write the core keys by its
+    bytes in the same group all the same.)"""
+    fast = _compiled()
+    rng = random.Random(seed)
+    pool = [_write_body(rng) for _ in range(rng.randrange(1, 10))]
+    bodies = [rng.choice(pool) if rng.random() < 0.5 else _write_body(rng) for _ in range(n)]
+    store = FrameStore()
+    _grow(store, [(0, with_crc(b), int(Kind.REQUEST), 0, 0.0, 0) for b in bodies])
+    met: list[int] = []
+
+    def resolve(key: object, i: int) -> int:
+        met.append(i)
+        return 0
+
+    _poll(fast, fast.poll_table(core_rules()), store, len(store), resolve)
+    first: dict[object, int] = {}
+    for i, body in enumerate(bodies):
+        plain = plain_identity(body)
+        key: object = (body[0], plain[0]) if plain is not None else with_crc(body)
+        first.setdefault(key, i)
+    assert met == sorted(first.values())

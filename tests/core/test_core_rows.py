@@ -32,32 +32,13 @@ from sniffer.framing.pipeline import Pipeline, _joined
 from sniffer.framing.store import COLUMNS, FrameStore
 from sniffer.meaning.sunspec import BASES, SunSpecTracker
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
-from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN, Reads
-from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
+from sniffer.sources.reads import Reads
+from sniffer.vocab import Flag, Kind
 from tests.support.core import _compiled, running
 
 TIMEOUT = 0.05
 LINE = LineSettings(baud=115200, parity="N", mode="rtu")
 ANSWERED_BROADCASTS = frozenset({0x41})
-
-
-def test_the_compiled_passes_use_the_vocabulary_of_sniffer_vocab() -> None:
-    fast = _compiled()
-    said = {
-        **{k.name: int(k) for k in Kind},
-        **{f"S_{s.name}": int(s) for s in Status if s != Status.NONE},
-        "CHECK_BAD": int(Flag.CHECK_BAD),
-        "BAD_CHECK": BAD_CHECK,
-        "RETRY": int(Flag.RETRY),
-        "LATE": int(Flag.LATE),
-        "ANSWERED_BROADCAST": int(Flag.ANSWERED_BROADCAST),
-        "ASCII": int(Flag.ASCII),
-    }
-    assert said == fast.VOCAB
-
-
-def test_the_compiled_walks_cut_batches_where_the_python_ones_do() -> None:
-    assert _compiled().BATCH_LIMITS == (MAX_BATCH_SPAN, MAX_BATCH_BYTES)
 
 
 # -- random rows --------------------------------------------------------------------------

@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from itertools import pairwise
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -19,11 +20,15 @@ from hypothesis import strategies as st
 from textual.pilot import Pilot
 
 from dissectors.checks import with_crc
-from sniffer.analysis.pollcycle import poll_cycles
+from sniffer.analysis.pollcycle import PollCycles, poll_cycles
+from sniffer.cli import main
 from sniffer.model import Chunk, LineSettings
-from sniffer.session.session import Session
+from sniffer.session.session import Session, replay_file
 from sniffer.tui.app import ModscopeApp
-from sniffer.tui.widgets.units import PollWatch, UnitsPanel, request_key
+from sniffer.tui.widgets.units import PollWatch, UnitsPanel
+from sniffer.vocab import Flag
+from tests.support.gateway import mbap_frame
+from tests.support.netbuild import Conversation, pcap
 
 LINE = LineSettings(19200, 8, "E", 1)
 SnapCompare = Callable[..., bool]
@@ -123,11 +128,77 @@ def test_a_request_sent_again_is_one_poll_with_the_frames_remembered_or_not(
 
 
 def test_writes_are_one_poll_whatever_they_write() -> None:
-    a = with_crc(bytes([4, 16, 0, 5, 0, 1, 2, 0, 7]))[:-2]
-    b = with_crc(bytes([4, 16, 0, 5, 0, 1, 2, 0, 9]))[:-2]
-    assert request_key(a) == request_key(b)
-    assert request_key(bytes([4, 6, 0, 5, 0, 1])) == request_key(bytes([4, 6, 0, 5, 0, 2]))
-    assert request_key(bytes([4, 3, 0, 5, 0, 1])) != request_key(bytes([4, 3, 0, 5, 0, 2]))
+    """Writes of other values are one poll, as --stats counts them; reads of other
+    quantities, and FC 5 of a value that is no coil state, are not."""
+    exchanges = [
+        (bytes([4, 16, 0, 5, 0, 1, 2, 0, k]), bytes([4, 16, 0, 5, 0, 1])) for k in range(3)
+    ]
+    exchanges += [(bytes([4, 6, 0, 5, 0, k]),) * 2 for k in range(3)]
+    exchanges += [(bytes([4, 3, 0, 5, 0, 1 + k % 2]), bytes([4, 3, 2, 0, 0])) for k in range(2)]
+    exchanges += [(bytes([4, 5, 0, 7, 0x12, k]),) * 2 for k in range(2)]
+    session = Session(LINE)
+    for k, (request, answer) in enumerate(exchanges):
+        session.feed(Chunk(with_crc(request), 1_700_000_000 + k * 0.1))
+        session.feed(Chunk(with_crc(answer), 1_700_000_000 + k * 0.1 + 0.03))
+    session.finish()
+    watch = PollWatch()
+    watch.update(session.store, len(session.store))
+    counts = sorted(p.count for p in watch.polls[4].values())
+    assert counts == [1, 1, 1, 1, 3, 3]
+    stats = PollCycles()
+    stats.add(session.store)
+    assert counts == sorted(len(s.times) for s in stats.sendings[4].values())
+
+
+# -- Modbus TCP: polls counted as --stats counts them -------------------------------------
+
+T0 = 1_750_000_000.0
+
+
+def tcp_capture(path: Path) -> Path:
+    """A master polling over Modbus TCP, each request with a transaction id of its own:
+    unit 1 read every 500 ms (12 times), unit 2 written every second with changing values
+    (6 times), each answered 20 ms later."""
+    conv = Conversation()
+    sends: list[tuple[float, bytes, bytes]] = []
+    for k in range(12):
+        sends.append((k * 0.5, bytes.fromhex("0103000a0002"), bytes.fromhex("01030400010002")))
+    for k in range(6):
+        write = bytes([2, 16, 0, 20, 0, 1, 2, 0, k])
+        sends.append((0.25 + k * 1.0, write, bytes([2, 16, 0, 20, 0, 1])))
+    packets = [(T0 - 1 + k * 0.01, p) for k, p in enumerate(conv.handshake())]
+    for tid, (t, request, answer) in enumerate(sorted(sends), start=1):
+        packets.append((T0 + t, conv.client(mbap_frame(tid, request))))
+        packets.append((T0 + t + 0.02, conv.server(mbap_frame(tid, answer))))
+    path.write_bytes(pcap(1, packets))
+    return path
+
+
+def test_modbus_tcp_polls_are_counted_as_the_stats_count_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each request's transaction id makes its frame differ from the last: the pane still
+    counts one poll of 12 sendings every 500 ms for unit 1, and one of 6 every second for
+    unit 2, as PollCycles and `modscope replay --stats` do (the pane once took each
+    request for a poll of its own, the MBAP header for a body)."""
+    path = tcp_capture(tmp_path / "tcp.pcap")
+    store = replay_file(path).store
+    requests = [i for i in range(len(store)) if store.flags[i] & Flag.MBAP and store.fc[i] == 3]
+    assert len({store.raw(i) for i in requests}) == 12 * 2  # requests and answers differ
+    watch = PollWatch()
+    watch.update(store, len(store))
+    cycles = poll_cycles(store)
+    for unit, count, period in ((1, 12, 0.5), (2, 6, 1.0)):
+        (poll,) = cycles[unit].polls
+        (mine,) = watch.polls[unit].values()
+        assert mine.count == poll.count == count
+        assert watch.summary(unit).period == pytest.approx(poll.period)
+        assert poll.period == pytest.approx(period, abs=1e-5)
+    assert main(["replay", str(path), "--stats"]) in (0, 1)
+    stats = capsys.readouterr().out
+    assert "read holding 10-11" in stats and "write holding 20" in stats
+    lines = [line.split() for line in stats.splitlines()]
+    assert ["1", "read", "holding", "10-11", "12", "500ms"] in [line[:6] for line in lines]
 
 
 @settings(max_examples=60, deadline=None)
@@ -188,6 +259,18 @@ async def test_at_80_columns_the_period_stays() -> None:
         table = app.main.query_one("#units", UnitsPanel)
         assert "period" in table.shown
         assert {"unit", "state", "seen", "exc", "t/o", "median", "p95"} <= set(table.shown)
+
+
+@pytest.mark.asyncio
+async def test_the_pane_shows_the_period_of_modbus_tcp_polls(tmp_path: Path) -> None:
+    app = app_on(replay_file(tcp_capture(tmp_path / "tcp.pcap")))
+    async with app.run_test(size=(160, 48)) as pilot:
+        await _shown(pilot)
+        table = app.main.query_one("#units", UnitsPanel)
+        names = table.shown
+        for unit, period in (("1", "500ms"), ("2", "1000ms")):
+            row = dict(zip(names, (str(c) for c in table.get_row(unit)), strict=True))
+            assert (row["period"], row["gaps"]) == (period, "-")
 
 
 @pytest.mark.parametrize("size", [(80, 24), (160, 48)], ids=lambda s: f"{s[0]}x{s[1]}")

@@ -16,14 +16,15 @@ from rich.style import Style
 from rich.text import Text
 from textual.widgets import DataTable
 
-from dissectors.envelope import ascii_body
+from dissectors import mbap
 from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS
+from sniffer.analysis.polls import FRAMED_APART, Identity, frame_body, poll_identity
 from sniffer.analysis.stats import UnitStats
 from sniffer.framing.columns import marking
 from sniffer.framing.store import FrameStore
 from sniffer.text import plain
 from sniffer.tui.render import ago_text, fit_columns
-from sniffer.vocab import Flag, Kind
+from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 # fixed widths: columns that grew with whatever was shown first would jump about
 COLUMNS = (
@@ -199,48 +200,41 @@ class CycleSummary:
     gaps: int
 
 
-def request_key(body: bytes) -> bytes:
-    """What makes two requests the same poll: unit, function, address and count; the
-    values a write carries are left out (as sniffer.analysis.pollcycle does)."""
-    if len(body) < 2:
-        return body
-    fc = body[1]
-    if fc in (5, 6):
-        return body[:4]
-    if fc in (15, 16, 23):
-        return body[:6]
-    return body
-
-
 # rows a PollWatch takes in at a time, and request frames it remembers the poll of
 CHUNK = 4096
 SEEN = 1 << 16
 # the pane's share of the UI thread while it follows a big capture: at most this long a
-# call (1M rows, 500k requests: 1.1 s in all), then again after a pause for keys
+# call, then again after a pause for keys
 FOLLOW_BUDGET = 0.04
 FOLLOW_AGAIN = 0.04
-# ...and while a capture is indexed, a smaller share: the index first (a 30M-row day
-# indexed in about 20 s; with the pane following at half the thread, 100 s)
+# ...and while a capture is indexed, a smaller share: the index first, which the pane
+# following at half the thread would slow several times over
 FOLLOW_AGAIN_INDEXING = 0.25
-_SKIPPED = int(Flag.CHECK_BAD | Flag.NON_HEX)
+_SKIPPED = int(BAD_CHECK)  # the requests the poll cycle leaves out
 _REQUESTS = marking((int(Kind.REQUEST),))
+_MBAP = int(Flag.MBAP)
+# a request as sent: unit and bytes, or, framed otherwise than RTU, unit, framing and
+# bytes (a Modbus TCP frame's without its header, whose transaction id differs each time)
+_Sending = tuple[int, bytes] | tuple[int, int, bytes]
 
 
 class PollWatch:
     """Each unit's repeating requests, followed incrementally over a store.
 
-    The same polls as `sniffer.analysis.pollcycle.poll_cycles` (which the --stats table uses), but
-    measured over each poll's latest WINDOW waits so the pane stays cheap on a long
-    capture; a gap is a wait of more than GAP_FACTOR times the period known when it ended.
+    The same polls as `sniffer.analysis.pollcycle.poll_cycles` (which the --stats table
+    uses): the same requests (a good check), told apart by the same rule
+    (`sniffer.analysis.polls`), but measured over each poll's latest WINDOW waits so the
+    pane stays cheap on a long capture; a gap is a wait of more than GAP_FACTOR times the
+    period known when it ended.
     """
 
     def __init__(self) -> None:
         self.store: FrameStore | None = None
         self.next = 0
-        self.polls: dict[int, dict[bytes, _Poll]] = {}
-        # each request's frame as sent -> its poll: a polling master sends the same
-        # bytes all day, so most rows skip the key (up to SEEN frames)
-        self._seen: dict[tuple[int, bytes], _Poll] = {}
+        self.polls: dict[int, dict[Identity, _Poll]] = {}
+        # each request as sent -> its poll: a polling master sends the same bytes all
+        # day, so most rows skip the rule (up to SEEN of them)
+        self._seen: dict[_Sending, _Poll] = {}
 
     def update(self, store: FrameStore, upto: int, budget: float | None = None) -> bool:
         """Take in rows below `upto` (rows another thread has finished writing), in
@@ -283,20 +277,19 @@ class PollWatch:
             at = offsets[k] - first
             raw = data[at : at + lengths[k]]
             u = unit[k]
-            poll = seen.get((u, raw))
+            framing = f & FRAMED_APART
+            sent: _Sending = (
+                (u, framing, mbap.body(raw) if framing & _MBAP else raw) if framing else (u, raw)
+            )
+            poll = seen.get(sent)
             if poll is None:
-                if f & Flag.ASCII:
-                    decoded = ascii_body(raw)
-                    body = decoded[:-1] if decoded else b""
-                else:
-                    body = raw[:-2]
                 mine = self.polls.setdefault(u, {})
-                key = request_key(body)
-                poll = mine.get(key)
+                identity, _ = poll_identity(frame_body(raw, framing))
+                poll = mine.get(identity)
                 if poll is None:
-                    poll = mine[key] = _Poll()
+                    poll = mine[identity] = _Poll()
                 if len(seen) < SEEN:  # (a write of ever new values is not worth keeping)
-                    seen[(u, raw)] = poll
+                    seen[sent] = poll
             poll.send(times[k])
 
     def summary(self, unit: int) -> CycleSummary:
