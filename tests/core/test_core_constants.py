@@ -14,7 +14,7 @@ from dissectors.dissect import dissect
 from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, AnswerRule, counted, fixed
 from dissectors.pdu.work import BIT_TABLES
 from dissectors.values import Role
-from sniffer.framing import serial
+from sniffer.framing import lengths
 from sniffer.meaning.sunspec import READ_HOLDING
 from sniffer.sources import linktypes, pcap
 from sniffer.sources.base import MAX_TIME
@@ -100,9 +100,9 @@ def test_the_lengths_of_requests_and_answers_are_the_registry_rules(said: dict[s
 
 
 def test_the_rtu_fast_paths_limits_are_the_framers(said: dict[str, Any]) -> None:
-    assert (said["MIN_RTU"], said["MAX_RTU"]) == (serial.MIN_RTU, serial.MAX_RTU)
+    assert (said["MIN_RTU"], said["MAX_RTU"]) == (lengths.MIN_RTU, lengths.MAX_RTU)
     assert (said["FIXED"], said["ECHO"]) == (AnswerRule.FIXED, AnswerRule.ECHO)
-    assert said["WALKED"] == serial.WALKED
+    assert said["WALKED"] == lengths.WALKED
 
 
 def test_the_pcap_walks_limits_are_the_readers(said: dict[str, Any]) -> None:
