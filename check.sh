@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every check modscope has, from a fresh clone: a virtual environment with the dev
 # extras, the peer programs the tests talk to (from Debian's packages, where apt-get and
-# root or sudo are available), then ruff, mypy (strict) and the test suite. Each step
+# root or sudo are available), then ruff, mypy (strict), lint-imports and the test suite. Each step
 # says what it does and how long it took. Without apt, or without root, the programs
 # that are missing are named and the tests that need them are skipped with that reason;
 # everything else still runs.
@@ -119,6 +119,9 @@ step "ruff (lint and format)"
 done_step
 step "mypy (strict)"
 ticking "$VENV/bin/mypy"
+done_step
+step "lint-imports (the stages' layers and the other import contracts in pyproject.toml)"
+"$VENV/bin/lint-imports"
 done_step
 # pytest-xdist runs the tests in parallel, one worker a CPU; tests/support/progress.py names
 # each test file as it starts and what still runs when the screen has been quiet for 20 s
