@@ -362,6 +362,13 @@ class _Row:
             self._names = [r.name.lower() for d in self.details for r in d.registers]
         return self._names
 
+    def holds_candidate(self, node: Node) -> bool:
+        """`holds` for a row `column_mask` let through: it satisfies the column-only
+        parts of the conjunctions the whole tree needs, so those are not tested again."""
+        if not isinstance(node, And):
+            return self.holds(node)
+        return all(self.holds_candidate(p) for p in node.parts if needs_detail(p))
+
     def holds(self, node: Node) -> bool:
         if isinstance(node, Text):
             return node.word in self.text
@@ -388,11 +395,15 @@ def row_matches(
     options: Options,
     details: Callable[[int], Sequence[FrameDetail]],
     origin: float | None = None,
+    *,
+    candidate: bool = False,
 ) -> bool:
     """Whether `query` selects row `i` (the options aside), its details given by
     `details(i)` when a register name or a word must be looked for: the row's, and in
-    the transactions view its answer's too."""
-    return _Row(store, i, options, origin, details).holds(query.tree)
+    the transactions view its answer's too. `candidate`: the row is one `column_mask`
+    let through, so the column terms every match needs are known to hold."""
+    row = _Row(store, i, options, origin, details)
+    return row.holds_candidate(query.tree) if candidate else row.holds(query.tree)
 
 
 # -- the job ---------------------------------------------------------------------------------
@@ -493,7 +504,9 @@ class FilterJob:
                 stop = min(len(cands), self.checked + 64)
                 for k in range(self.checked, stop):
                     i = cands[k]
-                    if row_matches(store, i, self.query, options, self._details, self.origin):
+                    if row_matches(
+                        store, i, self.query, options, self._details, self.origin, candidate=True
+                    ):
                         self.rows.append(i)
                 self.checked = stop
                 if _time.monotonic() > deadline:

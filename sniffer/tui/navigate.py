@@ -56,7 +56,9 @@ def find_row(
         for i in rows:
             if not shown(i):
                 continue
-            if query.needs_detail and not row_matches(store, i, query, options, one):
+            if query.needs_detail and not row_matches(
+                store, i, query, options, one, candidate=True
+            ):
                 if time.monotonic() > deadline:
                     return Found(None, i, False)
                 continue
