@@ -10,10 +10,12 @@ intersection; `not` binds tighter than `and`, `and` tighter than `or`.
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Sequence
 from datetime import datetime
 from functools import cache
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -34,6 +36,7 @@ from sniffer.meaning.query import (
     Not,
     Or,
     Query,
+    QueryError,
     Register,
     StatusTerm,
     Text,
@@ -348,3 +351,36 @@ def test_a_row_decided_by_its_columns_is_not_dissected() -> None:
     assert unit_3
     for i in unit_3:
         assert row_matches(store, i, query, options(), dissect, origin())
+
+
+# -- the manual's filter section says what the parser does ----------------------------------
+
+MANUAL = Path(__file__).resolve().parent.parent.parent / "docs" / "tui.md"
+
+
+def _section() -> str:
+    text = MANUAL.read_text(encoding="utf-8")
+    return text[text.index("## The filter language") : text.index("### How fast")]
+
+
+def test_the_manuals_examples_are_read() -> None:
+    section = _section()
+    examples = section[section.index("Examples:") : section.index("A query that cannot")]
+    found = re.findall(r"`([^`]+)`", examples)
+    assert len(found) >= 10
+    for text in found:
+        assert not parse_query(text).empty, text
+
+
+def test_what_the_manual_says_is_refused_is_refused() -> None:
+    section = _section()
+    table = section[section.index("| written | said |") : section.index("and a time span")]
+    written = [
+        text.replace("\\|", "|")
+        for line in table.splitlines()[2:]
+        for text in re.findall(r"`([^`]+)`", line.split(" | ")[0])
+    ]
+    assert len(written) >= 15
+    for text in written:
+        with pytest.raises(QueryError):
+            parse_query(text)
