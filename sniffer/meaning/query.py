@@ -213,7 +213,9 @@ class Query:
 
     The other properties sum up the terms of the tree's top-level conjunction by key (for
     a query without `or`, `not` or parentheses: the whole query), as the flat language of
-    terms had them; empty sets mean no condition on that column there.
+    terms had them; empty sets mean no condition on that column there. They are exact
+    for that flat language only: with `and` between two terms of one key (`unit:1 and
+    unit:2`, `reg:a and reg:b`) they are a summary, and only `tree` says what matches.
     """
 
     text: str = ""
