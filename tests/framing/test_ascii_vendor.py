@@ -293,3 +293,30 @@ def test_any_reads_answered_with_gt_frame_as_with_colon(
     for (k1, raw1, f1, s1, p1), (k2, raw2, f2, s2, p2) in zip(vendor, standard, strict=True):
         assert (k1, raw1[1:], s1, p1) == (k2, raw2[1:], s2, p2)
         assert f1 == f2 | (V if raw1[:1] == b">" else 0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.sampled_from([b">", b":", b"0", b"3", b"A", b"f", b"\r", b"\n", b"\x00"])),
+    st.lists(st.integers(1, 9), min_size=1, max_size=5),
+)
+def test_any_mix_of_starts_digits_and_line_ends_frames_every_byte_once(
+    pieces: list[bytes], cuts: list[int]
+) -> None:
+    """Property: however starts, hex digits and line ends are mixed and cut into reads,
+    framing never fails, every byte lands in one row in order, and a row flagged as a
+    vendor variant starts with a vendor's start and holds hex digits only."""
+    data = b"".join(pieces)
+    store = fed(data, cuts) if data else frame_capture([], ABL)
+    store.sync()
+    position = 0
+    for i in range(len(store)):
+        assert store.offset[i] == position
+        position += store.length[i]
+        raw = store.raw(i)
+        if store.flags[i] & V:
+            assert raw[0] in VENDOR_STARTS and store.kind[i] != Kind.NOISE
+            digits = raw[1:].rstrip(b"\r\n")
+            assert len(digits) >= 6 and len(digits) % 2 == 0
+            assert all(c in b"0123456789ABCDEFabcdef" for c in digits)
+    assert position == len(data)
