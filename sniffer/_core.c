@@ -130,6 +130,7 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
 #define F_NON_HEX (1u << 4)
 #define F_ENVELOPE_BAD (1u << 17)
 #define F_ASCII (1u << 24)
+#define F_MBAP (1u << 25)
 #define BAD_CHECK_BITS (F_CHECK_BAD | F_NON_HEX | F_ENVELOPE_BAD)
 #define F_RETRY (1u << 11)
 #define F_LATE (1u << 12)
@@ -138,9 +139,9 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
 /* the bit an answer's function code carries when it is an exception */
 #define EXCEPTION_BIT 0x80
 
-/* The function codes whose layouts the export's packet keys and SunSpec's first look
- * read (the registry's families and tables: dissectors/pdu/bits.py, registers.py), and
- * the lengths of their RTU requests (unit, PDU, CRC). */
+/* The function codes whose layouts the export's packet keys read (the registry's
+ * families and tables: dissectors/pdu/bits.py, registers.py), and the lengths of their
+ * RTU requests (unit, PDU, CRC). SunSpec's first look is given its own at each call. */
 #define FC_READ(c) ((c) >= 1 && (c) <= 4)             /* family "read" */
 #define FC_READ_BITS(c) ((c) == 1 || (c) == 2)        /* ... of coils or discrete inputs */
 #define FC_READ_REGISTERS(c) ((c) == 3 || (c) == 4)   /* ... of registers */
@@ -148,7 +149,6 @@ static PyObject *py_crc16(PyObject *self, PyObject *arg) {
 #define FC_WRITE_COIL(c) ((c) == 5)                   /* ... of a coil */
 #define FC_WRITE_MULTIPLE(c) ((c) == 15 || (c) == 16) /* family "write_multiple" */
 #define FC_WRITE_COILS(c) ((c) == 15)                 /* ... of coils */
-#define FC_READ_HOLDING 3 /* what SunSpec reads (sniffer/meaning/sunspec.py: READ_HOLDING) */
 #define TABLE_REQUEST_LENGTH 8 /* a read's or single write's request (its fixed length) */
 #define MULTIPLE_COUNT_AT 6    /* a multiple write's byte count: where it is, */
 #define MULTIPLE_BASE 9        /* and the request's length less the bytes it counts */
@@ -1107,19 +1107,24 @@ done:
     return result;
 }
 
-/* sunspec_rows(store, rows, at, known, skip, bases) -> positions
- * The cheap half of SunSpecTracker.follow_rows (sniffer/meaning/sunspec.py): of rows[at:]
- * (int64), the positions (int64) of those it may take: answers to FC 3 with a good check,
- * paired, of a unit not in `skip`, whose request either is an ASCII frame (Python reads
- * it) or is at least 8 bytes and of a unit in `known` or reads a range that holds one of
- * `bases` and the register after it. `known` and `skip` are 256 bytes, 1 for a unit;
- * `bases` int64, sorted. Rows this cannot read (a partner or stream out of range) are
- * kept, for Python to decide as it always did. */
+/* sunspec_rows(store, rows, at, known, skip, bases, reads, frames) -> positions
+ * The cheap half of SunSpecTracker.follow_rows (sniffer/meaning/sunspec.py), by the rule
+ * Python hands over: of rows[at:] (int64), the positions (int64) of those it may take:
+ * answers to a read of `reads` (256 bytes, 1 for a function code SunSpec reads) with a
+ * good check, paired, of a unit not in `skip`, whose request either is an ASCII frame
+ * (Python decodes it) or holds a read's PDU where its envelope puts it and is of a unit
+ * in `known` or reads a range that holds one of `bases` and the register after it.
+ * `frames` (int64): the bytes before an RTU request's function code and after its PDU,
+ * the same for a Modbus TCP request (MBAP header), then the length of a read's PDU
+ * (function code, first register, count). `known` and `skip` are 256 bytes, 1 for a
+ * unit; `bases` int64, sorted. Rows this cannot read (a partner or stream out of range)
+ * are kept, for Python to decide as it always did. */
 static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
     PyObject *store;
-    Py_buffer rv, kv, sv, bv;
+    Py_buffer rv, kv, sv, bv, fv, ev;
     Py_ssize_t at;
-    if (!PyArg_ParseTuple(args, "Oy*ny*y*y*", &store, &rv, &at, &kv, &sv, &bv)) return NULL;
+    if (!PyArg_ParseTuple(args, "Oy*ny*y*y*y*y*", &store, &rv, &at, &kv, &sv, &bv, &fv, &ev))
+        return NULL;
     static const ColSpec specs[] = {
         {"fc", 'B', 0},     {"flags", 'I', 0},  {"partner", 'i', 0}, {"unit", 'B', 0},
         {"offset", 'Q', 0}, {"length", 'H', 0}, {"channel", 'B', 0},
@@ -1127,8 +1132,17 @@ static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
     Py_buffer c[7];
     PyObject *result = NULL, *streams = NULL;
     Buf out = {0};
-    if (kv.len != 256 || sv.len != 256 || rv.len % 8 || bv.len % 8) {
+    if (kv.len != 256 || sv.len != 256 || fv.len != 256 || rv.len % 8 || bv.len % 8 ||
+        ev.len != 5 * 8) {
         PyErr_SetString(PyExc_ValueError, "sunspec_rows: bad masks or arrays");
+        goto early;
+    }
+    const int64_t *frame = ev.buf;
+    /* bytes before the function code and after the PDU: RTU, then Modbus TCP; the PDU */
+    const int64_t rtu_head = frame[0], rtu_tail = frame[1], tcp_head = frame[2],
+                  tcp_tail = frame[3], pdu = frame[4];
+    if (rtu_head < 0 || rtu_tail < 0 || tcp_head < 0 || tcp_tail < 0 || pdu < 5) {
+        PyErr_SetString(PyExc_ValueError, "sunspec_rows: bad frame layout");
         goto early;
     }
     if (columns(store, specs, 7, c) < 0) goto early;
@@ -1143,7 +1157,7 @@ static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
     const int32_t *partner = c[2].buf;
     const uint64_t *offset = c[4].buf;
     const uint16_t *length = c[5].buf;
-    const unsigned char *known = kv.buf, *skip = sv.buf;
+    const unsigned char *known = kv.buf, *skip = sv.buf, *reads = fv.buf;
     const int64_t *rows = rv.buf, *bases = bv.buf;
     Py_ssize_t count = rv.len / 8, n_bases = bv.len / 8, n = c[0].len;
     if (c[1].len != 4 * n || c[2].len != 4 * n || c[3].len != n || c[4].len != 8 * n ||
@@ -1156,19 +1170,21 @@ static PyObject *py_sunspec_rows(PyObject *self, PyObject *args) {
         int keep = 1;
         if (i >= 0 && i < n) {
             int64_t req = partner[i];
-            if (fc[i] != FC_READ_HOLDING || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
+            if (!reads[fc[i]] || flags[i] & F_CHECK_BAD || req == -1 || skip[unit[i]]) {
                 keep = 0;
             } else if (req >= 0 && req < n && !(flags[req] & F_ASCII)) {
-                if (length[req] < TABLE_REQUEST_LENGTH) {
+                int tcp = (flags[req] & F_MBAP) != 0;
+                int64_t head = tcp ? tcp_head : rtu_head, tail = tcp ? tcp_tail : rtu_tail;
+                if (length[req] < head + pdu + tail) {
                     keep = 0;
                 } else if (!known[unit[i]]) {
                     const char *p;
                     Py_ssize_t got;
                     if (row_bytes(streams, channel, offset, length, (Py_ssize_t)req, &p, &got) < 0)
                         goto done;
-                    if (got >= 6) {
-                        const unsigned char *q = (const unsigned char *)p;
-                        int64_t first = q[2] << 8 | q[3], regs = q[4] << 8 | q[5];
+                    if (got >= head + pdu) {
+                        const unsigned char *q = (const unsigned char *)p + head;
+                        int64_t first = q[1] << 8 | q[2], regs = q[3] << 8 | q[4];
                         keep = 0; /* the smallest base at or after `first` must fit */
                         for (Py_ssize_t b = 0; b < n_bases; b++) {
                             if (bases[b] >= first) {
@@ -1195,6 +1211,8 @@ early:
     PyBuffer_Release(&kv);
     PyBuffer_Release(&sv);
     PyBuffer_Release(&bv);
+    PyBuffer_Release(&fv);
+    PyBuffer_Release(&ev);
     return result;
 }
 
@@ -1966,12 +1984,12 @@ static PyObject *py_constants(PyObject *self, PyObject *unused) {
         {"NON_HEX", F_NON_HEX},
         {"ENVELOPE_BAD", F_ENVELOPE_BAD},
         {"ASCII", F_ASCII},
+        {"MBAP", F_MBAP},
         {"BAD_CHECK", BAD_CHECK_BITS},
         {"RETRY", F_RETRY},
         {"LATE", F_LATE},
         {"ANSWERED_BROADCAST", F_ANSWERED_BROADCAST},
         {"EXCEPTION_BIT", EXCEPTION_BIT},
-        {"FC_READ_HOLDING", FC_READ_HOLDING},
         {"TABLE_REQUEST_LENGTH", TABLE_REQUEST_LENGTH},
         {"MULTIPLE_COUNT_AT", MULTIPLE_COUNT_AT},
         {"MULTIPLE_BASE", MULTIPLE_BASE},

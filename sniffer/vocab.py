@@ -37,7 +37,7 @@ class Flag(enum.IntFlag):
 
     The stage that sets each one is in `FLAGS`; framing sets bits 0-10, pairing and
     annotation set 11-15 on stored rows, sources 16; Modbus TCP framing and pairing
-    (`sniffer.framing.tcp`) set 17-19. Bit 24 and up are facts.
+    (`sniffer.framing.tcp`) set 17-19; the ASCII framer sets 20. Bit 24 and up are facts.
     """
 
     NONE = 0
@@ -61,6 +61,7 @@ class Flag(enum.IntFlag):
     ENVELOPE_BAD = 1 << 17  # MBAP protocol id not 0, or a length wrong or out of range
     TID_REUSED = 1 << 18  # a Modbus TCP request reusing an id still waiting for its answer
     CUT_SHORT = 1 << 19  # cut by a gap in the captured TCP stream or by its end
+    VENDOR_START = 1 << 20  # an ASCII frame opened by a vendor's start character, not ':'
     ASCII = 1 << 24  # the frame was sent in ASCII mode (a fact, not a problem)
     MBAP = 1 << 25  # a Modbus TCP frame: raw = MBAP header + PDU (a fact, not a problem)
 
@@ -249,6 +250,16 @@ FLAGS: tuple[tuple[Flag, Meaning], ...] = (
             ERROR,
             "frame cut short by a gap in the capture or its end",
             "cut-short",
+            FRAMING,
+        ),
+    ),
+    (
+        Flag.VENDOR_START,
+        Meaning(
+            "vendor-start",
+            INFO,
+            "vendor variant: '>' where Modbus ASCII has ':' (ABL eMH1 answers)",
+            "vendor",
             FRAMING,
         ),
     ),

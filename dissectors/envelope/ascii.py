@@ -1,16 +1,38 @@
-"""Provides the Modbus ASCII envelope: `:`, the hex of unit, PDU and LRC, CR LF."""
+"""Provides the Modbus ASCII envelope: `:`, the hex of unit, PDU and LRC, CR LF.
+
+Some device families open their frames with another character: ABL's eMH1 wallboxes
+answer a `:` request with `>`, then hex, LRC and CR LF as the standard has them (ABL's
+"Schnittstellenbeschreibung Modbus-ASCII"; evcc reads them through grid-x/modbus, which
+accepts both starts, and node-modbus-serial has an option for the answers' start).
+`VENDOR_STARTS` names each such character and who sends it; everything after the first
+character is read the same way whatever it is.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from dissectors.checks import ascii_frame, lrc
 
-__all__ = ["AsciiFrame", "ascii_body", "ascii_frame", "open_ascii"]
+__all__ = [
+    "START",
+    "VENDOR_STARTS",
+    "AsciiFrame",
+    "ascii_body",
+    "ascii_frame",
+    "open_ascii",
+]
+
+START = 0x3A  # ':', the standard start of every frame, request or answer
+# start characters device families use instead, and who uses them (docs/formats.md)
+VENDOR_STARTS: Mapping[int, str] = MappingProxyType({0x3E: "ABL eMH1 wallboxes' answers"})
 
 
 def ascii_body(raw: bytes) -> bytes | None:
-    """The binary body (unit, PDU, LRC) of an ASCII frame, or None if it is not hex."""
+    """The binary body (unit, PDU, LRC) of an ASCII frame, whatever its start character,
+    or None if it is not hex."""
     text = raw[1:]
     if text.endswith(b"\r\n"):
         text = text[:-2]
@@ -61,6 +83,12 @@ class AsciiFrame:
         return lrc(self.body) if self.decoded and len(self.decoded) >= 2 else None
 
     @property
+    def vendor(self) -> str:
+        """Who opens frames with this frame's start character, when it is a vendor's
+        (`VENDOR_STARTS`) rather than `:`; empty otherwise."""
+        return VENDOR_STARTS.get(self.raw[0], "") if self.raw else ""
+
+    @property
     def check_ok(self) -> bool:
         """The LRC is right and there is a function code before it."""
         decoded = self.decoded
@@ -83,7 +111,8 @@ class AsciiFrame:
 
     @property
     def spans(self) -> tuple[tuple[str, tuple[int, int]], ...]:
-        """The parts by character offsets: `:`, unit, PDU, LRC, CR LF (or what there is)."""
+        """The parts by character offsets: the start (`:` or a vendor's), unit, PDU, LRC,
+        CR LF (or what there is)."""
         raw = self.raw
         end = len(raw)
         tail = 2 if raw.endswith(b"\r\n") else 1 if raw.endswith((b"\n", b"\r")) else 0

@@ -16,6 +16,7 @@ Every byte fed in leaves in exactly one frame or one noise span, in order.
 from __future__ import annotations
 
 import math
+import re
 from array import array
 from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Mapping
@@ -24,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from dissectors.checks import crc16, lrc
 from dissectors.envelope import ascii_body
+from dissectors.envelope.ascii import START, VENDOR_STARTS
 from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, FunctionSpec
 from sniffer import core
 from sniffer.framing.lengths import (
@@ -740,7 +742,14 @@ _NO_READS: tuple[array[int], array[float], array[float]] = (array("q"), array("d
 
 class AsciiFramer(_Framer):
     """Frames one channel of Modbus ASCII: ':' opens a frame (and aborts an open one),
-    CR LF closes it, the LRC is checked. Everything outside frames is noise."""
+    CR LF closes it, the LRC is checked. Everything outside frames is noise.
+
+    A vendor's start character (`dissectors.envelope.ascii.VENDOR_STARTS`: ABL's `>`)
+    opens a frame too, flagged `VENDOR_START`, but only where a frame's characters
+    follow it: at least unit, function code and LRC in hex digits, then CR LF (or LF, or
+    a ':' that aborts it, or the end of the capture). Anywhere else it is a byte of
+    noise, so noise holding a `>` stays noise. Inside an open frame only ':' aborts, as
+    the standard says."""
 
     def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
         self.open = -1  # offset of the ':' of an open frame
@@ -765,15 +774,9 @@ class AsciiFramer(_Framer):
         pos = self.pos
         while pos < end:
             if self.open < 0:
-                colon = buf.find(b":", pos)
-                stop = end if colon < 0 else colon
-                for piece in range(pos, stop, MAX_NOISE):
-                    self._row(piece, min(stop, piece + MAX_NOISE), int(Kind.NOISE), int(Flag.ASCII))
-                if colon < 0:
-                    pos = end
+                pos, more = self._outside(buf, pos, end, final)
+                if not more:
                     break
-                self.open = colon
-                pos = colon + 1
                 continue
             nl = buf.find(b"\n", pos)
             colon = buf.find(b":", pos)
@@ -800,9 +803,70 @@ class AsciiFramer(_Framer):
         self.pos = pos
         self.timeline.forget_before(self.open if self.open >= 0 else pos)
 
+    def _outside(self, buf: bytearray, pos: int, end: int, final: bool) -> tuple[int, bool]:
+        """The bytes from `pos`, outside any frame: noise up to the next start character
+        that opens a frame, and that frame opened (':') or, a vendor's, closed. Returns
+        where the scan goes on and whether it goes on now (not: it waits for more bytes,
+        or has reached the end)."""
+        search = pos
+        while True:
+            found = _STARTS.search(buf, search, end)
+            if found is None:
+                self._noise(pos, end)
+                return end, False
+            start = found.start()
+            if buf[start] == START:
+                self._noise(pos, start)
+                self.open = start
+                return start + 1, True
+            verdict = self._vendor_frame(buf, start, end, final)
+            if verdict is None:  # a byte of noise that happens to be a start character
+                search = start + 1
+                continue
+            self._noise(pos, start)
+            if verdict == _WAIT:
+                return start, False  # decided when more bytes come
+            stop, flags = verdict
+            self._close(start, stop, flags)
+            return stop, True
+
+    def _vendor_frame(
+        self, buf: bytearray, start: int, end: int, final: bool
+    ) -> tuple[int, int] | None:
+        """Whether the vendor start character at `start` opens a frame: (its end, its
+        flags) when it does, None when it is noise, `_WAIT` while the bytes so far cannot
+        tell. A frame is the start, an even number of hex digits (at least unit, function
+        code and LRC), an optional CR, then LF; cut by ':' it is aborted, by the end of
+        the capture unterminated, as a ':' frame would be."""
+        limit = start + MAX_ASCII  # a frame's characters end before this, LF included
+        run = _HEX_RUN.match(buf, start + 1, min(end, limit))
+        digits = run.end() if run is not None else start + 1
+        count = digits - start - 1
+        shaped = count >= _MIN_DIGITS and count % 2 == 0
+        at = digits + 1 if digits < end and buf[digits] == _CR else digits
+        if at >= limit:
+            return None  # longer than any frame
+        if at >= end:
+            if not final:
+                return _WAIT
+            return (end, int(Flag.UNTERMINATED)) if shaped else None
+        if not shaped:
+            return None
+        if buf[at] == _LF:
+            return at + 1, int(Flag.NONE)
+        if buf[at] == START:
+            return at, int(Flag.ABORTED)
+        return None
+
+    def _noise(self, start: int, end: int) -> None:
+        for piece in range(start, end, MAX_NOISE):
+            self._row(piece, min(end, piece + MAX_NOISE), int(Kind.NOISE), int(Flag.ASCII))
+
     def _close(self, start: int, end: int, flags: int) -> None:
         raw = bytes(self.stream[start:end])
         flags |= Flag.ASCII
+        if raw[0] != START:
+            flags |= Flag.VENDOR_START
         if raw.endswith(b"\n") and not raw.endswith(b"\r\n"):
             flags |= Flag.NO_CR
         body = ascii_body(raw)
@@ -879,11 +943,22 @@ class AsciiFramer(_Framer):
 
 Framer = RtuFramer | AsciiFramer
 
+# what the ASCII framer looks for: the first start character (':' or a vendor's), a run
+# of hex digits, the line's end
+_STARTS = re.compile(b"[" + re.escape(bytes([START, *VENDOR_STARTS])) + b"]")
+_HEX_RUN = re.compile(rb"[0-9A-Fa-f]+")
+_CR, _LF = 0x0D, 0x0A
+_MIN_DIGITS = 6  # unit, function code and LRC: what a vendor's start must be followed by
+_WAIT: tuple[int, int] = (-1, -1)  # `_vendor_frame`'s answer while the bytes cannot tell
+_ASCII_CHARACTERS = frozenset(b"0123456789ABCDEFabcdef\r\n" + bytes([START, *VENDOR_STARTS]))
+
 
 def looks_ascii(sample: bytes) -> bool | None:
-    """Whether traffic is Modbus ASCII: True, False, or None when there is too little."""
+    """Whether traffic is Modbus ASCII: True, False, or None when there is too little.
+    A vendor's start counts as a ':' does (a port that hears only ABL's answers sees
+    nothing but `>` frames)."""
     if len(sample) < 16:
         return None
-    allowed = b"0123456789ABCDEFabcdef:\r\n"
-    good = sum(1 for b in sample if b in allowed)
-    return b":" in sample and b"\n" in sample and good >= 0.95 * len(sample)
+    good = sum(1 for b in sample if b in _ASCII_CHARACTERS)
+    starts = _STARTS.search(sample) is not None
+    return starts and b"\n" in sample and good >= 0.95 * len(sample)

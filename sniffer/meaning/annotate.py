@@ -30,7 +30,7 @@ from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
 from sniffer.framing.columns import both, but_not, marking
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.meaning.sunspec import SunSpecTracker
+from sniffer.meaning.sunspec import READS, SunSpecTracker
 from sniffer.vocab import Flag, Kind
 
 REGISTER_TABLES = ("holding_registers", "input_registers")
@@ -123,12 +123,13 @@ class Annotator:
         if start >= n:
             return
         # Only two sorts of row need a look, picked out with C-level scans of the columns:
-        # the rows of bound units, and answers to FC 3 of the others (reads that may show
-        # a SunSpec device). Every other row is skipped without a Python step of its own.
+        # the rows of bound units, and answers to reads of registers (FC 3 or 4) of the
+        # others (reads that may show a SunSpec device). Every other row is skipped
+        # without a Python step of its own.
         bound = self.bindings
         units = store.unit[start:n].tobytes()
         answers = store.kind[start:n].tobytes().translate(_IS_RESPONSE)
-        reads = store.fc[start:n].tobytes().translate(_IS_READ_HOLDING)
+        reads = store.fc[start:n].tobytes().translate(_IS_SUNSPEC_READ)
         of_bound = units.translate(marking(bound))
         follow = but_not(both(answers, reads), of_bound)
         if 1 in follow:
@@ -255,4 +256,4 @@ def _covers(start: int, count: int, address: int) -> bool:
 
 
 _IS_RESPONSE = marking((Kind.RESPONSE,))  # kind byte -> 0/1
-_IS_READ_HOLDING = marking((3,))  # function byte -> 0/1
+_IS_SUNSPEC_READ = marking(READS)  # function byte -> 0/1: a read SunSpec's tracker takes

@@ -25,8 +25,12 @@ from sniffer.vocab import (
 # flags whose sentence has numbers in it: the check's here, the device's timing in the
 # describer (which knows the dictionary); an event row says its own note
 _SAID_ELSEWHERE = Flag.CHECK_BAD | Flag.DEVICE_SLOW | Flag.LINE_EVENT | Flag.ENVELOPE_BAD
+# facts (info) listed with the problems, so every view and export says them
+_SAID_TOO = Flag.VENDOR_START
 _LISTED = tuple(
-    (int(flag), m) for flag, m in FLAGS if flag & PROBLEM_MASK and not flag & _SAID_ELSEWHERE
+    (int(flag), m)
+    for flag, m in FLAGS
+    if flag & (PROBLEM_MASK | _SAID_TOO) and not flag & _SAID_ELSEWHERE
 )
 _CHECK = dict(FLAGS)[Flag.CHECK_BAD]
 # plain ints for the per-row tests (`int & IntFlag` makes an enum member each time)

@@ -2,13 +2,23 @@
 from is named and annotated from the SunSpec model definitions, with no dictionary.
 
 The tracker follows the capture in order (the annotator calls `follow` for each answer
-to a read of holding registers). A unit becomes a candidate when an answer shows the
-marker 0x5375 0x6E53 at one of the usual base addresses: PDU 40000 (the "40001" of the
-SunSpec documents), 50000 or 0, and PDU 40001, 50001 or 1 for devices and masters that
-took the 1-based number as the address. From then on the registers the master reads are
-kept, and the chain is walked from the base: model id, length, the model's registers,
-the next id, ..., up to the end marker 0xFFFF. A model whose header was never read ends
-the chain known so far; it grows as the master reads on.
+to a read of registers, FC 3 or FC 4). A unit becomes a candidate when an answer shows
+the marker 0x5375 0x6E53 at one of the usual base addresses: PDU 40000 (the "40001" of
+the SunSpec documents), 50000 or 0, and PDU 40001, 50001 or 1 for devices and masters that
+took the 1-based number as the address. From then on the registers the master reads with
+that function code are kept (SunSpec's registers are holding registers, FC 3; devices
+that serve the same map as input registers are read with FC 4, and the tracker keeps
+to the table the marker was found in), and the chain is walked from the base: model id,
+length, the model's registers, the next id, ..., up to the end marker 0xFFFF. A model
+whose header was never read ends the chain known so far; it grows as the master reads on.
+
+One rule picks the reads, whatever carries them: the answer's function code is one of
+`READS`, its check is good, it is paired, and its request's PDU (function code, start,
+count) names the registers read. The request's PDU is found by its envelope: after the
+unit byte of an RTU frame (serial, or RTU over TCP/UDP), after the MBAP header and unit
+byte of a Modbus TCP frame, in the decoded hex of an ASCII frame. The compiled first look
+(sniffer/_core.c: sunspec_rows) is given these numbers (`_READS_MASK`, `_FRAMES`) at
+each call rather than keeping its own.
 
 Values are scaled by their model's scale-factor registers (`_SF` points): the value in
 the same frame when the frame carries it, else the last value the capture showed before
@@ -21,9 +31,10 @@ from __future__ import annotations
 import bisect
 from array import array
 from collections.abc import Container, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
+from dissectors import mbap
 from dissectors.dictionary import RegisterValue
 from dissectors.dictionary.sunspec import (
     END_ID,
@@ -38,6 +49,7 @@ from dissectors.dictionary.sunspec import (
 from dissectors.envelope import ascii_body
 from dissectors.values import Dissection
 from sniffer import core
+from sniffer.framing.columns import marking
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.vocab import Flag
 
@@ -46,7 +58,19 @@ _SORTED_BASES = tuple(sorted(BASES))
 _BASES_ARRAY = array("q", _SORTED_BASES)
 MAX_MODELS = 64  # a longer chain is not believed
 READ_HOLDING = 3
-_CHECK_BAD, _ASCII = int(Flag.CHECK_BAD), int(Flag.ASCII)
+READ_INPUT = 4
+READS = (READ_HOLDING, READ_INPUT)  # the reads that may show a SunSpec device
+TABLES = {READ_HOLDING: HOLDING, READ_INPUT: "input_registers"}  # what each reads
+_READS_MASK = marking(READS)  # function byte -> 0/1
+# Where a request's PDU lies in its row's bytes, by envelope: (bytes before the function
+# code, bytes after the PDU). RTU (on a serial line, or over TCP/UDP): unit byte, PDU,
+# CRC. Modbus TCP: the MBAP header (its seven bytes end with the unit), PDU, nothing after.
+# ASCII rows are decoded first (their body is unit byte and PDU).
+_RTU_FRAME = (1, 2)
+_MBAP_FRAME = (mbap.HEADER_SIZE, 0)
+_READ_PDU = 5  # function code, first register, count
+_FRAMES = array("q", (*_RTU_FRAME, *_MBAP_FRAME, _READ_PDU))  # the same, for the core
+_CHECK_BAD, _ASCII, _MBAP = int(Flag.CHECK_BAD), int(Flag.ASCII), int(Flag.MBAP)
 INSTALL_HINT = "install modscope[sunspec] (pysunspec2) to name its values"
 
 
@@ -90,7 +114,8 @@ class _History:
 
 @dataclass
 class SunSpecUnit:
-    """What is known of one SunSpec device."""
+    """What is known of one SunSpec device (`function`: the read that showed its marker,
+    FC 3 or 4; the device's registers are that read's table)."""
 
     unit: int
     base: int
@@ -99,6 +124,11 @@ class SunSpecUnit:
     complete: bool = False  # the chain's end marker was read
     layouts: dict[int, tuple[PointDef, ...]] = field(default_factory=dict)  # by start
     scale: dict[int, _History] = field(default_factory=dict)  # sf register -> history
+    function: int = READ_HOLDING
+
+    @property
+    def table(self) -> str:
+        return TABLES[self.function]
 
     def model_at(self, address: int) -> ModelInstance | None:
         for m in self.models:
@@ -125,14 +155,14 @@ class SunSpecTracker:
     # -- following the capture -------------------------------------------------------
 
     def follow(self, store: FrameStore, i: int) -> None:
-        """Take in row `i` if it answers a read of holding registers (FC 3)."""
+        """Take in row `i` if it answers a read of registers (FC 3 or 4)."""
         self.follow_rows(store, (i,))
 
     def follow_rows(self, store: FrameStore, rows: Iterable[int]) -> None:
-        """Take in those of `rows` (in order) that answer a read of holding registers
-        (FC 3). Cheap for the reads of other units: the request's range is looked at
-        first, in one loop over the rows with ints, not flags, rather than a call a row:
-        a capture may hold hundreds of thousands of such answers."""
+        """Take in those of `rows` (in order) that answer a read of registers (`READS`),
+        in any envelope. Cheap for the reads of other units: the request's range is looked
+        at first, in one loop over the rows with ints, not flags, rather than a call a
+        row: a capture may hold hundreds of thousands of such answers."""
         fast = core.FAST
         if fast is not None:
             self._follow_fast(fast, store, rows)
@@ -150,7 +180,9 @@ class SunSpecTracker:
         while at < len(todo):
             known = bytes(u in self.units for u in range(256))
             picked = array("q")
-            picked.frombytes(fast.sunspec_rows(store, todo, at, known, skip, _BASES_ARRAY))
+            picked.frombytes(
+                fast.sunspec_rows(store, todo, at, known, skip, _BASES_ARRAY, _READS_MASK, _FRAMES)
+            )
             found: list[int] = []
             self._follow(store, _until_a_new_unit(self.units, todo, picked, found))
             at = found[0] if found else len(todo)  # picked again: the new unit's reads count
@@ -159,9 +191,10 @@ class SunSpecTracker:
         """`follow_rows` in Python, the reference of the compiled filter."""
         fc, flags, partner, unit_of = store.fc, store.flags, store.partner, store.unit
         offset, length, channel, streams = store.offset, store.length, store.channel, store.streams
-        skip, units = self.skip, self.units
+        skip, units, reads = self.skip, self.units, _READS_MASK
         for i in rows:
-            if fc[i] != READ_HOLDING or flags[i] & _CHECK_BAD:
+            function = fc[i]
+            if not reads[function] or flags[i] & _CHECK_BAD:
                 continue
             req = partner[i]
             if req == NO_PARTNER:
@@ -171,20 +204,25 @@ class SunSpecTracker:
                 continue
             request: bytes | bytearray
             if flags[req] & _ASCII:
-                request = _body(store, req)
-                if len(request) < 6:
+                request = _body(store, req)[1 : 1 + _READ_PDU]
+                if len(request) < _READ_PDU:
                     continue
-            elif length[req] < 8:
-                continue
-            else:  # six bytes, not the whole frame: most answers on a bus are not SunSpec's
-                at = offset[req]
-                request = streams[channel[req]][at : at + 6]
-            start = (request[2] << 8) | request[3]
-            count = (request[4] << 8) | request[5]
-            if unit not in units:
+            else:
+                head, tail = _MBAP_FRAME if flags[req] & _MBAP else _RTU_FRAME
+                if length[req] < head + _READ_PDU + tail:
+                    continue
+                # the PDU's first bytes, not the whole frame: most answers are not SunSpec's
+                at = offset[req] + head
+                request = streams[channel[req]][at : at + _READ_PDU]
+            start = (request[1] << 8) | request[2]
+            count = (request[3] << 8) | request[4]
+            found = units.get(unit)
+            if found is None:
                 k = bisect.bisect_left(_SORTED_BASES, start)
                 if k == len(_SORTED_BASES) or _SORTED_BASES[k] + 2 > start + count:
                     continue  # no marker can be in this read
+            elif found.function != function:
+                continue  # the other table: not the registers the marker was read from
             answer = _body(store, i)
             if len(answer) < 3:
                 continue
@@ -192,16 +230,21 @@ class SunSpecTracker:
             if len(data) != 2 * count:
                 continue
             words = [int.from_bytes(data[k : k + 2], "big") for k in range(0, len(data), 2)]
-            self.take(unit, self.base + i, start, words)
+            self.take(unit, self.base + i, start, words, function)
 
-    def take(self, unit: int, row: int, start: int, words: Sequence[int]) -> None:
-        """Registers `start`.. of `unit` as row `row` read them."""
+    def take(
+        self, unit: int, row: int, start: int, words: Sequence[int], function: int = READ_HOLDING
+    ) -> None:
+        """Registers `start`.. of `unit` as row `row` read them with `function` (FC 3 or
+        4); a read of the other table than the marker's is left out."""
         found = self.units.get(unit)
         if found is None:
             base = _marker_in(start, words)
             if base is None:
                 return
-            found = self.units[unit] = SunSpecUnit(unit, base)
+            found = self.units[unit] = SunSpecUnit(unit, base, function=function)
+        elif found.function != function:
+            return
         image = found.image
         for k, w in enumerate(words):
             image[start + k] = w
@@ -267,15 +310,21 @@ class SunSpecTracker:
         return self._name(found)
 
     def registers(self, unit: int, row: int, dissection: Dissection) -> list[RegisterValue]:
-        """Named values of a frame of a recognised SunSpec unit (empty for others)."""
+        """Named values of a frame of a recognised SunSpec unit (empty for others): the
+        registers of the table its marker was read from (holding, or input for a device
+        read with FC 4)."""
         su = self.units.get(unit)
         if su is None:
             return []
         out: list[RegisterValue] = []
+        table = su.table
         for data in dissection.data:
-            if data.table != HOLDING or data.address is None or not data.values:
+            if data.table != table or data.address is None or not data.values:
                 continue
-            out.extend(self.decode(su, row, data.address, data.values, write=data.write))
+            values = self.decode(su, row, data.address, data.values, write=data.write)
+            if table != HOLDING:  # the model definitions name holding registers
+                values = [replace(v, table=table) for v in values]
+            out.extend(values)
         return out
 
     def decode(
@@ -379,11 +428,14 @@ class SunSpecTracker:
 
 
 def _body(store: FrameStore, i: int) -> bytes:
-    """Unit byte and PDU of a frame row, without its check (as FrameView.body)."""
+    """Unit byte and PDU of a frame row, without its check or header (as FrameView.body)."""
     raw = store.raw(i)
-    if store.flags[i] & Flag.ASCII:
+    flags = store.flags[i]
+    if flags & _ASCII:
         decoded = ascii_body(raw)
         return decoded[:-1] if decoded else b""
+    if flags & _MBAP:
+        return mbap.body(raw)
     return raw[:-2]
 
 

@@ -15,7 +15,6 @@ from dissectors.functions import EXCEPTION_LENGTH, FUNCTIONS, AnswerRule, counte
 from dissectors.pdu.work import BIT_TABLES
 from dissectors.values import Role
 from sniffer.framing import lengths
-from sniffer.meaning.sunspec import READ_HOLDING
 from sniffer.sources import linktypes, pcap
 from sniffer.sources.base import MAX_TIME
 from sniffer.sources.reads import MAX_BATCH_BYTES, MAX_BATCH_SPAN
@@ -54,6 +53,7 @@ VOCABULARY = {
             Flag.NON_HEX,
             Flag.ENVELOPE_BAD,
             Flag.ASCII,
+            Flag.MBAP,
             Flag.RETRY,
             Flag.LATE,
             Flag.ANSWERED_BROADCAST,
@@ -83,8 +83,6 @@ def test_the_function_code_tests_are_the_registry_families(said: dict[str, Any])
     assert said["FC_WRITE_COIL"] == _codes("write_single", BIT_TABLES)
     assert said["FC_WRITE_MULTIPLE"] == _codes("write_multiple")
     assert said["FC_WRITE_COILS"] == _codes("write_multiple", BIT_TABLES)
-    (holding,) = _codes("read", frozenset({"holding_registers"}))
-    assert said["FC_READ_HOLDING"] == READ_HOLDING == holding
 
 
 def test_the_lengths_of_requests_and_answers_are_the_registry_rules(said: dict[str, Any]) -> None:

@@ -30,6 +30,7 @@ from sniffer.framing import pipeline
 from sniffer.framing.pairing import Pairer
 from sniffer.framing.pipeline import Pipeline, _joined
 from sniffer.framing.store import COLUMNS, FrameStore
+from sniffer.meaning import sunspec
 from sniffer.meaning.sunspec import BASES, SunSpecTracker
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.sources.reads import Reads
@@ -275,8 +276,9 @@ def test_pair_rows_is_the_same_with_either_core(
 
 
 def _sunspec_rows(rng: random.Random, n: int) -> list[Row]:
-    """FC 3 reads (and others) near the SunSpec base addresses, with the marker and model
-    headers in their answers now and then, each answer paired with its request."""
+    """FC 3 and FC 4 reads (and others) near the SunSpec base addresses, with the marker
+    and model headers in their answers now and then, each answer paired with its request,
+    in every envelope: RTU, ASCII (opened by ':' or a vendor's '>'), Modbus TCP."""
     rows: list[Row] = []
     t = 1_700_000_000.0
     for _ in range(n):
@@ -292,14 +294,25 @@ def _sunspec_rows(rng: random.Random, n: int) -> list[Row]:
             words[k], words[k + 1] = MARKER
             if k + 3 < count:
                 words[k + 2], words[k + 3] = rng.choice(((1, 66), (0xFFFF, 0), (103, 50)))
-        fc = 3 if rng.random() < 0.85 else rng.choice((4, 0x83))
+        fc = rng.choice((3, 3, 3, 4, 4, 0x83, 6))
         request = bytes([unit, fc]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
         data = b"".join(w.to_bytes(2, "big") for w in words)
         answer = bytes([unit, fc, len(data) if rng.random() < 0.9 else 2]) + data
         flags = 0
-        if rng.random() < 0.1:
+        envelope = rng.random()
+        if envelope < 0.1:
             flags = int(Flag.ASCII)
             req_raw, ans_raw = _ascii(request), _ascii(answer)
+            if rng.random() < 0.5:
+                ans_raw = b">" + ans_raw[1:]
+        elif envelope < 0.3:
+            flags = int(Flag.MBAP)
+            tid = rng.randrange(0x10000).to_bytes(2, "big")
+            req_raw, ans_raw = (
+                tid + b"\0\0" + len(body).to_bytes(2, "big") + body for body in (request, answer)
+            )
+            if rng.random() < 0.05:
+                req_raw = req_raw[:10]  # a request too short to read
         else:
             req_raw, ans_raw = with_crc(request), with_crc(answer)
             if rng.random() < 0.05:
@@ -317,6 +330,7 @@ def _tracker_state(tracker: SunSpecTracker) -> str:
             (
                 u,
                 su.base,
+                su.function,
                 list(su.image.items()),
                 [(m.id, m.start, m.length, m.definition is None) for m in su.models],
                 su.complete,
@@ -398,6 +412,51 @@ def test_a_unit_found_in_the_middle_of_a_batch_has_all_its_later_reads_taken() -
             assert tracker.units[4].complete
             assert tracker.units[4].image[40009] == 0
     assert states[0] == states[1]
+
+
+def test_the_compiled_first_look_reads_each_envelope_where_the_rule_says() -> None:
+    """Given the rule's numbers, the compiled filter reads a Modbus TCP request's range
+    after its MBAP header and an RTU request's after its unit byte, and takes FC 3 and 4
+    alike: a read that cannot hold a marker is left out in every envelope (read at the
+    wrong place, an MBAP header would seem to read from 0, where a base lies)."""
+    fast = _compiled()
+    rows: list[Row] = []
+    t = 1.0
+    for fc, start, mbap in [
+        (3, 40000, True),
+        (3, 100, True),
+        (4, 40000, True),
+        (4, 100, False),
+        (4, 50000, False),
+        (6, 40000, False),
+    ]:
+        request = bytes([5, fc]) + start.to_bytes(2, "big") + b"\x00\x02"
+        answer = bytes([5, fc, 4, *MARKER[0].to_bytes(2, "big"), *MARKER[1].to_bytes(2, "big")])
+        if mbap:
+            req_raw, ans_raw = (
+                b"\x00\x01\x00\x00" + len(b).to_bytes(2, "big") + b for b in (request, answer)
+            )
+        else:
+            req_raw, ans_raw = with_crc(request), with_crc(answer)
+        flags = int(Flag.MBAP) if mbap else 0
+        rows.append((req_raw, int(Kind.REQUEST), flags, t, t + 0.004))
+        rows.append((ans_raw, int(Kind.RESPONSE), flags, t + 0.01, t + 0.02))
+        t += 0.1
+    store = FrameStore()
+    _grow(store, rows, [(i, i + 1) for i in range(0, len(rows), 2)], len(rows))
+    answers = array("q", range(1, len(rows), 2))
+    picked = array("q")
+    picked.frombytes(
+        fast.sunspec_rows(
+            store, answers, 0, bytes(256), bytes(256), sunspec._BASES_ARRAY,
+            sunspec._READS_MASK, sunspec._FRAMES,
+        )
+    )  # fmt: skip
+    assert [answers[k] for k in picked] == [1, 5, 9]
+    with running(None):
+        tracker = SunSpecTracker()
+        tracker.follow_rows(store, answers)
+    assert set(tracker.units) == {5} and tracker.units[5].function == 3
 
 
 # -- batches of reads held by the pipeline -----------------------------------------------

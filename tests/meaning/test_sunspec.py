@@ -25,20 +25,26 @@ from dissectors.dictionary.sunspec import (
     definitions_folder,
     parse_model,
 )
+from dissectors.functions import FUNCTIONS
 from sniffer.cli import main
 from sniffer.framing.store import FrameStore
+from sniffer.meaning import sunspec
 from sniffer.meaning.annotate import Annotator
-from sniffer.meaning.sunspec import SunSpecTracker
+from sniffer.meaning.sunspec import READS, SunSpecTracker
 from sniffer.model import Chunk, LineSettings
-from sniffer.session.session import Session
+from sniffer.session.session import Session, replay_file
+from sniffer.sources.base import ReadOptions
 from sniffer.sources.pcapng_writer import PcapngWriter
 from sniffer.vocab import Flag, Kind
 from tests.support.sunspec import (
     LINE,
     UNIT,
+    as_ascii,
+    as_mbap,
     device_image,
     discovery,
     frames_of,
+    network_capture,
     read,
     s16,
     session_of,
@@ -260,7 +266,7 @@ def annotate_row_by_row(annotator: Annotator, store: FrameStore) -> None:
     for i in range(annotator.next, len(store)):
         u = store.unit[i]
         if u not in annotator.bindings:
-            if store.fc[i] == 3 and store.kind[i] == Kind.RESPONSE:
+            if store.fc[i] in READS and store.kind[i] == Kind.RESPONSE:
                 annotator.sunspec.follow(store, i)
             continue
         k = store.kind[i]
@@ -376,3 +382,108 @@ def test_a_sunspec_device_on_modbus_ascii() -> None:
         "Watts = 819.0 W",
         "W_SF = -1 (scale 10^-1)",
     ]
+
+
+# -- every carrier, FC 3 or FC 4: one rule -------------------------------------------------
+
+CARRIERS = ["rtu", "ascii", "modbus-tcp", "rtu-over-tcp"]
+POLLS = [(40072, 50), (40124, 53), (40084, 2)]  # model 103's values, 203's, W and W_SF
+
+
+def session_over(carrier: str, function: int, tmp_path: Path) -> Session:
+    """A master discovers the device and polls it, over `carrier`, with `function`."""
+    reg = device_image()
+    reads = [*discovery(reg, 40000), *POLLS]
+    if carrier == "rtu":
+        return session_of(frames_of(reg, reads, function))
+    if carrier == "ascii":
+        session = Session(LineSettings(9600, 7, "E", 1, "ascii"))
+        for t, frame in frames_of(reg, reads, function):
+            session.feed(Chunk(as_ascii(frame), 1_700_000_000 + t))
+        session.finish()
+        return session
+    path = tmp_path / f"{carrier}.pcap"
+    path.write_bytes(
+        network_capture(reg, reads, function=function, carrier=carrier.removeprefix("modbus-"))
+    )
+    return replay_file(path, ReadOptions(carrier=carrier.removeprefix("modbus-")))
+
+
+def answers(session: Session) -> list[int]:
+    store = session.store
+    return [i for i in range(len(store)) if store.kind[i] == Kind.RESPONSE]
+
+
+@needs_models
+@pytest.mark.parametrize("function", [3, 4])
+@pytest.mark.parametrize("carrier", CARRIERS)
+def test_a_sunspec_device_is_recognised_over_every_carrier(
+    carrier: str, function: int, tmp_path: Path
+) -> None:
+    session = session_over(carrier, function, tmp_path)
+    store = session.store
+    if carrier in ("modbus-tcp", "rtu-over-tcp"):  # what the rule reads the request from
+        mbap = carrier == "modbus-tcp"
+        assert all(bool(store.flags[i] & Flag.MBAP) == mbap for i in answers(session))
+    su = session.annotator.sunspec.units[UNIT]
+    assert (su.base, su.complete, su.function) == (40000, True, function)
+    assert [m.id for m in su.models] == [1, 103, 203]
+    assert session.annotator.label(UNIT) == "SunSpec Acme Solar Inverter 3000"
+    inverter, meter, watts = answers(session)[-3:]
+    assert "Amps = 12.34 A" in texts(session, inverter)
+    assert "Total Watt-hours Exported = 123450 Wh" in texts(session, meter)
+    assert texts(session, watts) == ["Watts = 819.0 W", "W_SF = -1 (scale 10^-1)"]
+    table = "holding_registers" if function == 3 else "input_registers"
+    values = session.describer.detail(watts).registers
+    assert {v.table for v in values} == {table}  # named in the table that was read
+
+
+@needs_models
+def test_every_carrier_gives_the_tracker_the_same_device(tmp_path: Path) -> None:
+    """The same reads in four envelopes: the same image, chain and scale factors."""
+
+    def state(session: Session) -> object:
+        su = session.annotator.sunspec.units[UNIT]
+        scale = {a: h.values for a, h in su.scale.items()}
+        return su.base, su.image, [(m.id, m.start, m.length) for m in su.models], scale
+
+    rtu = state(session_over("rtu", 3, tmp_path))
+    for carrier in CARRIERS[1:]:
+        assert state(session_over(carrier, 3, tmp_path)) == rtu, carrier
+
+
+def test_reads_of_the_other_table_than_the_markers_are_left_alone() -> None:
+    """SunSpec's registers are holding registers; a device may serve them as input
+    registers too, but nothing says a unit's input registers are its SunSpec map: the
+    tracker keeps to the table the marker was read from."""
+    reg = device_image()
+    frames = frames_of(reg, discovery(reg, 40000))
+    later = [(t + 30, f) for t, f in frames_of(reg, [(40084, 2)], function=4)]
+    session = session_of(frames + later)
+    su = session.annotator.sunspec.units[UNIT]
+    assert su.function == 3 and su.complete
+    assert texts(session, len(session.store) - 1) == []  # the FC 4 answer: plain words
+    tracker = SunSpecTracker(ModelLibrary(None))
+    tracker.take(UNIT, 0, 40000, [0x5375, 0x6E53, 1, 66], function=4)
+    tracker.take(UNIT, 1, 40002, [0xFFFF, 0], function=3)  # the holding table: not taken
+    assert tracker.units[UNIT].image == {40000: 0x5375, 40001: 0x6E53, 40002: 1, 40003: 66}
+
+
+def test_the_rule_reads_what_the_registry_and_the_envelopes_say() -> None:
+    """The reads SunSpec takes are the registry's reads of registers, each naming its
+    table; a request's PDU lies where each envelope puts it (the numbers the compiled
+    first look is given at each call)."""
+    registry = {c for c, spec in FUNCTIONS.items() if spec.family == "read"}
+    registry &= {c for c, spec in FUNCTIONS.items() if spec.table in set(sunspec.TABLES.values())}
+    assert set(sunspec.READS) == registry == set(sunspec.TABLES)
+    assert all(FUNCTIONS[c].table == sunspec.TABLES[c] for c in sunspec.READS)
+    assert bytes(c in sunspec.READS for c in range(256)) == sunspec._READS_MASK
+    request, _answer = read(device_image(), 40000, 2, function=4)
+    pdu = request[1:-2]  # function code, first register, count
+    assert len(pdu) == sunspec._READ_PDU
+    for frame, (head, tail) in (
+        (request, sunspec._RTU_FRAME),
+        (as_mbap(request, 9), sunspec._MBAP_FRAME),
+    ):
+        assert frame[head : len(frame) - tail] == pdu
+    assert list(sunspec._FRAMES) == [*sunspec._RTU_FRAME, *sunspec._MBAP_FRAME, len(pdu)]

@@ -1,10 +1,13 @@
-"""Provides helpers shared by tests (moved from test_sunspec.py)."""
+"""Provides helpers shared by tests (moved from test_sunspec.py): a SunSpec device's
+register image, the reads a master discovers it with, and those reads as RTU frames,
+ASCII frames, or a network capture (Modbus TCP or RTU over TCP)."""
 
 from __future__ import annotations
 
-from dissectors.checks import with_crc
+from dissectors.checks import lrc, with_crc
 from sniffer.model import Chunk, LineSettings
 from sniffer.session.session import Session
+from tests.support.netbuild import Conversation, pcap
 
 UNIT = 7
 
@@ -62,11 +65,16 @@ def device_image(base: int = 40000) -> dict[int, int]:
     return reg
 
 
-def read(reg: dict[int, int], start: int, count: int, unit: int = UNIT) -> tuple[bytes, bytes]:
-    """An FC 3 request for `count` registers at `start`, and the device's answer."""
-    request = with_crc(bytes([unit, 3]) + start.to_bytes(2, "big") + count.to_bytes(2, "big"))
+def read(
+    reg: dict[int, int], start: int, count: int, unit: int = UNIT, function: int = 3
+) -> tuple[bytes, bytes]:
+    """An RTU request (FC 3, or `function` 4) for `count` registers at `start`, and the
+    device's answer."""
+    request = with_crc(
+        bytes([unit, function]) + start.to_bytes(2, "big") + count.to_bytes(2, "big")
+    )
     data = b"".join(reg[start + k].to_bytes(2, "big") for k in range(count))
-    return request, with_crc(bytes([unit, 3, len(data)]) + data)
+    return request, with_crc(bytes([unit, function, len(data)]) + data)
 
 
 def discovery(reg: dict[int, int], base: int) -> list[tuple[int, int]]:
@@ -82,11 +90,13 @@ def discovery(reg: dict[int, int], base: int) -> list[tuple[int, int]]:
         at += 2 + length
 
 
-def frames_of(reg: dict[int, int], reads: list[tuple[int, int]]) -> list[tuple[float, bytes]]:
+def frames_of(
+    reg: dict[int, int], reads: list[tuple[int, int]], function: int = 3
+) -> list[tuple[float, bytes]]:
     """Each read 0.5 s after the last; times are the ends of the frames at 19200 8E1."""
     out: list[tuple[float, bytes]] = []
     for k, (start, count) in enumerate(reads):
-        request, answer = read(reg, start, count)
+        request, answer = read(reg, start, count, function=function)
         sent = k * 0.5 + len(request) * LINE.char_time
         out += [(sent, request), (sent + 0.005 + len(answer) * LINE.char_time, answer)]
     return out
@@ -98,3 +108,42 @@ def session_of(frames: list[tuple[float, bytes]], **kw: object) -> Session:
         session.feed(Chunk(data, 1_700_000_000 + t))
     session.finish()
     return session
+
+
+# -- the same reads in other envelopes -------------------------------------------------------
+
+
+def as_ascii(rtu: bytes, start: bytes = b":") -> bytes:
+    """An RTU frame's unit and PDU as a Modbus ASCII frame: `:` (or `start`), hex, LRC, CR LF."""
+    body = rtu[:-2]
+    return start + (body + bytes([lrc(body)])).hex().upper().encode() + b"\r\n"
+
+
+def as_mbap(rtu: bytes, tid: int) -> bytes:
+    """An RTU frame's unit and PDU behind an MBAP header (transaction `tid`, protocol 0)."""
+    body = rtu[:-2]
+    return tid.to_bytes(2, "big") + b"\0\0" + len(body).to_bytes(2, "big") + body
+
+
+def network_capture(
+    reg: dict[int, int],
+    reads: list[tuple[int, int]],
+    *,
+    function: int = 3,
+    carrier: str = "tcp",
+    server_port: int = 502,
+) -> bytes:
+    """A pcap (Ethernet) of one TCP connection in which a client makes `reads` of the
+    device: Modbus TCP (`carrier` "tcp", an MBAP header per frame) or the RTU frames as
+    they are ("rtu-over-tcp"), 0.5 s apart, each answered after 150 ms (as through a
+    gateway to a serial line)."""
+    conv = Conversation(server_port=server_port)
+    t0 = 1_700_000_000.0
+    packets = [(t0 + k * 0.001, p) for k, p in enumerate(conv.handshake())]
+    for k, (start, count) in enumerate(reads):
+        request, answer = read(reg, start, count, function=function)
+        if carrier == "tcp":
+            request, answer = as_mbap(request, k + 1), as_mbap(answer, k + 1)
+        sent = t0 + 0.1 + k * 0.5
+        packets += [(sent, conv.client(request)), (sent + 0.15, conv.server(answer))]
+    return pcap(1, packets)
