@@ -29,7 +29,7 @@ from sniffer.analysis.linescore import (
 )
 from sniffer.framing.pipeline import frame_capture
 from sniffer.framing.store import FrameStore
-from sniffer.live.scan import PortListener, live_command, scan
+from sniffer.live.scan import FORMATS, PortListener, live_command, no_line_settings, scan
 from sniffer.model import Chunk, LineSettings
 from sniffer.session.session import open_session
 from sniffer.sources import ReadOptions, open_capture
@@ -751,3 +751,21 @@ def test_live_baud_auto_on_a_pseudo_terminal_listens_as_it_is(
     assert f"--baud auto: no line settings to find: {name} is a pseudo-terminal" in err
     assert "listening at 19200 8N1, which changes nothing here" in err
     assert len(out.splitlines()) == 2 and "Read Holding Registers" in out
+
+
+def test_a_port_that_refuses_every_setting_says_so() -> None:
+    line = LineSettings(19200, 8, "N", 1)
+    ports = PickyPorts(Wire(line, *modbus_cycle(line)), refuse=set(FORMATS))
+    listener = PortListener("/dev/ttyDOUBLE0", factory=ports, counters=ports.counters)
+    result = scan(listener, bauds=(9600, 19200), dwell=0.02, max_dwell=0.05)
+    assert result.winner is None and not result.quiet
+    # the first round only (8N1, 8E1, 7E1 at each speed): nothing read, no second round
+    assert result.verdict == "the port refused all 6 settings tried; none could be listened to"
+    assert len(result.refused) == 6 and result.trials == ()
+
+
+def test_which_ports_have_line_settings(tmp_path: Path) -> None:
+    assert no_line_settings("loop://") is not None
+    assert no_line_settings("rfc2217://127.0.0.1:2217") is None  # found out when it opens
+    assert no_line_settings(str(tmp_path / "ttyNOPE")) is None  # said when it opens
+    assert no_line_settings("/dev/null") is None  # a character device, not a pty
