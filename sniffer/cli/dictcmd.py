@@ -17,7 +17,7 @@ from dissectors.dictionary import (
     load_model,
 )
 from dissectors.dictionary.loader import FORMAT_NAMES
-from sniffer.analysis.draft import draft, units_seen
+from sniffer.analysis.draft import guesses, observe, summary, toml_of, units_seen
 from sniffer.cli.options import SubParsers, add_line_options, read_options
 from sniffer.errors import UsageError
 from sniffer.session.session import open_session
@@ -77,15 +77,20 @@ def cmd_draft(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError(
             f"unit {args.unit} never answered in {args.capture} (units that did: {units})"
         )
-    text = draft(session.store, args.unit, args.capture, args.model)
+    seen_unit = observe(session.store, args.unit)
+    found = guesses(seen_unit)
+    text = toml_of(seen_unit, found, args.capture, args.model)
+    said = summary(seen_unit, found)
     if args.output in (None, "-"):
         out.write(text)
-        return 0
-    target = Path(args.output)
-    if target.exists() and not args.force:
-        raise UsageError(f"{target} exists; give another -o FILE, or --force to overwrite it")
-    target.write_text(text, encoding="utf-8")
-    err.write(f"modscope: wrote {target}; check it with `modscope dict check {target}`\n")
+    else:
+        target = Path(args.output)
+        if target.exists() and not args.force:
+            raise UsageError(f"{target} exists; give another -o FILE, or --force to overwrite it")
+        target.write_text(text, encoding="utf-8")
+        err.write(f"modscope: wrote {target}; check it with `modscope dict check {target}`\n")
+    if not args.quiet:
+        err.write("".join(f"{plain(line)}\n" for line in said))
     return 0
 
 
@@ -114,9 +119,11 @@ def register(sub: SubParsers) -> None:
         help="draft a dictionary for an unknown unit from a capture",
         description=(
             "Write a TOML dictionary for one unit from what the master read and wrote in a "
-            "capture: every address range, a guessed type for each register (u16, s16, "
-            "32-bit values in either word order, bit fields, enums, counters, constants), "
-            "the evidence and a comment where the guess is weak. Edit it, then bind it."
+            "capture: every address range and an entry per register, string or 32-bit "
+            "value. A type (u16, s16, u32, s32, f32, str, enum, bit field), word order or "
+            "scale is proposed only where the values give evidence for it, and the "
+            "evidence is written beside it (and listed on standard error); the rest is "
+            "said to be unknown. Edit it, then bind it."
         ),
         epilog=DRAFT_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -126,5 +133,11 @@ def register(sub: SubParsers) -> None:
     d.add_argument("-o", "--output", metavar="FILE", help="where to write it (default: stdout)")
     d.add_argument("--model", help="model name to give it (default: draft-unitN)")
     d.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+    d.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="leave out the list of what was proposed and on what evidence",
+    )
     add_line_options(d)
     d.set_defaults(func=cmd_dict)

@@ -17,12 +17,15 @@ from sniffer.live.scan import (
     DWELL,
     FORMATS,
     MAX_DWELL,
+    NoLineSettingsError,
     PortListener,
     ScanResult,
     Trial,
     live_command,
+    no_line_settings,
     scan,
 )
+from sniffer.model import LineSettings
 from sniffer.text import plain
 
 EPILOG = """\
@@ -33,6 +36,10 @@ examples:
 
 The port is opened with RTS and DTR off and only read: the scan changes nothing but the
 local port's settings. Scan while the master polls: a silent line cannot be measured.
+A pseudo-terminal or a socket:// URL has no line settings to find: the scan says so and
+exits 1. Settings the port refuses are skipped and listed. The winner comes with its
+confidence (high, medium, low), the formats that read alike and what would tell them
+apart. Exit status: 0 with a winner, 1 without one.
 """
 
 
@@ -122,16 +129,37 @@ def _wanted_formats(args: argparse.Namespace) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _listen_anyway(args: argparse.Namespace, port: str, reason: str, err: TextIO) -> None:
+    """`live --baud auto` on a port without line settings: listen at the flags given,
+    without parity where none is given (some pseudo-terminals refuse even parity)."""
+    default = LineSettings()
+    args.baud = default.baud
+    if args.parity is None:
+        args.parity = "N"
+    line = LineSettings(
+        default.baud, args.bytesize or default.bytesize, args.parity, args.stopbits or 1
+    )
+    err.write(
+        f"modscope: --baud auto: no line settings to find: {plain(reason)}; listening at "
+        f"{line.baud} {format_of(line)}, which changes nothing here\n"
+    )
+
+
 def scan_for_live(args: argparse.Namespace, err: TextIO) -> ScanResult | None:
     """`live --baud auto`: scan the first port and put the winner's settings into `args`
-    (baud, format, ASCII mode), saying on `err` what was chosen. No winner is a user
-    error (exit 2) that says why and points at `modscope scan`. Nothing is done when no
-    port is named (port_specs says so)."""
+    (baud, format, ASCII mode), saying on `err` what was chosen and how sure it is. No
+    winner is a user error (exit 2) that says why and points at `modscope scan`. A port
+    with no line settings (a pseudo-terminal, socket://) is listened to as it is. Nothing
+    is done when no port is named (port_specs says so)."""
     names = [*args.ports, *args.extra_ports]
     if not names:
         args.baud = None
         return None
     port = names[0]
+    reason = no_line_settings(port)
+    if reason is not None:
+        _listen_anyway(args, port, reason, err)
+        return None
     formats = _wanted_formats(args)
     listener = PortListener(port)
     try:
@@ -143,6 +171,11 @@ def scan_for_live(args: argparse.Namespace, err: TextIO) -> ScanResult | None:
             max_dwell=scanning.MAX_DWELL,
             progress=_progress(err, port),
         )
+    except NoLineSettingsError as exc:
+        raise UsageError(
+            f"--baud auto on {port}: no line settings to find: {exc} (connect with "
+            "socket://HOST:PORT if the server sends the line's bytes as they are)"
+        ) from None
     except PortError as exc:
         raise UsageError(str(exc)) from None
     finally:
@@ -150,6 +183,8 @@ def scan_for_live(args: argparse.Namespace, err: TextIO) -> ScanResult | None:
             err.write("\r\x1b[K")
     for w in listener.warnings:
         err.write(f"modscope: warning: {plain(w)}\n")
+    if result.refused:
+        err.write(f"modscope: note: {plain(result.refused_text())}\n")
     seconds = sum(t.seconds for t in result.trials)
     if result.winner is None:
         hint = (
@@ -168,18 +203,42 @@ def scan_for_live(args: argparse.Namespace, err: TextIO) -> ScanResult | None:
         args.mode = "ascii"
     err.write(
         f"modscope: --baud auto: {len(result.trials)} settings of {port} in {seconds:.1f} s; "
-        f"chose {result.verdict}; listening at {win.line.baud} {format_of(win.line)}\n"
+        f"chose {result.verdict}; confidence {result.confidence}; listening at "
+        f"{win.line.baud} {format_of(win.line)}\n"
     )
-    for doubt in result.doubts:
-        err.write(f"modscope: note: {doubt}\n")
+    if result.confidence != "high":
+        err.write(f"modscope: note: confidence {result.confidence}: {result.reason}\n")
     if len(names) > 1:
         err.write(f"modscope: note: the other ports are opened at the setting {port} gave\n")
     return result
 
 
+def report(result: ScanResult, port: str) -> str:
+    """What `modscope scan` prints after its table: the refused settings, the winner with
+    its confidence and what would raise it, and the command to listen with."""
+    lines: list[str] = []
+    if result.refused:
+        lines.append(result.refused_text())
+    if result.winner is None:
+        lines.append(f"no winner: {result.verdict}")
+        return "\n".join(lines) + "\n"
+    lines.append(f"winner: {result.verdict}")
+    lines.append(f"confidence: {result.confidence}: {result.reason}")
+    lines.extend(f"to raise it: {r}" for r in result.raise_it)
+    lines.extend(f"note: {d}" for d in result.doubts)
+    lines.append("")
+    lines.append(f"  {live_command(port, result.winner)}")
+    return "\n".join(lines) + "\n"
+
+
 def cmd_scan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.dwell <= 0 or args.max_dwell < args.dwell:
         raise UsageError("--dwell must be positive and --max-dwell at least --dwell")
+    bauds, formats = _bauds(args.baud), _formats(args.formats)
+    reason = no_line_settings(args.port)
+    if reason is not None:
+        out.write(f"no line settings to find: {plain(reason)}\n")
+        return 1
     listener = PortListener(args.port)
     show = err.isatty()
 
@@ -191,12 +250,15 @@ def cmd_scan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     try:
         result = scan(
             listener,
-            _bauds(args.baud),
-            _formats(args.formats),
+            bauds,
+            formats,
             dwell=args.dwell,
             max_dwell=args.max_dwell,
             progress=progress,
         )
+    except NoLineSettingsError as exc:
+        out.write(f"no line settings to find: {plain(str(exc))}\n")
+        return 1
     except PortError as exc:
         raise UsageError(str(exc)) from None
     finally:
@@ -204,15 +266,10 @@ def cmd_scan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             err.write("\r\x1b[K")
     for w in listener.warnings:
         err.write(f"modscope: warning: {plain(w)}\n")
-    out.write(result.table() + "\n\n")
-    if result.winner is None:
-        out.write(f"no winner: {result.verdict}\n")
-        return 1
-    out.write(f"winner: {result.verdict}\n")
-    for doubt in result.doubts:
-        out.write(f"note: {doubt}\n")
-    out.write(f"\n  {live_command(args.port, result.winner)}\n")
-    return 0
+    if result.trials:
+        out.write(result.table() + "\n\n")
+    out.write(report(result, args.port))
+    return 0 if result.winner is not None else 1
 
 
 def register(sub: SubParsers) -> None:
@@ -221,10 +278,12 @@ def register(sub: SubParsers) -> None:
         help="find a line's baud rate and format by listening (never transmits)",
         description=(
             "Listen passively at each common setting (1200-921600 baud; 8N1, 8E1, 8O1, 8N2; "
-            "7E1 and 7O1 for ASCII), longer on a quiet line, and score each by frames "
-            "whose CRC or LRC checks, answered requests, and the framing and parity errors "
-            "the driver counted. Prints a ranked table, the winner and the `modscope live` "
-            "command to use, or says the line was too quiet to decide."
+            "7E1 and 7O1 for ASCII), longer on a quiet line, and score each by the share "
+            "of its bytes in frames whose CRC or LRC checks and by answered requests, then "
+            "by the framing and parity errors the driver counted (where it is seen to "
+            "count). Prints a ranked table, the winner with its confidence and the formats "
+            "that read alike, and the `modscope live` command to use; or says the line was "
+            "too quiet to decide, or that the port has no line settings to find."
         ),
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -59,6 +59,11 @@ class PortError(UserError):
     """A port cannot be used. The message names the port and what to do."""
 
 
+class SettingsRefusedError(PortError):
+    """The port is there but refused the line settings asked of it; other settings may
+    work (the scan skips the refused ones)."""
+
+
 @dataclass(frozen=True, slots=True)
 class PortSpec:
     """A port to listen on: its name, line settings, and the channel its chunks carry."""
@@ -128,9 +133,7 @@ def posix_fd(port: serial.Serial) -> int | None:
     return fd if isinstance(fd, int) and fd >= 0 else None
 
 
-def explain(spec: PortSpec, exc: BaseException) -> str:
-    """What went wrong opening `spec`, and what to do about it."""
-    name = spec.name
+def _code_and_text(exc: BaseException) -> tuple[int | None, str]:
     code = exc.errno if isinstance(exc, OSError) else None
     text = str(exc)
     if isinstance(exc, termios.error):
@@ -138,6 +141,22 @@ def explain(spec: PortSpec, exc: BaseException) -> str:
         args = exc.args
         code = args[0] if args and isinstance(args[0], int) else None
         text = str(args[1]) if len(args) > 1 else text
+    return code, text
+
+
+def refused_settings(exc: BaseException) -> bool:
+    """The open failed on the line settings, not on the port: EINVAL from the tty
+    ioctls, or an RFC 2217 server rejecting a value (pyserial's ValueError)."""
+    code, text = _code_and_text(exc)
+    if isinstance(exc, ValueError) and "rejected value" in text:
+        return True
+    return code == errno.EINVAL or "Invalid argument" in text
+
+
+def explain(spec: PortSpec, exc: BaseException) -> str:
+    """What went wrong opening `spec`, and what to do about it."""
+    name = spec.name
+    code, text = _code_and_text(exc)
     if code in (errno.ENOENT, errno.ENODEV, errno.ENXIO) or "No such file" in text:
         return (
             f"{name}: no such serial port; `modscope ports` lists the ports this machine "
@@ -155,7 +174,7 @@ def explain(spec: PortSpec, exc: BaseException) -> str:
         )
     if "Inappropriate ioctl" in text or code == errno.ENOTTY:
         return f"{name}: is not a serial port; give a serial device such as /dev/ttyUSB0"
-    if code == errno.EINVAL or "Invalid argument" in text:
+    if refused_settings(exc):
         return (
             f"{name}: the port refused the line settings {spec.line.describe()} ({text}); "
             "check --baud, --parity and --stopbits (a pseudo-terminal may refuse even parity)"
@@ -180,7 +199,8 @@ def open_passive(
     except (serial.SerialException, OSError, ValueError, termios.error) as exc:
         # termios.error is not an OSError: pyserial raises it when the port refuses the
         # line settings (a pseudo-terminal refusing even parity, a tunnel's remote end)
-        raise PortError(explain(spec, exc)) from None
+        error = SettingsRefusedError if refused_settings(exc) else PortError
+        raise error(explain(spec, exc)) from None
     fd = posix_fd(port)
     if fd is not None:
         with contextlib.suppress(OSError):

@@ -67,7 +67,7 @@ def test_draft_check_and_bind(
         ["replay", str(capture), "--dict", str(draft), "--format", "text"], capsys
     )
     assert code == 0
-    assert "Holding 10 (counter) = 1000" in out and "Holding 11 (enum) = value 7" in out
+    assert "Holding 10 (counter) = 1000" in out and "Holding 11 = 7" in out
     code, _out, err = run(["dict", "draft", str(capture), "--unit", "5", "-o", str(draft)], capsys)
     assert code == 2 and "exists" in err
     code, _out, err = run(["dict", "draft", str(capture), "--unit", "9"], capsys)

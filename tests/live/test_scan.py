@@ -4,7 +4,10 @@ it cannot, and never drive the line."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import random
+import time
 from pathlib import Path
 
 import pytest
@@ -15,6 +18,7 @@ from dissectors.checks import with_crc
 from sniffer.analysis.baud import estimate_baud, estimate_line, wrong_speed
 from sniffer.analysis.linescore import (
     BAUDS,
+    ENOUGH_BYTES,
     Sample,
     Trial,
     candidates,
@@ -25,20 +29,26 @@ from sniffer.analysis.linescore import (
 )
 from sniffer.framing.pipeline import frame_capture
 from sniffer.framing.store import FrameStore
-from sniffer.live.scan import PortListener, live_command, scan
+from sniffer.live.scan import FORMATS, PortListener, live_command, no_line_settings, scan
 from sniffer.model import Chunk, LineSettings
 from sniffer.session.session import open_session
 from sniffer.sources import ReadOptions, open_capture
 from sniffer.vocab import BAD_CHECK, Flag, Kind
+from tests.support.scan_ports import NoControlPorts, PickyPorts
 from tests.support.uart_double import GarbledLine, GarblingPorts, Wire, character_bits, modbus_cycle
 
 REQUEST = with_crc(bytes.fromhex("010300000004"))
 ANSWER = with_crc(bytes.fromhex("0103080001000200030004"))
 
 
-def garbled(line: LineSettings, ascii_mode: bool = False, counters: bool = True) -> GarbledLine:
+def garbled(
+    line: LineSettings,
+    ascii_mode: bool = False,
+    counters: str = "counting",
+    resync: bool = False,
+) -> GarbledLine:
     cycle, period = modbus_cycle(line, ascii_mode)
-    return GarbledLine(Wire(line, cycle, period), counters=counters)
+    return GarbledLine(Wire(line, cycle, period), counters=counters, resync=resync)
 
 
 # -- the double itself ------------------------------------------------------------------
@@ -105,21 +115,28 @@ def test_scan_finds_the_true_setting(baud: int, fmt: str, ascii_mode: bool) -> N
 def test_two_stop_bits_read_as_one_and_the_scan_says_so() -> None:
     result = scan(garbled(LineSettings(19200, 8, "N", 2)))
     assert result.winner is not None and result.winner.settings() == "19200 8N1"
-    assert any("stop bit" in d for d in result.doubts)
+    assert result.alike == ("8N1", "8N2") and result.confidence == "medium"
+    assert result.verdict.startswith("19200 8N1 or 8N2 (RTU): ")
+    assert "only the first stop bit" in result.reason
+    assert any("logic analyser" in r for r in result.raise_it)
 
 
 def test_without_driver_counters_the_format_is_a_stated_guess() -> None:
-    result = scan(garbled(LineSettings(9600, 8, "E", 1), counters=False))
+    # a plain receiver reads 8E1 traffic at 8N1 cleanly; with no counters nothing here
+    # tells the four formats apart, and the verdict says so instead of picking one
+    result = scan(garbled(LineSettings(9600, 8, "E", 1), counters="none"))
     assert result.winner is not None and result.winner.line.baud == 9600
-    assert not result.counted_errors
-    assert any("likelier format, not a certain one" in d for d in result.doubts)
+    assert result.counters == "none" and not result.counted_errors
+    assert result.alike == ("8N1", "8E1", "8O1", "8N2") and result.confidence == "low"
+    assert "keeps no framing or parity error counters" in result.reason
+    assert "nothing here tells them apart" in result.reason
 
 
 def test_second_round_only_at_bauds_that_read_frames() -> None:
     listen = garbled(LineSettings(9600, 8, "E", 1))
     scan(listen)
     formats = {(line.baud, f"{line.bytesize}{line.parity}{line.stopbits}") for line in listen.heard}
-    assert {f for b, f in formats if b != 9600} <= {"8N1", "7E1"}
+    assert {f for b, f in formats if b != 9600} == {"8N1", "8E1", "7E1"}
     assert {f for b, f in formats if b == 9600} == {"8N1", "8E1", "8O1", "8N2", "7E1"}
 
 
@@ -477,7 +494,7 @@ def test_live_baud_auto_on_a_silent_line_says_so_and_exits_2(
     # two silent settings (each reopened to listen longer) end the scan; no capture opens
     assert {(p.baudrate, p.bytesize, p.parity) for p in ports.ports} == {
         (38400, 8, "N"),
-        (38400, 7, "E"),
+        (38400, 8, "E"),
     }
     assert ports.violations() == []
     assert all((p.rts, p.dtr) == (False, False) for p in ports.ports)
@@ -490,3 +507,265 @@ def test_baud_takes_a_number_or_auto(capsys: pytest.CaptureFixture[str]) -> None
         main(["live", "/dev/ttyDOUBLE0", "--baud", "fast"])
     assert stop.value.code == 2
     assert "'fast' is not a baud rate; give a number (19200) or auto" in capsys.readouterr().err
+
+
+# -- receivers: what each reads, and what the scan may conclude from it ----------------
+
+TRUTHS = ("8N1", "8E1", "8O1", "8N2")
+
+
+@pytest.mark.parametrize("truth", TRUTHS)
+@pytest.mark.parametrize("resync", [False, True], ids=["plain", "16550"])
+@pytest.mark.parametrize("counters", ["counting", "zero", "none"])
+def test_the_verdict_never_leaves_out_the_true_format(
+    truth: str, resync: bool, counters: str
+) -> None:
+    """Whatever the receiver and its driver, the line's own format is among the formats
+    named, and the confidence is high only when it is the only one."""
+    bytesize, parity, stopbits = parse_format(truth)
+    line = LineSettings(19200, bytesize, parity, stopbits)
+    result = scan(garbled(line, counters=counters, resync=resync), bauds=(9600, 19200, 38400))
+    assert result.winner is not None and result.winner.line.baud == 19200, result.verdict
+    assert truth in result.alike, (result.alike, result.reason)
+    assert format_of(result.winner.line) == result.alike[0]
+    assert (result.confidence == "high") == (result.alike == (truth,)), result.reason
+    assert result.reason and (result.confidence == "high" or result.raise_it)
+
+
+@pytest.mark.parametrize(
+    ("truth", "resync", "counters", "alike", "confidence"),
+    [
+        # a counting driver tells parity apart; no receiver tells one stop bit from two
+        ("8E1", False, "counting", ("8E1",), "high"),
+        ("8O1", True, "counting", ("8O1",), "high"),
+        ("8N1", False, "counting", ("8N1", "8N2"), "medium"),
+        ("8N2", True, "counting", ("8N1", "8N2"), "medium"),
+        # a 16550 garbles parity traffic read without parity: the data rule 8N1/8N2 out,
+        # and without counters even and odd stay alike
+        ("8E1", True, "zero", ("8E1", "8O1"), "medium"),
+        ("8E1", True, "none", ("8E1", "8O1"), "medium"),
+        # CP210x (a 16550 whose driver counts nothing): every format reads 8N1 traffic
+        ("8N1", True, "zero", ("8N1", "8E1", "8O1", "8N2"), "low"),
+        ("8N2", True, "zero", ("8N1", "8E1", "8O1", "8N2"), "low"),
+        # a plain receiver garbles back-to-back 8N1 read with parity: the data decides
+        ("8N1", False, "none", ("8N1", "8N2"), "medium"),
+    ],
+)
+def test_what_each_receiver_lets_the_scan_say(
+    truth: str, resync: bool, counters: str, alike: tuple[str, ...], confidence: str
+) -> None:
+    bytesize, parity, stopbits = parse_format(truth)
+    line = LineSettings(19200, bytesize, parity, stopbits)
+    result = scan(garbled(line, counters=counters, resync=resync), bauds=(9600, 19200, 38400))
+    assert (result.alike, result.confidence) == (alike, confidence), result.reason
+
+
+def test_a_16550_on_an_8e1_line_is_found_by_the_first_round_at_8e1() -> None:
+    """At 8N1 a 16550 takes each low parity bit for a start bit: not one valid frame. A
+    first round read at 8N1 alone never tried 8E1 at the right speed."""
+    line = LineSettings(19200, 8, "E", 1)
+    listen = garbled(line, resync=True)
+    result = scan(listen, bauds=(9600, 19200, 38400))
+    at_8n1 = next(t for t in result.trials if t.settings() == "19200 8N1")
+    assert at_8n1.frames == 0 and at_8n1.bytes > ENOUGH_BYTES
+    assert result.winner is not None and result.winner.settings() == "19200 8E1"
+    assert result.confidence == "high"
+    assert "8N1 and 8N2 garble the frames" in result.reason
+    first = [format_of(x) for x in listen.heard[:2]]
+    assert first == ["8N1", "8E1"]
+
+
+def test_cp210x_zero_counters_never_name_8e1_on_an_8n1_line() -> None:
+    """The driver answers the counter ioctl with zeros at every setting, wrong baud rates
+    included: its zeros prove nothing, and the verdict says so."""
+    for truth in (LineSettings(19200, 8, "N", 1), LineSettings(19200, 8, "N", 2)):
+        result = scan(garbled(truth, counters="zero", resync=True), bauds=(9600, 19200, 38400))
+        assert result.counters == "silent" and not result.counted_errors
+        assert result.winner is not None and result.winner.settings() == "19200 8N1"
+        assert result.confidence == "low"
+        assert result.verdict.startswith("19200 8N1, 8E1, 8O1 or 8N2 (RTU): ")
+        assert "line errors" not in result.verdict  # zeros that prove nothing are not shown
+        assert "does not count them (CP210x adapters do not)" in result.reason
+        assert any("FTDI" in r for r in result.raise_it)
+        assert "-" in result.table().splitlines()[1].split()  # the errors column
+
+
+def test_valid_frames_outweigh_error_counters_that_never_count() -> None:
+    """Synthesised trials at one speed: 8E1 reads every frame, 8N1 garbles them; the
+    driver reported zero errors at both. The data decides, the zeros do not."""
+
+    def trial(fmt: str, frames: int, valid_bytes: int, noise: int) -> Trial:
+        bytesize, parity, stopbits = parse_format(fmt)
+        line = LineSettings(19200, bytesize, parity, stopbits)
+        return Trial(line, 1.0, 400, frames, 1, noise, frames // 2, 0, 0, "rtu", valid_bytes)
+
+    result = decide([trial("8N1", 3, 30, 300), trial("8E1", 30, 390, 0), trial("8O1", 30, 390, 0)])
+    assert result.winner is not None and result.winner.settings() == "19200 8E1"
+    assert result.counters == "silent"
+    assert result.alike == ("8E1", "8O1") and result.confidence == "medium"
+    assert [format_of(t.line) for t in result.trials] == ["8E1", "8O1", "8N1"]
+
+
+def test_few_frames_or_no_answers_are_not_high_confidence() -> None:
+    line = LineSettings(9600, 8, "E", 1)
+    trials = [
+        Trial(line, 2.0, 40, 4, 0, 0, 0, 0, 0, "rtu", 40),
+        Trial(LineSettings(9600, 8, "O", 1), 2.0, 40, 4, 0, 0, 0, 0, 40, "rtu", 40),
+        Trial(LineSettings(9600, 8, "N", 1), 2.0, 40, 0, 0, 40, 0, 20, 0, "rtu", 0),
+    ]
+    result = decide(trials)
+    assert result.alike == ("8E1",) and result.confidence == "medium"
+    assert "only 4 valid frames and no answered request" in result.reason
+    assert any("listen longer" in r for r in result.raise_it)
+
+
+# -- settings the port refuses, ports with no settings ----------------------------------
+
+
+def test_a_refused_setting_is_skipped_with_a_note() -> None:
+    line = LineSettings(19200, 8, "N", 1)
+    ports = PickyPorts(Wire(line, *modbus_cycle(line)), refuse={"8E1"})
+    listener = PortListener("/dev/ttyDOUBLE0", factory=ports, counters=ports.counters)
+    result = scan(listener, bauds=(9600, 19200, 38400), dwell=0.02, max_dwell=0.05)
+    assert result.winner is not None and result.winner.settings() == "19200 8N1"
+    assert [r.settings() for r in result.refused] == ["38400 8E1", "19200 8E1", "9600 8E1"]
+    assert {r.reason for r in result.refused} == {"Invalid argument"}
+    assert "8E1" not in {format_of(t.line) for t in result.trials}
+    assert result.refused_text() == (
+        "skipped 3 settings the port refused (38400 8E1, 19200 8E1, 9600 8E1): Invalid argument"
+    )
+    assert ports.violations() == []
+    assert all((p.rts, p.dtr) == (False, False) for p in ports.ports)
+
+
+def test_scan_command_skips_refused_settings_instead_of_stopping(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sniffer.cli import main
+
+    line = LineSettings(19200, 8, "N", 1)
+    ports = PickyPorts(Wire(line, *modbus_cycle(line)), refuse={"8E1", "8O1"})
+    _fast_scan(monkeypatch, ports)
+    argv = ["scan", "/dev/ttyDOUBLE0", "-b", "9600,19200", "--dwell", "0.02"]
+    code = main([*argv, "--max-dwell", "0.05"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "skipped 3 settings the port refused (19200 8E1, 19200 8O1, 9600 8E1): " in out
+    assert "winner: 19200 8N1 or 8N2 (RTU): " in out
+    assert "confidence: medium: 8N1 or 8N2: a receiver checks only the first stop bit" in out
+    assert "  modscope live /dev/ttyDOUBLE0 --baud 19200 --parity N\n" in out
+
+
+def test_a_pseudo_terminal_has_no_line_settings_to_find(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sniffer.live.port
+    from sniffer.cli import main
+
+    opened: list[str] = []
+    monkeypatch.setattr(sniffer.live.port, "new_port", lambda name: opened.append(name))
+    master, slave = os.openpty()
+    try:
+        name = os.ttyname(slave)
+        link = tmp_path / "ttyV0"  # as socat's link= makes it
+        link.symlink_to(name)
+        for port in (name, str(link)):
+            code = main(["scan", port])
+            out, err = capsys.readouterr()
+            assert (code, err) == (1, "")
+            assert out.startswith(f"no line settings to find: {port}")
+            assert "is a pseudo-terminal: bytes pass through it unchanged" in out
+            assert out.count("\n") == 1
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert opened == []  # said before anything was opened
+
+
+@pytest.mark.parametrize("url", ["socket://127.0.0.1:4001", "spy://socket://127.0.0.1:4001"])
+def test_a_socket_url_has_no_line_settings_to_find(
+    url: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sniffer.live.port
+    from sniffer.cli import main
+
+    opened: list[str] = []
+    monkeypatch.setattr(sniffer.live.port, "new_port", lambda name: opened.append(name))
+    code = main(["scan", url])
+    out, err = capsys.readouterr()
+    assert (code, err, opened) == (1, "", [])
+    assert out == (
+        "no line settings to find: socket://127.0.0.1:4001 is a raw TCP connection: the "
+        "bytes were read off the line by the server's UART, at the settings set on the "
+        "server, and arrive the same at any setting here\n"
+    )
+
+
+def test_an_rfc2217_server_without_control_has_no_line_settings_to_find(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sniffer.live.port
+    from sniffer.cli import main
+
+    ports = NoControlPorts()
+    monkeypatch.setattr(sniffer.live.port, "new_port", ports)
+    url = "rfc2217://127.0.0.1:2217"
+    code = main(["scan", url, "-b", "9600,19200"])
+    out, err = capsys.readouterr()
+    assert (code, err) == (1, "")
+    assert out.startswith(f"no line settings to find: {url}: the server takes no line settings")
+    assert len(ports.ports) == 1  # found out at the first setting, not 12 times
+    code = main(["live", url, "--baud", "auto", "--format", "text"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--baud auto on rfc2217://127.0.0.1:2217: no line settings" in err
+
+
+def test_live_baud_auto_on_a_pseudo_terminal_listens_as_it_is(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import threading
+
+    from sniffer.cli import main
+    from tests.support.virtual_bus import open_pty
+
+    master, slave, name = open_pty()
+    stop = threading.Event()
+
+    def talk() -> None:
+        while not stop.wait(0.05):
+            with contextlib.suppress(OSError):
+                os.write(master, REQUEST)
+                time.sleep(0.01)
+                os.write(master, ANSWER)
+
+    threading.Thread(target=talk, daemon=True).start()
+    try:
+        code = main(["live", name, "--baud", "auto", "--format", "text", "-c", "2"])
+    finally:
+        stop.set()
+        time.sleep(0.1)
+        os.close(master)
+        os.close(slave)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert f"--baud auto: no line settings to find: {name} is a pseudo-terminal" in err
+    assert "listening at 19200 8N1, which changes nothing here" in err
+    assert len(out.splitlines()) == 2 and "Read Holding Registers" in out
+
+
+def test_a_port_that_refuses_every_setting_says_so() -> None:
+    line = LineSettings(19200, 8, "N", 1)
+    ports = PickyPorts(Wire(line, *modbus_cycle(line)), refuse=set(FORMATS))
+    listener = PortListener("/dev/ttyDOUBLE0", factory=ports, counters=ports.counters)
+    result = scan(listener, bauds=(9600, 19200), dwell=0.02, max_dwell=0.05)
+    assert result.winner is None and not result.quiet
+    # the first round only (8N1, 8E1, 7E1 at each speed): nothing read, no second round
+    assert result.verdict == "the port refused all 6 settings tried; none could be listened to"
+    assert len(result.refused) == 6 and result.trials == ()
+
+
+def test_which_ports_have_line_settings(tmp_path: Path) -> None:
+    assert no_line_settings("loop://") is not None
+    assert no_line_settings("rfc2217://127.0.0.1:2217") is None  # found out when it opens
+    assert no_line_settings(str(tmp_path / "ttyNOPE")) is None  # said when it opens
+    assert no_line_settings("/dev/null") is None  # a character device, not a pty

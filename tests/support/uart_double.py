@@ -9,6 +9,15 @@ a framing error, a wrong parity bit a parity error, and the byte is delivered an
 (pyserial's raw mode does not drop or mark it). Hunting resumes from the middle of the
 stop bit, so at the wrong speed start bits are found inside characters, as on a real
 line.
+
+Two receiver behaviours differ after a framing error. A plain receiver hunts for the
+next falling edge. A 16550-family receiver (the PC's UART and many adapters) takes the
+low level it found where the stop bit should be for the next start bit and reads the
+next character from there ("resynchronises"): at 8N1 on an 8E1 line a parity bit of 0
+starts a new character in the middle of the real one, and the bytes come out garbled,
+where a plain receiver reads them cleanly. And drivers differ in what they count: most
+report framing and parity errors, some (CP210x adapters) report none at all although
+their ioctl answers, and a pseudo-terminal has no counters.
 """
 
 from __future__ import annotations
@@ -93,25 +102,31 @@ class Wire:
         return 1 if bisect.bisect_right(self.edges, t) % 2 == 0 else 0
 
     def receive(
-        self, line: LineSettings, t0: float, t1: float
+        self, line: LineSettings, t0: float, t1: float, resync: bool = False
     ) -> tuple[list[tuple[float, int]], int, int]:
         """Bytes (with the time of their stop bit) a receiver at `line` reads in [t0, t1),
-        and its framing and parity error counts."""
+        and its framing and parity error counts; `resync` for a 16550-family receiver."""
         self.render(t1 + 0.05)
         bit = 1 / line.baud
         got: list[tuple[float, int]] = []
         framing = parity = 0
         t = t0
+        forced: float | None = None  # a start bit a 16550 took from a missing stop bit
         while True:
-            k = bisect.bisect_left(self.falling, t)
-            if k == len(self.falling):
-                break
-            start = self.falling[k]
-            if start >= t1:
-                break
-            if self.level(start + bit / 2) != 0:  # a glitch, not a start bit
-                t = start + bit / 2
-                continue
+            if forced is not None:
+                start, forced = forced, None
+                if start >= t1:
+                    break
+            else:
+                k = bisect.bisect_left(self.falling, t)
+                if k == len(self.falling):
+                    break
+                start = self.falling[k]
+                if start >= t1:
+                    break
+                if self.level(start + bit / 2) != 0:  # a glitch, not a start bit
+                    t = start + bit / 2
+                    continue
             value = 0
             ones = 0
             for i in range(line.bytesize):
@@ -126,6 +141,8 @@ class Wire:
                 at += bit
             if self.level(at) == 0:
                 framing += 1
+                if resync:
+                    forced = at - bit / 2
             got.append((at + bit / 2, value))
             t = at
         return got, framing, parity
@@ -139,11 +156,14 @@ class GarbledLine:
     wire: Wire
     now: float = 0.003  # not on a character boundary
     heard: list[LineSettings] = field(default_factory=list)
-    counters: bool = True
+    counters: str = "counting"  # "counting", "zero" (CP210x) or "none" (a pty)
+    resync: bool = False  # a 16550-family receiver
 
     def __call__(self, line: LineSettings, seconds: float) -> Sample:
         self.heard.append(line)
-        got, framing, parity = self.wire.receive(line, self.now, self.now + seconds)
+        got, framing, parity = self.wire.receive(
+            line, self.now, self.now + seconds, resync=self.resync
+        )
         self.now += seconds
         chunks: list[Chunk] = []
         block = bytearray()
@@ -157,8 +177,10 @@ class GarbledLine:
             block.append(value)
         if block:
             chunks.append(Chunk(bytes(block), block_end))
-        if not self.counters:
+        if self.counters == "none":
             return Sample(tuple(chunks), seconds)
+        if self.counters == "zero":
+            return Sample(tuple(chunks), seconds, 0, 0)
         return Sample(tuple(chunks), seconds, framing, parity)
 
 
@@ -167,10 +189,11 @@ class GarblingPort(Tripwire):
     settings would read from the wire in the next `window` seconds. Everything that
     could drive the line raises (see Tripwire)."""
 
-    def __init__(self, wire: Wire, window: float, start: float) -> None:
+    def __init__(self, wire: Wire, window: float, start: float, resync: bool = False) -> None:
         self.wire = wire
         self.window = window
         self.start = start
+        self.resync = resync
         self.framing = 0
         self.parity_count = 0
         super().__init__()
@@ -181,7 +204,7 @@ class GarblingPort(Tripwire):
             int(self.baudrate), int(self.bytesize), str(self.parity), int(self.stopbits)
         )
         got, self.framing, self.parity_count = self.wire.receive(
-            line, self.start, self.start + self.window
+            line, self.start, self.start + self.window, resync=self.resync
         )
         data = bytes(v for _t, v in got)
         if data:
@@ -191,14 +214,16 @@ class GarblingPort(Tripwire):
 class GarblingPorts:
     """A port factory for `PortListener`: each open is a fresh stretch of the wire."""
 
-    def __init__(self, wire: Wire, window: float = 0.3) -> None:
+    def __init__(self, wire: Wire, window: float = 0.3, resync: bool = False) -> None:
         self.wire = wire
         self.window = window
+        self.resync = resync
         self.ports: list[GarblingPort] = []
         self.asked: set[int] = set()
 
     def __call__(self, name: str) -> serial.Serial:
-        port = GarblingPort(self.wire, self.window, 0.003 + len(self.ports) * self.window)
+        start = 0.003 + len(self.ports) * self.window
+        port = GarblingPort(self.wire, self.window, start, self.resync)
         self.ports.append(port)
         return port
 
