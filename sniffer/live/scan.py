@@ -2,11 +2,7 @@
 what the framer makes of the bytes (`sniffer.analysis.linescore`), and name the setting
 the line is using, with its confidence.
 
-<<<<<<< HEAD
-The port is only ever opened passively (`port.open_passive`: RTS and DTR not
-=======
 The port is only ever opened passively (`sniffer.live.port.open_passive`: RTS and DTR not
->>>>>>> h-scan
 asserted, line settings set before the port opens) and read; a scan changes nothing but
 the local port's settings, one open per setting. A setting the port refuses is skipped
 and said; a port that has no line settings of its own (a pseudo-terminal, a raw TCP
