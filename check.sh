@@ -113,7 +113,11 @@ done_step
 export MODSCOPE_REQUIRE_COMPILED=1
 
 # -- the checks --------------------------------------------------------------------------------
-step "ruff (lint and format)"
+step "ruff (lint and format), and no merge conflict markers left in any file"
+if git grep -n -I -E '^(<<<<<<<|>>>>>>>)( |$)' -- . ':!*.svg' 2>/dev/null; then
+  echo "   merge conflict markers above: resolve them"
+  exit 1
+fi
 "$VENV/bin/ruff" check .
 "$VENV/bin/ruff" format --check .
 done_step
