@@ -421,7 +421,12 @@ class Pipeline:
             for c in staged:
                 st = c.staging
                 assert st is not None
-                if c.read < len(st) and st.t[c.read] <= best_t:
+                # rows of the same time keep the order their channels began in: a log
+                # printing whole seconds gives a request and its answer one time, and
+                # the request's channel (the client's) begins first
+                if c.read < len(st) and (
+                    st.t[c.read] < best_t or (best is None and st.t[c.read] <= best_t)
+                ):
                     best, best_t = c, st.t[c.read]
             if best is None:
                 break
