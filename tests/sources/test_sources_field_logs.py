@@ -204,14 +204,14 @@ def test_modbustools_client_log_bytes_events_and_times() -> None:
     # Error and Info lines are events, not bytes, in their place
     assert [(k, c.event, c.note) for k, c in enumerate(chunks) if c.event] == [
         (0, "info", "PORT1: Start polling"),
-        (7, "error", "PORT1: RTU. Wrong CRC"),
-        (11, "info", "PORT1: Finish polling"),
+        (9, "error", "PORT1: RTU. Wrong CRC"),
+        (10, "info", "PORT1: Finish polling"),
     ]
-    assert chunks[6].data[-1] == 0xF5  # the answer the error is about
+    assert chunks[8].data == b"\x81" + READ_ANSWER[1:]  # the answer the error is about
     assert not capture.warnings
 
 
-def test_modbustools_client_frames_and_the_answer_with_a_wrong_crc() -> None:
+def test_modbustools_client_frames_and_the_answer_that_failed_its_crc() -> None:
     session = replay_file(LOGS / "modbustools_client.log", ReadOptions(baud=9600, parity="N"))
     store = session.store
     kinds = [Kind(k) for k in store.kind]
@@ -224,8 +224,8 @@ def test_modbustools_client_frames_and_the_answer_with_a_wrong_crc() -> None:
         (WRITE, Kind.RESPONSE, Status.OK),
     ]
     # the read whose answer failed its CRC is not answered; the bad bytes are kept
-    assert found[4][:2] == (READ, Kind.REQUEST) and found[4][2] != Status.OK
-    assert found[5][0] == READ_ANSWER[:-1] + b"\xf5"
+    assert found[6][:2] == (READ, Kind.REQUEST) and found[6][2] != Status.OK
+    assert found[7] == (b"\x81" + READ_ANSWER[1:], Kind.NOISE, Status.NONE)
 
 
 def test_modbustools_ascii_without_time() -> None:
@@ -601,3 +601,30 @@ def test_recognised_from_content_whatever_the_name(name: str, kind: str, tmp_pat
 )
 def test_their_other_lines_alone_are_not_a_log(text: str) -> None:
     assert sniff_log(text.encode()) is None
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="pipeline: an event fed while the framer still holds undecided bytes is stored "
+    "before them, and the held answer with a wrong CRC is then left as noise instead of a "
+    "response with a bad check (as without the event, and in a windowed replay)",
+)
+def test_an_event_after_an_answer_with_a_wrong_crc_changes_nothing(tmp_path: Path) -> None:
+    bad = READ_ANSWER[:-1] + b"\xf5"
+    lines = [
+        f"14.05.2025 09:57:08.614 'Device' Tx: {READ.hex(' ')}\n",
+        f"14.05.2025 09:57:08.640 'Device' Rx: {bad.hex(' ')}\n",
+        "14.05.2025 09:57:08.641 'PORT1' Error: RTU. Wrong CRC\n",
+    ]
+    options = ReadOptions(baud=9600, parity="N", mode="rtu")
+    path = tmp_path / "tools.log"
+    path.write_text("".join(lines[:2]))
+    without = replay_file(path, options)
+    path.write_text("".join(lines))
+    with_event = replay_file(path, options)
+    assert rows(without) == [
+        (READ, Kind.REQUEST, Status.BAD_ANSWER),
+        (bad, Kind.RESPONSE, Status.BAD_ANSWER),
+    ]
+    assert rows(with_event) == rows(without)
+    assert Kind(with_event.store.kind[2]) == Kind.EVENT  # after the answer it is about
