@@ -51,6 +51,7 @@ LAZY = {
     ("sniffer.cli.replay", "sniffer.tui.app"): "the TUI (Textual) only for a replay shown in it",
     ("sniffer.cli.together", "sniffer.tui.app"): "the TUI only for files replayed in it",
     ("sniffer.cli.tui", "sniffer.tui.app"): "the TUI only for the command that opens it",
+    ("sniffer.cli.live", "sniffer.tui.app"): "the TUI only for a live line shown in it",
     ("sniffer.cli.serve", "textual_serve"): "the optional serve extra, for `serve` alone",
     ("sniffer.core", "sniffer._core"): "the compiled core: may be missing or disabled",
     ("sniffer.live.port", "serial"): "pyserial's port enumeration, for `ports` alone",

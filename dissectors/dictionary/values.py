@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from types import MappingProxyType
 
 from .errors import DictionaryError, nearest
+from .limits import MAX_DIGITS
 from .model import (
     ACCESS,
     BIT_TABLES,
@@ -111,8 +112,12 @@ _HEX = re.compile(r"0[xX][0-9a-fA-F]+\Z")
 
 
 def parse_key_number(text: str) -> int | None:
-    """An enum, bits or exception key: decimal ("10", "-1") or hex ("0x0A")."""
+    """An enum, bits or exception key: decimal ("10", "-1") or hex ("0x0A"); None for
+    anything else, a number of more than MAX_DIGITS digits included (int() refuses over
+    4300 decimal digits, and no key needs more than a few)."""
     text = text.strip()
+    if len(text) > MAX_DIGITS:
+        return None
     if _DECIMAL.match(text):
         return int(text)
     if _HEX.match(text):

@@ -1,8 +1,15 @@
 """Provides the capture diff: what changed on a bus between two captures of it.
 
-Units and repeating requests that appeared or vanished, poll periods and answer
-latencies that moved, and registers whose values in the second capture left the range
-they kept in the first.
+Units that went silent or answer again, repeating requests that began failing or
+recovered, then units and repeating requests that appeared or vanished, poll periods and
+answer latencies that moved, and registers whose values in the second capture left the
+range they kept in the first: a unit that stopped answering matters more than a value
+that moved, so it comes first.
+
+A request counts for its unit's answers when the capture says what became of it: an
+answer, an exception answer, an answer with a wrong check, or none before the timeout.
+Requests that are themselves damaged (a wrong CRC or LRC: the slave must ignore them),
+broadcasts, and a request the capture ended on are left out.
 """
 
 from __future__ import annotations
@@ -11,12 +18,15 @@ from dataclasses import dataclass, field
 
 from sniffer.analysis.draft import observe
 from sniffer.analysis.pollcycle import Poll, poll_cycles
+from sniffer.analysis.polls import FRAMED_APART, frame_body, poll_identity
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.vocab import Kind
+from sniffer.vocab import BAD_CHECK, Kind, Status
 
 PERIOD_CHANGE = 0.2  # a period that moved by more than 20 % is reported
 LATENCY_CHANGE = 0.5  # a median latency that moved by more than 50 % (and 2 ms)
 LATENCY_FLOOR = 0.002
+FAIL_CHANGE = 0.2  # a poll whose share of failed sendings moved by 20 points or more
+FAIL_FLOOR = 2  # ... with at least this many failed in the capture where it fails more
 TABLE_WORDS = {
     "holding_registers": "holding",
     "input_registers": "input",
@@ -40,6 +50,66 @@ class Moved:
     readings: int  # readings in B
 
 
+@dataclass(frozen=True, slots=True)
+class Fared:
+    """What became of the requests of a unit (or of one of its polls) in one capture."""
+
+    answered: int = 0  # normal answers
+    exceptions: int = 0  # exception answers
+    bad: int = 0  # answers with a wrong CRC or LRC
+    timeouts: int = 0  # no answer
+
+    @property
+    def sent(self) -> int:
+        return self.answered + self.exceptions + self.bad + self.timeouts
+
+    @property
+    def replied(self) -> int:
+        """Requests the unit answered somehow: it was alive."""
+        return self.answered + self.exceptions + self.bad
+
+    @property
+    def failed(self) -> int:
+        """Requests that did not bring their values."""
+        return self.exceptions + self.bad + self.timeouts
+
+    def add(self, status: int) -> Fared:
+        return Fared(
+            self.answered + (status == Status.OK),
+            self.exceptions + (status == Status.EXCEPTION),
+            self.bad + (status == Status.BAD_ANSWER),
+            self.timeouts + (status == Status.TIMEOUT),
+        )
+
+    def why(self) -> str:
+        """The failures by kind: `8 timeouts, 2 exceptions`."""
+        parts = [
+            _count(n, word)
+            for n, word in (
+                (self.timeouts, "timeout"),
+                (self.exceptions, "exception"),
+                (self.bad, "bad answer"),
+            )
+            if n
+        ]
+        return ", ".join(parts)
+
+
+@dataclass(frozen=True, slots=True)
+class Change:
+    """A unit (`what` empty) or one of its polls whose answers changed from A to B."""
+
+    unit: int
+    what: str
+    a: Fared
+    b: Fared
+
+    @property
+    def moved(self) -> float:
+        """How far the share of failed sendings moved (B minus A)."""
+        return _share(self.b.failed, self.b.sent) - _share(self.a.failed, self.a.sent)
+
+
 @dataclass
 class CaptureDiff:
     """Everything that differs, unit by unit."""
@@ -53,11 +123,19 @@ class CaptureDiff:
     periods: list[tuple[Poll, Poll]] = field(default_factory=list)
     latencies: list[tuple[int, float, float]] = field(default_factory=list)  # unit, a, b
     moved: list[Moved] = field(default_factory=list)
+    silent: list[Change] = field(default_factory=list)  # answered in A, never in B
+    back: list[Change] = field(default_factory=list)  # never answered in A, does in B
+    failing: list[Change] = field(default_factory=list)  # polls that began failing in B
+    recovered: list[Change] = field(default_factory=list)  # polls that failed less in B
 
     @property
     def same(self) -> bool:
         return not (
-            self.units_new
+            self.silent
+            or self.back
+            or self.failing
+            or self.recovered
+            or self.units_new
             or self.units_gone
             or self.requests_new
             or self.requests_gone
@@ -69,12 +147,31 @@ class CaptureDiff:
     def text(self) -> str:
         out = [f"A: {self.a}", f"B: {self.b}"]
         if self.same:
-            out.append("no difference in units, polls, latencies or register ranges")
+            out.append("no difference in units, answers, polls, latencies or register ranges")
             return "\n".join(out)
         for u in self.units_new:
             out.append(f"unit {u}: new in B")
         for u in self.units_gone:
             out.append(f"unit {u}: gone in B (seen in A, not in B)")
+        for c in self.silent:
+            out.append(
+                f"unit {c.unit}: silent in B: none of {c.b.sent} requests answered "
+                f"({c.b.why()}); {_answered(c.a)} in A"
+            )
+        for c in self.back:
+            out.append(
+                f"unit {c.unit}: answers again in B: {_answered(c.b)}; none of {c.a.sent} "
+                f"in A ({c.a.why()})"
+            )
+        for c in self.failing:
+            out.append(
+                f"unit {c.unit}: {c.what} began failing in B: {_failed(c.b)}; "
+                f"{_failed(c.a, 'in A')}"
+            )
+        for c in self.recovered:
+            out.append(
+                f"unit {c.unit}: {c.what} recovered in B: {_failed(c.b)}; {_failed(c.a, 'in A')}"
+            )
         for p in self.requests_new:
             out.append(f"unit {p.unit}: new poll in B: {p.what} every {_ms(p.period)}")
         for p in self.requests_gone:
@@ -92,6 +189,30 @@ class CaptureDiff:
                 f"{m.b_low}..{m.b_high} in B ({m.outside} of {m.readings} readings outside)"
             )
         return "\n".join(out)
+
+
+def _count(n: int, word: str) -> str:
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+
+
+def _share(part: int, whole: int) -> float:
+    return part / whole if whole else 0.0
+
+
+def _percent(part: int, whole: int) -> str:
+    return f"{100 * _share(part, whole):.0f} %"
+
+
+def _answered(f: Fared) -> str:
+    """`20 of 24 requests answered (83 %)`."""
+    return f"{f.replied} of {f.sent} requests answered ({_percent(f.replied, f.sent)})"
+
+
+def _failed(f: Fared, where: str = "failed") -> str:
+    """`10 of 20 failed (50 %: 8 timeouts, 2 exceptions)`."""
+    why = f.why()
+    share = _percent(f.failed, f.sent) + (f": {why}" if why else "")
+    return f"{f.failed} of {f.sent} {where} ({share})"
 
 
 def _ms(seconds: float) -> str:
@@ -116,6 +237,60 @@ def _units(store: FrameStore) -> set[int]:
     }
 
 
+_DECIDED = (Status.OK, Status.EXCEPTION, Status.BAD_ANSWER, Status.TIMEOUT)
+
+
+def fared(store: FrameStore) -> tuple[dict[int, Fared], dict[tuple[int, str], Fared]]:
+    """What became of the requests of each unit, and of each of its polls (by the
+    poll cycle's `what`), over the requests whose fate the capture shows."""
+    units: dict[int, Fared] = {}
+    polls: dict[tuple[int, str], Fared] = {}
+    named: dict[tuple[bytes, int], str] = {}  # a polling master repeats its requests
+    for i in range(len(store)):
+        status = store.status[i]
+        if store.kind[i] != Kind.REQUEST or status not in _DECIDED:
+            continue
+        flags = store.flags[i]
+        if flags & BAD_CHECK:
+            continue
+        unit = store.unit[i]
+        key = (store.raw(i), flags & FRAMED_APART)
+        what = named.get(key)
+        if what is None:
+            what = named[key] = poll_identity(frame_body(*key))[1]
+        units[unit] = units.get(unit, Fared()).add(status)
+        polls[unit, what] = polls.get((unit, what), Fared()).add(status)
+    return units, polls
+
+
+def _answers(
+    out: CaptureDiff,
+    a: FrameStore,
+    b: FrameStore,
+    polls_in_both: set[tuple[int, str]],
+) -> None:
+    """Units gone silent or back, polls that began failing or recovered."""
+    units_a, polls_a = fared(a)
+    units_b, polls_b = fared(b)
+    for unit in sorted(units_a.keys() & units_b.keys()):
+        fa, fb = units_a[unit], units_b[unit]
+        if fa.replied and not fb.replied:
+            out.silent.append(Change(unit, "", fa, fb))
+        elif fb.replied and not fa.replied:
+            out.back.append(Change(unit, "", fa, fb))
+    whole = {c.unit for c in out.silent + out.back}  # their polls all changed with them
+    for unit, what in sorted(polls_in_both & polls_a.keys() & polls_b.keys()):
+        if unit in whole:
+            continue
+        change = Change(unit, what, polls_a[unit, what], polls_b[unit, what])
+        if change.moved >= FAIL_CHANGE and change.b.failed >= FAIL_FLOOR:
+            out.failing.append(change)
+        elif -change.moved >= FAIL_CHANGE and change.a.failed >= FAIL_FLOOR:
+            out.recovered.append(change)
+    out.failing.sort(key=lambda c: -c.moved)
+    out.recovered.sort(key=lambda c: c.moved)
+
+
 def diff_stores(a: FrameStore, b: FrameStore, name_a: str = "A", name_b: str = "B") -> CaptureDiff:
     """Compare two framed captures of one bus."""
     a.sync()
@@ -125,6 +300,13 @@ def diff_stores(a: FrameStore, b: FrameStore, name_a: str = "A", name_b: str = "
     out.units_new = sorted(units_b - units_a)
     out.units_gone = sorted(units_a - units_b)
     cycles_a, cycles_b = poll_cycles(a), poll_cycles(b)
+    repeating = {
+        (unit, p.what)
+        for cycles in (cycles_a, cycles_b)
+        for unit, cycle in cycles.items()
+        for p in cycle.polls
+    }
+    _answers(out, a, b, repeating)
     for unit in sorted(units_a & units_b):
         polls_a = {p.what: p for p in cycles_a[unit].polls} if unit in cycles_a else {}
         polls_b = {p.what: p for p in cycles_b[unit].polls} if unit in cycles_b else {}

@@ -31,9 +31,12 @@ def register(sub: SubParsers) -> None:
         "diff",
         help="compare two captures of the same bus",
         description=(
-            "Compare two captures of one bus: units and repeating requests that appeared "
-            "or vanished, poll periods and answer times that changed, and registers whose "
-            "values in B left the range they kept in A. Exit status 1 when they differ."
+            "Compare two captures of one bus: first units that went silent or answer "
+            "again and repeating requests that began failing (timeouts, exceptions) or "
+            "recovered, with counts and shares; then units and repeating requests that "
+            "appeared or vanished, poll periods and answer times that changed, and "
+            "registers whose values in B left the range they kept in A. Exit status 1 "
+            "when they differ."
         ),
         epilog="example:\n  modscope diff monday.pcapng friday.pcapng",
         formatter_class=argparse.RawDescriptionHelpFormatter,

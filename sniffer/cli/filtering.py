@@ -15,7 +15,8 @@ from sniffer.session.session import Session
 FILTER_HELP = (
     "only frames matching QUERY, in the TUI's filter language: unit:3 fc:3,16 "
     'kind:exception status:timeout reg:"Under Voltage" t:10-20 and plain words; '
-    "-fc:3 excludes (see docs/tui.md)"
+    "-fc:3 excludes; or, and, not and parentheses combine terms: "
+    "'(unit:3 or unit:4) not status:ok' (see docs/tui.md)"
 )
 
 

@@ -11,7 +11,6 @@ import io
 import os
 import sys
 import time
-from collections.abc import Callable
 from typing import TextIO
 
 from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
@@ -152,7 +151,8 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         if use_tui:
             # what the ports said while opening shows in the TUI, not behind it
             capture.messages.extend(f"warning: {w}" for w in reader.warnings)
-            run_tui: Callable[..., int] = importlib.import_module("sniffer.tui.app").run_tui
+            from sniffer.tui.app import run_tui
+
             return run_tui(session, None, live=capture)
         # what start-up built (modules, schemas, dictionaries) lives as long as the
         # capture: frozen, the collector's full passes walk only what the capture made

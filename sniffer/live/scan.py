@@ -2,7 +2,7 @@
 what the framer makes of the bytes (`sniffer.analysis.linescore`), and name the setting
 the line is using.
 
-The port is only ever opened passively (`serial_source.open_passive`: RTS and DTR not
+The port is only ever opened passively (`port.open_passive`: RTS and DTR not
 asserted, line settings set before the port opens) and read; a scan changes nothing but
 the local port's settings, one open per setting.
 """
@@ -167,7 +167,7 @@ def driver_counters(port: serial.Serial) -> tuple[int, int] | None:
 class PortListener:
     """Listens on one port at a given setting: opens it passively, reads, closes.
 
-    Nothing is ever written; RTS and DTR stay off (see serial_source.open_passive)."""
+    Nothing is ever written; RTS and DTR stay off (see port.open_passive)."""
 
     def __init__(
         self,

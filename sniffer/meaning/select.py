@@ -1,10 +1,11 @@
 """Provides the filter matcher: the rows of a store that a query (and the list's options) select.
 
 A filter scans the store's columns, not dissected frames: each column term becomes a
-mask of 0/1 bytes made with `bytes.translate` over the column's bytes, masks are
-combined as big integers, and `itertools.compress` turns the result into row numbers,
-all at C speed. Only register-name and free-text terms dissect rows, and only the
-candidates the column terms leave, a slice at a time so that matches arrive
+mask of 0/1 bytes made with `bytes.translate` over the column's bytes, and the query's
+tree (`and`, `or`, `not`) combines the masks as big integers, all at C speed;
+`itertools.compress` turns the result into row numbers. Only register-name and
+free-text terms dissect rows, and only the candidates the column terms leave (those the
+tree may select whatever the details say), a slice at a time so that matches arrive
 incrementally. The TUI's frame list (`sniffer.tui.rows`) and the command line's
 `--filter` both use it, so a query means the same in both; nothing here imports Textual.
 """
@@ -17,21 +18,36 @@ from array import array
 from bisect import bisect_left
 from collections.abc import Callable, Iterable, Sequence
 from datetime import datetime
+from functools import lru_cache
 from itertools import compress
 
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.meaning.annotate import Annotator
 from sniffer.meaning.describe import Describer, FrameDetail
-from sniffer.meaning.query import Query, TimePoint
+from sniffer.meaning.query import (
+    And,
+    Column,
+    Node,
+    Not,
+    Query,
+    Register,
+    StatusTerm,
+    Text,
+    Time,
+    TimePoint,
+    TimeSpan,
+    needs_detail,
+)
 from sniffer.vocab import BAD_CHECK, PROBLEM_MASK, STATUS_NAMES, Kind, Status
 
 BLOCK = 1 << 18  # rows per column scan step
 _LITTLE = sys.byteorder == "little"
-_NOT = bytes([1, 0]) + bytes(254)  # 0 -> 1, 1 -> 0
 _PAIRED = b"\x01" * 255 + b"\x00"  # a partner's top byte: 0xFF only for -1
 _STATUS_CODES = {name: code for code, name in enumerate(STATUS_NAMES) if name}
 _PROBLEM_STATUS = (Status.EXCEPTION, Status.TIMEOUT, Status.ORPHAN)
 _OPEN_LOOKBACK = 64
+_FRAMES = (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN)  # rows with a unit, fc
+_NAMED = (Kind.REQUEST, Kind.RESPONSE)  # rows that carry register values
 
 
 # -- masks ---------------------------------------------------------------------------------
@@ -39,6 +55,12 @@ _OPEN_LOOKBACK = 64
 
 def _table(selected: Iterable[int]) -> bytes:
     """A `bytes.translate` table giving 1 for the selected byte values, 0 otherwise."""
+    return _frozen_table(frozenset(selected))
+
+
+@lru_cache(maxsize=256)
+def _frozen_table(selected: frozenset[int]) -> bytes:
+    # a query's terms ask for the same tables block after block and row after row
     t = bytearray(256)
     for v in selected:
         t[v] = 1
@@ -137,51 +159,116 @@ class Options:
         self.bound = frozenset(bound)
 
 
-def column_mask(store: FrameStore, lo: int, hi: int, query: Query, options: Options) -> bytes:
-    """1 for rows of [lo, hi) that pass every column term of `query` and the options."""
+def column_mask(
+    store: FrameStore,
+    lo: int,
+    hi: int,
+    query: Query,
+    options: Options,
+    origin: float | None = None,
+) -> bytes:
+    """1 for rows of [lo, hi) that the query's column terms and the options let through:
+    the matches, for a query without register names or words; else the candidates,
+    rows the query may select depending on their details (`row_matches` decides).
+    `origin`: the time `t:` counts from (the store's first row when not given)."""
     n = hi - lo
-    mask: bytes | None = None
-
-    def keep(m: bytes) -> None:
-        nonlocal mask
-        mask = m if mask is None else _and(mask, m)
-
-    def drop(m: bytes) -> None:
-        keep(m.translate(_NOT))
-
-    frames = (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN)
-    if query.units or query.functions:
-        keep(_bytes_mask(store.kind, lo, hi, frames))
-    if query.units:
-        keep(_bytes_mask(store.unit, lo, hi, query.units))
-    if query.not_units:
-        units = _bytes_mask(store.unit, lo, hi, query.not_units)
-        drop(_and(units, _bytes_mask(store.kind, lo, hi, frames)))
-    if query.functions:
-        keep(_bytes_mask(store.fc, lo, hi, function_codes(query.functions)))
-    if query.not_functions:
-        fcs = _bytes_mask(store.fc, lo, hi, function_codes(query.not_functions))
-        drop(_and(fcs, _bytes_mask(store.kind, lo, hi, frames)))
-    if query.kinds:
-        keep(_bytes_mask(store.kind, lo, hi, query.kinds))
-    if query.not_kinds:
-        drop(_bytes_mask(store.kind, lo, hi, query.not_kinds))
-    if query.statuses:
-        keep(status_mask(store, lo, hi, query.statuses))
-    if query.not_statuses:
-        drop(status_mask(store, lo, hi, query.not_statuses))
-    if query.registers:
-        # only bound units carry named registers, in requests (writes) and answers (reads)
-        keep(_bytes_mask(store.unit, lo, hi, options.bound))
-        keep(_bytes_mask(store.kind, lo, hi, (Kind.REQUEST, Kind.RESPONSE)))
+    full = _ones(n)
+    _sure, maybe = _masks(query.tree, store, lo, hi, options, origin, full)
+    mask = maybe & full
     if options.problems_only:
         problems = problem_mask(store, lo, hi)
         if options.transactions:
             problems = _lift_answers(store, lo, problems)
-        keep(problems)
+        mask &= _int(problems)
     if options.transactions:
-        drop(answer_mask(store, lo, hi))
-    return mask if mask is not None else b"\x01" * n
+        mask &= full ^ _int(answer_mask(store, lo, hi))
+    return mask.to_bytes(n, "little")
+
+
+def _int(m: bytes) -> int:
+    return int.from_bytes(m, "little")
+
+
+def _ones(n: int) -> int:
+    return _int(b"\x01" * n)
+
+
+def _atom_mask(
+    node: Column | StatusTerm | Time | Register,
+    store: FrameStore,
+    lo: int,
+    hi: int,
+    options: Options,
+    origin: float | None,
+) -> int:
+    """The rows a column term selects; for `reg:`, the rows that may carry named
+    registers (requests and answers of the bound units)."""
+    if isinstance(node, Column):
+        if node.key == "kind":
+            return _int(_bytes_mask(store.kind, lo, hi, node.values))
+        frames = _int(_bytes_mask(store.kind, lo, hi, _FRAMES))
+        if node.key == "unit":
+            return frames & _int(_bytes_mask(store.unit, lo, hi, node.values))
+        return frames & _int(_bytes_mask(store.fc, lo, hi, function_codes(node.values)))
+    if isinstance(node, StatusTerm):
+        return _int(status_mask(store, lo, hi, node.names))
+    if isinstance(node, Time):
+        a, b = _span_rows(store, node.span, lo, hi, origin)
+        return _int(bytes(a - lo) + b"\x01" * (b - a) + bytes(hi - b))
+    bound = _int(_bytes_mask(store.unit, lo, hi, options.bound))
+    return bound & _int(_bytes_mask(store.kind, lo, hi, _NAMED))
+
+
+def _span_rows(
+    store: FrameStore, span: TimeSpan, lo: int, hi: int, origin: float | None
+) -> tuple[int, int]:
+    """The rows [a, b) of [lo, hi) that start inside `span` (rows are in time order)."""
+    if origin is None:
+        origin = store.t[0]
+    a, b = lo, hi
+    if span.start is not None:
+        a = bisect_left(store.t, resolve_time(span.start, origin), lo, hi)
+    if span.end is not None:
+        b = bisect_left(store.t, resolve_time(span.end, origin), lo, hi)
+    return a, max(a, b)
+
+
+def _masks(
+    node: Node,
+    store: FrameStore,
+    lo: int,
+    hi: int,
+    options: Options,
+    origin: float | None,
+    full: int,
+) -> tuple[int, int]:
+    """(sure, maybe): the rows of [lo, hi) `node` selects whatever their details say,
+    and those it may select (the same for a node with no register names or words)."""
+    if isinstance(node, Text):
+        return 0, full
+    if isinstance(node, Register):
+        return 0, _atom_mask(node, store, lo, hi, options, origin)
+    if isinstance(node, Column | StatusTerm | Time):
+        m = _atom_mask(node, store, lo, hi, options, origin)
+        return m, m
+    if isinstance(node, Not):
+        sure, maybe = _masks(node.part, store, lo, hi, options, origin, full)
+        return full ^ maybe, full ^ sure
+    if isinstance(node, And):
+        sure, maybe = full, full
+        for part in node.parts:
+            s, m = _masks(part, store, lo, hi, options, origin, full)
+            sure, maybe = sure & s, maybe & m
+            if not maybe:
+                break
+        return sure, maybe
+    sure, maybe = 0, 0
+    for part in node.parts:
+        s, m = _masks(part, store, lo, hi, options, origin, full)
+        sure, maybe = sure | s, maybe | m
+        if sure == full:
+            break
+    return sure, maybe
 
 
 def _lift_answers(store: FrameStore, lo: int, problems: bytes) -> bytes:
@@ -240,16 +327,83 @@ def row_words(d: FrameDetail) -> str:
     return "\n".join(parts).lower()
 
 
-def detail_matches(query: Query, details: Sequence[FrameDetail]) -> bool:
-    if query.registers:
-        names = [r.name.lower() for d in details for r in d.registers]
-        if not any(part in name for part in query.registers for name in names):
-            return False
-    if query.words:
-        text = "\n".join(row_words(d) for d in details)
-        if not all(w in text for w in query.words):
-            return False
-    return True
+class _Row:
+    """One row being decided: its details, found once and only when a term needs them."""
+
+    def __init__(
+        self,
+        store: FrameStore,
+        i: int,
+        options: Options,
+        origin: float | None,
+        details: Callable[[int], Sequence[FrameDetail]],
+    ) -> None:
+        self.store, self.i, self.options, self.origin = store, i, options, origin
+        self._details = details
+        self._found: Sequence[FrameDetail] | None = None
+        self._text: str | None = None
+        self._names: list[str] | None = None
+
+    @property
+    def details(self) -> Sequence[FrameDetail]:
+        if self._found is None:
+            self._found = self._details(self.i)
+        return self._found
+
+    @property
+    def text(self) -> str:
+        if self._text is None:
+            self._text = "\n".join(row_words(d) for d in self.details)
+        return self._text
+
+    @property
+    def names(self) -> list[str]:
+        if self._names is None:
+            self._names = [r.name.lower() for d in self.details for r in d.registers]
+        return self._names
+
+    def holds_candidate(self, node: Node) -> bool:
+        """`holds` for a row `column_mask` let through: it satisfies the column-only
+        parts of the conjunctions the whole tree needs, so those are not tested again."""
+        if not isinstance(node, And):
+            return self.holds(node)
+        return all(self.holds_candidate(p) for p in node.parts if needs_detail(p))
+
+    def holds(self, node: Node) -> bool:
+        if isinstance(node, Text):
+            return node.word in self.text
+        if isinstance(node, Column | StatusTerm | Time | Register):
+            i = self.i
+            if not _atom_mask(node, self.store, i, i + 1, self.options, self.origin):
+                return False
+            if isinstance(node, Register):
+                return any(part in name for part in node.parts for name in self.names)
+            return True
+        if isinstance(node, Not):
+            return not self.holds(node.part)
+        # the terms decided from the columns first: they may spare the dissection
+        parts = sorted(node.parts, key=needs_detail)
+        if isinstance(node, And):
+            return all(self.holds(p) for p in parts)
+        return any(self.holds(p) for p in parts)
+
+
+def row_matches(
+    store: FrameStore,
+    i: int,
+    query: Query,
+    options: Options,
+    details: Callable[[int], Sequence[FrameDetail]],
+    origin: float | None = None,
+    *,
+    candidate: bool = False,
+) -> bool:
+    """Whether `query` selects row `i` (the options aside), its details given by
+    `details(i)` when a register name or a word must be looked for: the row's, and in
+    the transactions view its answer's too. `candidate`: the row is one `column_mask`
+    let through, so the column terms every match needs are known to hold."""
+    row = _Row(store, i, options, origin, details)
+    return row.holds_candidate(query.tree) if candidate else row.holds(query.tree)
 
 
 # -- the job ---------------------------------------------------------------------------------
@@ -333,7 +487,7 @@ class FilterJob:
                 hi = self._stable(self.scanned, hi)
                 if hi <= self.scanned:
                     break
-            mask = column_mask(store, self.scanned, hi, self.query, options)
+            mask = column_mask(store, self.scanned, hi, self.query, options, self.origin)
             found = compress(range(self.scanned, hi), mask)
             if self.query.needs_detail:
                 self.candidates.extend(found)
@@ -350,7 +504,9 @@ class FilterJob:
                 stop = min(len(cands), self.checked + 64)
                 for k in range(self.checked, stop):
                     i = cands[k]
-                    if detail_matches(self.query, self._details(i)):
+                    if row_matches(
+                        store, i, self.query, options, self._details, self.origin, candidate=True
+                    ):
                         self.rows.append(i)
                 self.checked = stop
                 if _time.monotonic() > deadline:

@@ -1,5 +1,5 @@
 """Provides the Textual TUI: a virtual frame list, details, filters, units and register watch.
 
-Only this package imports Textual. `commands` registers the `tui` and `serve` commands
-without importing it; `app.run_tui` starts the app.
+Only this package imports Textual; the CLI imports `app.run_tui` inside the commands that
+show the TUI, so a listing never loads Textual.
 """

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from itertools import compress
 
 from sniffer.framing.store import FrameStore
-from sniffer.meaning.describe import Describer
+from sniffer.meaning.describe import Describer, FrameDetail
 from sniffer.meaning.query import Query
-from sniffer.meaning.select import Options, column_mask, detail_matches
+from sniffer.meaning.select import Options, column_mask, row_matches
 
 BLOCK = 65536
 
@@ -42,6 +42,10 @@ def find_row(
     """The first row after (`step` 1) or before (`step` -1) `start`, below `count`, that
     matches `query` and that `shown` accepts (the rows the filter lets through)."""
     deadline = time.monotonic() + budget
+
+    def one(i: int) -> list[FrameDetail]:
+        return [describer.detail(i)]
+
     pos = start + step
     while 0 <= pos < count:
         lo, hi = (pos, min(count, pos + BLOCK)) if step > 0 else (max(0, pos - BLOCK + 1), pos + 1)
@@ -52,7 +56,9 @@ def find_row(
         for i in rows:
             if not shown(i):
                 continue
-            if query.needs_detail and not detail_matches(query, [describer.detail(i)]):
+            if query.needs_detail and not row_matches(
+                store, i, query, options, one, candidate=True
+            ):
                 if time.monotonic() > deadline:
                     return Found(None, i, False)
                 continue

@@ -145,6 +145,14 @@ def test_csv_hex_number_of_5000_digits_names_file_and_line(tmp_path: Path, colum
     assert (caught.value.path, caught.value.line) == (str(path), 2)
 
 
+def test_csv_enum_key_of_5000_digits_names_file_and_line(tmp_path: Path) -> None:
+    text = f'table,address,name,enum\nholding,10,Mode,"0=Stop; {"9" * 5000}=Fault"\n'
+    path = write(tmp_path, "enum.csv", text)
+    with pytest.raises(DictionaryError) as caught:
+        import_csv(path)
+    assert (caught.value.path, caught.value.line) == (str(path), 2)
+
+
 def test_oversized_csv_is_refused_before_parsing(tmp_path: Path) -> None:
     path = write(tmp_path, "huge.csv", "table,address,name\n" + "# padding\n" * 500_000)
     with pytest.raises(DictionaryError) as caught:

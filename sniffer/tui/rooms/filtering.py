@@ -136,8 +136,12 @@ class Filtering(Room):
         info.update(Text(" · ".join(parts)))
 
     def changed(self, event: Input.Changed) -> None:
-        if event.input is self.main.filter_input:
-            if self.error and event.value != self.refused:
+        field = self.main.filter_input
+        if event.input is field:
+            # the input's text now, not the event's: keys typed at once post their
+            # Changed messages after Enter has refused the whole line, and the stale
+            # ones (`unit:3` of `unit:3 or`) must not clear the refusal of what is there
+            if self.error and field.value != self.refused:
                 self._clear_error()
             self.info()
 
