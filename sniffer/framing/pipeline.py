@@ -146,14 +146,13 @@ class Pipeline:
             # the recorder stopped here: requests still open by then have timed out
             self.pairer.end_time = max(self.pairer.end_time, chunk.t_end)
             return
-        if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
-            ch.framer.line_error()  # exact sources report it right after its byte
         if chunk.event and not chunk.data:
-            text = chunk.event + (f": {chunk.note}" if chunk.note else "")
-            (ch.staging if ch.staging is not None else self.store).add_event(
-                chunk.t_end, text, chunk.channel
-            )
-            ch.last_t = max(ch.last_t, chunk.t_end)
+            if ch.framer is None and ch.held:
+                # the bytes before it wait for the mode to be known: so does the event,
+                # to keep its place after them (a log's error line after its frame)
+                ch.held.append(chunk)
+                return
+            self._add_event(ch, chunk)
             self._release(final=False)
             return
         hints = ch.hint_dir
@@ -168,6 +167,15 @@ class Pipeline:
         ch.last_t = chunk.t_end
         if self.multi:
             self._release(final=False)
+
+    def _add_event(self, ch: _Channel, chunk: Chunk) -> None:
+        if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
+            ch.framer.line_error()  # exact sources report it right after its byte
+        text = chunk.event + (f": {chunk.note}" if chunk.note else "")
+        (ch.staging if ch.staging is not None else self.store).add_event(
+            chunk.t_end, text, chunk.channel
+        )
+        ch.last_t = max(ch.last_t, chunk.t_end)
 
     def _feed_reads(self, reads: Reads) -> None:
         """A batch of reads of one channel (see `sniffer.sources.reads`): handed to the
@@ -399,6 +407,9 @@ class Pipeline:
         ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
         held, ch.held = ch.held or [], None
         for old in held:
+            if old.event and not old.data:
+                self._add_event(ch, old)
+                continue
             ch.framer.feed(old)
             ch.last_t = old.t_end
         for other in self.channels.values():

@@ -393,5 +393,8 @@ class NetPipeline(Pipeline):
         ch.framer = cast("Framer", framer)  # the same interface; see docs/ethernet.md
         held, ch.held = ch.held or [], None
         for old in held:
+            if old.event and not old.data:
+                self._add_event(ch, old)  # held in its place (Pipeline.feed)
+                continue
             framer.feed(old)
             ch.last_t = old.t_end
