@@ -106,6 +106,31 @@ def test_evcc_rtu_frames_pair_and_the_silent_read_times_out() -> None:
     assert all(measure(session.store, i) is None for i in range(len(session.store)))
 
 
+def test_an_early_event_keeps_its_place_while_the_mode_is_being_told(tmp_path: Path) -> None:
+    # fewer bytes than the RTU/ASCII detection needs come before the event: it waits
+    # with them instead of going first
+    path = tmp_path / "evcc.log"
+    path.write_text(
+        f"[sdm   ] TRACE 2024/07/29 11:25:24 modbus: send {READ.hex(' ')}\n"
+        "[sdm   ] TRACE 2024/07/29 11:25:25 modbus: read error: serial: timeout\n"
+        f"[sdm   ] TRACE 2024/07/29 11:25:25 modbus: send {READ.hex(' ')}\n"
+        f"[sdm   ] TRACE 2024/07/29 11:25:25 modbus: recv {READ_ANSWER.hex(' ')}\n"
+    )
+    store = replay_file(path).store
+    assert [Kind(k) for k in store.kind] == [
+        Kind.REQUEST,
+        Kind.EVENT,
+        Kind.REQUEST,
+        Kind.RESPONSE,
+    ]
+    assert [Status(s) for s in store.status if s != Status.NONE] == [
+        Status.TIMEOUT,
+        Status.OK,
+        Status.OK,
+    ]
+    assert list(store.t_end) == sorted(store.t_end)
+
+
 def test_evcc_ascii_frames_quoted_or_as_characters() -> None:
     assert data_of("evcc_ascii.log") == [
         (0, M, ASCII_READ),

@@ -29,6 +29,7 @@ from sniffer.sources.logs.base import (
     Stamped,
     decode_head,
     decode_text,
+    hex_tokens,
     parse_stamp,
     record_chunks,
     route,
@@ -41,7 +42,9 @@ from sniffer.sources.logs.cas import LINE as CAS_LINE
 from sniffer.sources.logs.esphome import ESPHOME, parse_esphome
 from sniffer.sources.logs.esphome import LINE as ESPHOME_LINE
 from sniffer.sources.logs.evcc import EVCC, parse_evcc
+from sniffer.sources.logs.evcc import IO as EVCC_IO
 from sniffer.sources.logs.evcc import LINE as EVCC_LINE
+from sniffer.sources.logs.evcc import frame_bytes as evcc_bytes
 from sniffer.sources.logs.libmodbus import LIBMODBUS, parse_libmodbus
 from sniffer.sources.logs.libmodbus import TOKEN as LIBMODBUS_TOKEN
 from sniffer.sources.logs.modbustools import LINE as MODBUSTOOLS_LINE
@@ -128,12 +131,18 @@ def _line_kind(line: str) -> str | None:
     """The format whose byte lines look like `line`, if any."""
     if ESPHOME_LINE.search(line):
         return ESPHOME
-    if (evcc := EVCC_LINE.search(line)) and evcc["msg"].startswith(("send", "recv")):
+    evcc = EVCC_LINE.search(line)
+    io = EVCC_IO.match(evcc["msg"]) if evcc else None
+    if io and evcc_bytes(io[2]):
         return EVCC
+    # a frame's bytes in hex, or an ASCII frame as ModbusLib writes it (`: 01 03 ...`)
     tools = MODBUSTOOLS_LINE.match(line)
-    if tools and tools["flag"] in ("Tx", "Rx") and frame_bytes(tools["text"]):
+    text = tools["text"] if tools and tools["flag"] in ("Tx", "Rx") else ""
+    if hex_tokens(text) or (text.startswith(": ") and frame_bytes(text)):
         return MODBUSTOOLS
-    if (cas := CAS_LINE.match(line)) and CAS_FRAME.match(cas["rest"]):
+    cas = CAS_LINE.match(line)
+    frame = CAS_FRAME.match(cas["rest"]) if cas else None
+    if frame and hex_tokens(frame["hex"]):
         return CAS
     if ((io := BYTES_LINE.search(line)) and io[2].strip()) or (
         (held := PROCESSING.search(line)) and held[1].strip()

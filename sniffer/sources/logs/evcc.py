@@ -34,7 +34,7 @@ LINE = re.compile(
     r"\[(?P<area>[^\[\]]*?)\s*\]\s+(?P<level>TRACE|DEBUG|INFO|WARN|ERROR|FATAL)\s+"
     r"(?P<stamp>\d{4}/\d\d/\d\d \d\d:\d\d:\d\d(?:\.\d+)?)\s+modbus:\s*(?P<msg>.*?)\s*$"
 )
-_IO = re.compile(r"^(send|recv|sending|received)\b\s*(.*)$")
+IO = re.compile(r"^(send|recv|sending|received)\b\s*(.*)$")
 _GO_ESCAPES = {
     "a": 7,
     "b": 8,
@@ -95,7 +95,7 @@ def go_unquote(body: str) -> bytes | None:
     return bytes(out)
 
 
-def _frame_bytes(body: str) -> bytes | None:
+def frame_bytes(body: str) -> bytes | None:
     if body.startswith('"'):
         return go_unquote(body)
     if " " not in body and len(body) % 2 == 0 and _HEX.match(body):
@@ -112,14 +112,14 @@ def parse_evcc(lines: Sequence[str], where: str) -> ParsedLog:
             continue
         area = match["area"].strip()
         stamp = parse_stamp(match["stamp"])
-        io = _IO.match(match["msg"])
+        io = IO.match(match["msg"])
         if io is None:
             parsed.event(number, stamp, f"{area}: modbus: {match['msg']}", area)
             continue
         body = io[2]
         if not body:
             continue  # an empty read
-        data = _frame_bytes(body)
+        data = frame_bytes(body)
         if not data:
             parsed.warnings.append(
                 f"{where} line {number}: cannot read {body[:30]!r} as the bytes of a frame; "
