@@ -497,6 +497,28 @@ def test_pymodbus_modbus_tcp_answers_split_over_reads_are_joined() -> None:
     assert all(x is not None and x.seconds > 0 for x in latencies)
 
 
+def test_a_pymodbus_servers_serial_log_is_told_by_what_it_decoded(tmp_path: Path) -> None:
+    path = tmp_path / "server.log"
+    path.write_text(
+        "2025-03-02 08:10:00,005 DEBUG transport:308 recv: "
+        + " ".join(hex(b) for b in READ)
+        + " extra data: \n2025-03-02 08:10:00,005 DEBUG decoders:86 decoded PDU function_code"
+        "(3 sub -1) -> ReadHoldingRegistersRequest(dev_id=1, transaction_id=0) \n"
+        "2025-03-02 08:10:00,030 DEBUG transport:357 send: "
+        + " ".join(hex(b) for b in READ_ANSWER)
+        + "\n"
+    )
+    capture = open_capture(path)
+    assert [(c.direction, c.data) for c in capture.chunks()] == [(M, READ), (S, READ_ANSWER)]
+    assert "server" in capture.info.channels[0]
+    session = replay_file(path, ReadOptions(baud=9600, parity="N"))
+    assert [(k, s) for _, k, s in rows(session)] == [
+        (Kind.REQUEST, Status.OK),
+        (Kind.RESPONSE, Status.OK),
+    ]
+    assert not [w for w in session.warnings if w.startswith("direction labels")]
+
+
 def test_a_servers_log_of_modbus_tcp_is_read_the_other_way_round(tmp_path: Path) -> None:
     # a pymodbus server logs what it received (requests) as recv
     path = tmp_path / "server.log"

@@ -13,12 +13,14 @@ What pymodbus writes (its `Log.debug`, after any logging prefix), by version:
   log gives the answers without their requests, and a note says so.
 - 3.0-3.3 servers: `send: [ReadHoldingRegistersResponse (1,3)]- 0103...` (plain hex).
 
-The client's own sends are MASTER, what it received SLAVE (a server's log reads the
-other way: the content decides, see `base.route`). Print time of the logging record
-(`2024-05-01 12:00:00,123`), or none. `Repeating....` stands for lines pymodbus left
-out: a warning says the frames cannot be read back. Lines telling of a failure
-(`Transaction failed`, `No response received`, `Incomplete message received`, ...) are
-events. Modbus TCP (an MBAP header in front of each frame) is framed as Modbus TCP.
+The client's own sends are MASTER, what it received SLAVE. A server's log, told by
+what pymodbus decoded from what it received (`Factory Request[...]`, `-> ...Request(`),
+reads the other way round (and a Modbus TCP log's frames are checked, `base.route`).
+Print time of the logging record (`2024-05-01 12:00:00,123`), or none. `Repeating....`
+stands for lines pymodbus left out: a warning says the frames cannot be read back.
+Lines telling of a failure (`Transaction failed`, `No response received`, `Incomplete
+message received`, ...) are events. Modbus TCP (an MBAP header in front of each frame)
+is framed as Modbus TCP.
 """
 
 from __future__ import annotations
@@ -39,6 +41,10 @@ _ECHO = re.compile(rf"recv skipping \((?:partial )?local_echo\):\s*{_HEXLIFY}")
 _CLEANUP = re.compile(rf"Cleanup recv buffer before send:\s*{_HEXLIFY}")
 _WAITING = re.compile(r"wait for more data|Frame - not ready|Incomplete frame|Short frame")
 _REPEAT = re.compile(r"\bRepeating\.\.\.\.")
+# pymodbus's decoding of what it received (2.x-3.6 `Factory Request[...]`, 3.8+
+# `decoded PDU function_code(3 sub -1) -> ReadHoldingRegistersRequest(...)`)
+_DECODED_REQUEST = re.compile(r"Factory Request\[|-> \w+Request\(")
+_DECODED_RESPONSE = re.compile(r"Factory Response\[|-> \w+Response\(")
 _CONNECTING = re.compile(r"Connecting to (\S+?):(\d+)\.?\s*$")
 _EVENT = re.compile(
     r"Transaction failed|No response received|Incomplete message received|Frame check failed"
@@ -53,8 +59,18 @@ def _hexlified(text: str) -> bytes:
 
 
 def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
-    parsed = ParsedLog(labels=Labels.HINT, client="pymodbus")
-    parsed.channel_label = "pymodbus log (send: the client's requests, recv: answers)"
+    text = "\n".join(lines)
+    # what pymodbus made of what it received: requests on a server, answers on a client
+    server = len(_DECODED_REQUEST.findall(text)) > len(_DECODED_RESPONSE.findall(text))
+    parsed = ParsedLog(labels=Labels.HINT, client="client" if server else "pymodbus")
+    if server:
+        parsed.servers[""] = "pymodbus"
+        parsed.channel_label = "pymodbus server log (recv: requests, send: its answers)"
+    else:
+        parsed.channel_label = "pymodbus log (send: the client's requests, recv: answers)"
+    sent, received = (
+        (Direction.SLAVE, Direction.MASTER) if server else (Direction.MASTER, Direction.SLAVE)
+    )
     found_io = any(BYTES_LINE.search(line) for line in lines)
     pending = b""  # a 3.8+ synchronous client's bytes held while a frame is incomplete
     for number, raw_line in enumerate(lines, start=1):
@@ -72,7 +88,7 @@ def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
         if event := _EVENT.search(line):
             parsed.event(number, stamp, line[event.start() :])
         if match := BYTES_LINE.search(line):
-            _bytes_line(parsed, match, number, stamp, where)
+            _bytes_line(parsed, match, number, stamp, where, (sent, received))
             continue
         if found_io:
             continue  # `Processing:` and the like repeat what send/recv lines showed
@@ -104,7 +120,12 @@ def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
 
 
 def _bytes_line(
-    parsed: ParsedLog, match: re.Match[str], number: int, stamp: Stamped | None, where: str
+    parsed: ParsedLog,
+    match: re.Match[str],
+    number: int,
+    stamp: Stamped | None,
+    where: str,
+    directions: tuple[Direction, Direction],
 ) -> None:
     rest = match[3].strip()
     data = _hexlified(match[2])
@@ -118,5 +139,5 @@ def _bytes_line(
         return
     if not data:
         return  # `recv:` with nothing new: a read that returned no bytes
-    direction = Direction.MASTER if match[1].lower() == "send" else Direction.SLAVE
+    direction = directions[0] if match[1].lower() == "send" else directions[1]
     parsed.records.append(LogRecord(data, number, stamp, direction))
