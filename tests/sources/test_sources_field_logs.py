@@ -478,6 +478,19 @@ def test_pymodbus_38_synchronous_log_gives_answers_and_says_the_requests_are_mis
     assert (WRITE, Kind.REQUEST, Status.OK) in found
 
 
+def test_pymodbus_38_processing_line_it_cannot_read_is_a_warning(tmp_path: Path) -> None:
+    path = tmp_path / "sync.log"
+    path.write_text(
+        "2025-03-02 08:00:00,042 DEBUG base:76 Processing: 0x1 0x3 0x4 0x0 0xzz\n"
+        "2025-03-02 08:00:00,242 DEBUG base:76 Processing: "
+        + " ".join(hex(b) for b in READ_ANSWER)
+        + "\n"
+    )
+    capture = open_capture(path)
+    assert [c.data for c in capture.chunks()] == [READ_ANSWER]
+    assert len(capture.warnings) == 1 and f"{path} line 1:" in capture.warnings[0]
+
+
 def test_pymodbus_modbus_tcp_answers_split_over_reads_are_joined() -> None:
     capture = open_capture(LOGS / "pymodbus_tcp.log")
     chunks = list(capture.chunks())

@@ -101,6 +101,13 @@ def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
                 parsed.records.append(LogRecord(data, number, stamp, Direction.SLAVE))
             pending = b""
         elif processing := PROCESSING.search(line):
+            if rest := processing[2].strip():
+                parsed.warnings.append(
+                    f"{where} line {number}: cannot read {rest[:30]!r} as bytes; the line "
+                    "is skipped (a cut or edited line?)"
+                )
+                pending = b""
+                continue
             held = _hexlified(processing[1])
             data = held[len(pending) :] if pending and held.startswith(pending) else held
             if data:
