@@ -10,7 +10,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from sniffer.analysis.gateway import Link, Verdict
-from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.framing.pairing import measure
+from sniffer.framing.store import FrameStore
 from sniffer.vocab import Kind, Status
 
 
@@ -57,9 +58,10 @@ def server_table(store: FrameStore) -> str:
         c.answers += 1
         if k == Kind.EXCEPTION:
             c.exceptions += 1
-        j = store.partner[i]
-        if j != NO_PARTNER:
-            c.latencies.append(store.t[i] - store.t_end[j])
+        # only what the stamps can measure: a log printing whole seconds gives a request
+        # and its answer one time, which is no latency of 0
+        if (m := measure(store, i)) is not None and not m.bound:
+            c.latencies.append(m.seconds)
     head = (
         f"{'server':<22} {'unit':>4} {'req':>7} {'resp':>7} {'exc':>5} {'t/o':>5} "
         f"{'median':>8} {'p95':>8} {'max':>8}"

@@ -22,7 +22,7 @@ from __future__ import annotations
 from array import array
 from bisect import bisect_right
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import repeat
 from operator import add
 
@@ -59,6 +59,9 @@ class _Channel:
     hint_at: list[int] | None = None
     hint_dir: list[Direction] | None = None
     fed: int = 0  # stream offset after the bytes fed so far (held ones included)
+    # for each staging row, the number of the chunk fed when it appeared: rows of one
+    # time on several channels are merged in that order, the order of the source
+    born: list[int] = field(default_factory=list)
 
 
 class Pipeline:
@@ -97,13 +100,16 @@ class Pipeline:
         self.exact_timing = exact_timing
         # the public registry, or one with the vendor codes of the devices on this bus
         self.registry: Registry = registry if registry is not None else FUNCTIONS
+        if timeout is None:
+            timeout = default_timeout(line)
         if stamps == Stamp.NONE:
             timeout = float("inf")  # no time to measure a wait by: only order counts
-        self.pairer = Pairer(
-            self.store,
-            timeout if timeout is not None else default_timeout(line),
-            self.registry.answered_broadcasts,
-        )
+        elif stamps != Stamp.EXACT:
+            # a clock of resolution r puts up to r between stamps of one instant: only a
+            # wait longer than the timeout by r shows a timeout (a 1 s clock, as in evcc
+            # and CAS logs, cannot show a 0.5 s timeout)
+            timeout += resolution
+        self.pairer = Pairer(self.store, timeout, self.registry.answered_broadcasts)
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}
         self._sample = bytearray()
@@ -112,6 +118,7 @@ class Pipeline:
         # whatever looks at the framers or the store frames them first (`_frame_held`)
         self._held: list[Reads] = []
         self._held_bytes = 0
+        self._chunks_fed = 0  # chunks fed so far: the order rows of one time merge in
 
     @property
     def multi(self) -> bool:
@@ -120,6 +127,7 @@ class Pipeline:
     # -- input ---------------------------------------------------------------------------
 
     def feed(self, chunk: Chunk) -> None:
+        self._chunks_fed += 1
         if isinstance(chunk, Reads):
             self._feed_reads(chunk)
             return
@@ -138,14 +146,13 @@ class Pipeline:
             # the recorder stopped here: requests still open by then have timed out
             self.pairer.end_time = max(self.pairer.end_time, chunk.t_end)
             return
-        if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
-            ch.framer.line_error()  # exact sources report it right after its byte
         if chunk.event and not chunk.data:
-            text = chunk.event + (f": {chunk.note}" if chunk.note else "")
-            (ch.staging if ch.staging is not None else self.store).add_event(
-                chunk.t_end, text, chunk.channel
-            )
-            ch.last_t = max(ch.last_t, chunk.t_end)
+            if ch.framer is None and ch.held:
+                # the bytes before it wait for the mode to be known: so does the event,
+                # to keep its place after them (a log's error line after its frame)
+                ch.held.append(chunk)
+                return
+            self._add_event(ch, chunk)
             self._release(final=False)
             return
         hints = ch.hint_dir
@@ -160,6 +167,15 @@ class Pipeline:
         ch.last_t = chunk.t_end
         if self.multi:
             self._release(final=False)
+
+    def _add_event(self, ch: _Channel, chunk: Chunk) -> None:
+        if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
+            ch.framer.line_error()  # exact sources report it right after its byte
+        text = chunk.event + (f": {chunk.note}" if chunk.note else "")
+        (ch.staging if ch.staging is not None else self.store).add_event(
+            chunk.t_end, text, chunk.channel
+        )
+        ch.last_t = max(ch.last_t, chunk.t_end)
 
     def _feed_reads(self, reads: Reads) -> None:
         """A batch of reads of one channel (see `sniffer.sources.reads`): handed to the
@@ -391,6 +407,9 @@ class Pipeline:
         ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
         held, ch.held = ch.held or [], None
         for old in held:
+            if old.event and not old.data:
+                self._add_event(ch, old)
+                continue
             ch.framer.feed(old)
             ch.last_t = old.t_end
         for other in self.channels.values():
@@ -403,6 +422,8 @@ class Pipeline:
         for ch in self.channels.values():
             if ch.framer is not None:
                 ch.framer.flush()
+            if ch.staging is not None and len(ch.born) < len(ch.staging):
+                ch.born.extend([self._chunks_fed] * (len(ch.staging) - len(ch.born)))
         if self.multi:
             if final:
                 watermark = float("inf")
@@ -417,12 +438,16 @@ class Pipeline:
         staged = [c for c in self.channels.values() if c.staging is not None]
         while True:
             best: _Channel | None = None
-            best_t = watermark
+            best_key = (watermark, float("inf"))
             for c in staged:
                 st = c.staging
                 assert st is not None
-                if c.read < len(st) and st.t[c.read] <= best_t:
-                    best, best_t = c, st.t[c.read]
+                # rows of one time go in the order they appeared: a log printing whole
+                # seconds gives a request and its answer one time, on two channels
+                if c.read < len(st):
+                    key = (st.t[c.read], c.born[c.read] if c.read < len(c.born) else 0)
+                    if key[0] <= watermark and key < best_key:
+                        best, best_key = c, key
             if best is None:
                 break
             assert best.staging is not None
@@ -435,6 +460,7 @@ class Pipeline:
             assert st is not None
             if c.read and c.read == len(st):
                 c.staging = FrameStore(store.streams)
+                c.born = []
                 if c.framer is not None:
                     c.framer.out = c.staging
                 c.read = 0

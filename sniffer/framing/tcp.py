@@ -32,7 +32,7 @@ from dissectors.functions import FUNCTIONS, FunctionSpec
 from sniffer.framing.pipeline import Pipeline, _Channel
 from sniffer.framing.serial import MAX_NOISE
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.sources.net.carrier import MBAP_CARRIERS, parse_label
 from sniffer.sources.net.tcp import GAP
 from sniffer.vocab import Flag, Kind, Status
@@ -358,7 +358,10 @@ class NetPipeline(Pipeline):
     ) -> None:
         super().__init__(line, store, timeout=timeout, **options)
         self.channel_labels = channels
-        self.pairer = NetPairer(self.store, timeout if timeout is not None else TCP_TIMEOUT)  # type: ignore[assignment]
+        wait = timeout if timeout is not None else TCP_TIMEOUT
+        if self.stamps != Stamp.EXACT:
+            wait += self.store.resolution  # a coarse clock shows no shorter wait (Pipeline)
+        self.pairer = NetPairer(self.store, wait)  # type: ignore[assignment]
         self.mode = "rtu"  # RTU over TCP/UDP; Modbus TCP channels get their own framer
 
     def feed(self, chunk: Chunk) -> None:
@@ -390,5 +393,8 @@ class NetPipeline(Pipeline):
         ch.framer = cast("Framer", framer)  # the same interface; see docs/ethernet.md
         held, ch.held = ch.held or [], None
         for old in held:
+            if old.event and not old.data:
+                self._add_event(ch, old)  # held in its place (Pipeline.feed)
+                continue
             framer.feed(old)
             ch.last_t = old.t_end

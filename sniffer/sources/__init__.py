@@ -9,7 +9,9 @@ Formats (see each module): pcap and pcapng with link types 147, 250 and 252 (`pc
 and with Ethernet-family link types carrying Modbus TCP or RTU over TCP/UDP (`net`),
 sigrok `.sr` logic captures decoded as UART (`sigrok`), `socat -x -v` logs and
 text2pcap-style hex dumps (`hexdump`), Saleae Logic CSV exports (`saleae`), text logs
-of ESPHome, pymodbus, libmodbus and serial monitors (`logs`), and raw binary (`raw`).
+of ESPHome, pymodbus, libmodbus and mbpoll, evcc, ModbusTools, CAS Modbus Scanner and
+serial monitors (`logs`, a module per format; logs of Modbus TCP framed as Modbus TCP),
+and raw binary (`raw`).
 Recognition order is in `detect`. The pcapng writer is `pcapng_writer`.
 """
 

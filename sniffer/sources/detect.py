@@ -3,8 +3,10 @@
 Order: pcapng (block type and byte-order magic), pcap (any of its magics with version 2),
 ZIP (a sigrok session if it holds `metadata`, decided by the sigrok reader), then text:
 a `socat -x -v` header line, a text2pcap-style offset line at offset 0, a Saleae CSV
-export header, then the text logs of `logs.sniff_log` (ESPHome, pymodbus, libmodbus,
-serial monitors); anything else is raw binary.
+export header (its first line, ended by LF or CR), then the text logs of
+`logs.sniff_log` (ESPHome, pymodbus, libmodbus and mbpoll, evcc, ModbusTools, CAS Modbus
+Scanner, serial monitors: by the lines each prints, never the file's name); anything
+else is raw binary.
 """
 
 from __future__ import annotations

@@ -9,7 +9,14 @@ Three shapes are read, recognised by their header line:
 - early Logic 2: `Time [s],Analyzer Name,Decoded Protocol Result`.
 
 Values as the analyser's display radix wrote them: hex `0x01`, binary `0b00000001`,
-decimal `1`, or ASCII (`A`, `' '`, `\\r`, `COMMA`, `\\x01`).
+decimal `1`, ASCII (`A`, `' '`, `\\r`, `COMMA`, and `'1'` for a byte below 0x20 or above
+0x7E: its decimal value in quotes), or ASCII & Hex (`'1'` TAB `(0x01)`, `P` TAB `(0x50)`:
+the hex in brackets is the value).
+
+Rows are read line by line, not by a CSV parser: a value may be a lone `"` (the byte
+0x22 in the ASCII radices) or a stray CR, and a damaged file may hold a line longer than
+any CSV field limit; such a row is read or becomes a warning naming its line, never an
+error for the whole file. A file whose lines end with CR alone is read too.
 
 Each byte is one chunk with exact times (`Stamp.EXACT`): `t_start` the byte's start,
 `t_end` its start plus its duration (or one character time when the export has none).
@@ -21,7 +28,6 @@ Each analyser is its own channel; an analyser whose name says `master`/`request`
 from __future__ import annotations
 
 import csv
-import io
 import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -58,16 +64,28 @@ def _header(line: str) -> tuple[str, ...]:
 
 def sniff_saleae(head: bytes) -> bool:
     """True when the first line is one of the three export headers."""
-    first = head.split(b"\n", 1)[0].lstrip(b"\xef\xbb\xbf").decode("latin-1").strip()
+    first = re.split(rb"[\r\n]", head, maxsplit=1)[0]
+    first = first.lstrip(b"\xef\xbb\xbf").decode("latin-1").strip()
     columns = _header(first)
     return columns[:4] == _LOGIC1 or columns[:5] == _LOGIC2 or columns[:3] == _EARLY2
 
 
+_ASCII_HEX = re.compile(r"^.*?\s*\(0[xX]([0-9A-Fa-f]{1,2})\)$", re.S)
+
+
 def parse_value(text: str) -> int | None:
     """A byte as the analyser printed it, or None."""
+    if text and not text.strip(" "):
+        return ord(" ")  # a space exported bare, as some versions do
     text = text.strip()
-    if len(text) >= 2 and text[0] == text[-1] == "'" and len(text) == 3:
-        return ord(text[1]) if ord(text[1]) < 256 else None
+    if ascii_hex := _ASCII_HEX.match(text):
+        return int(ascii_hex[1], 16)
+    if len(text) >= 3 and text[0] == text[-1] == "'":
+        inner = text[1:-1]
+        if inner.isdigit():
+            value = int(inner)  # below 0x20 or above 0x7E: the decimal value, quoted
+            return value if value < 256 else None
+        return ord(inner) if len(inner) == 1 and ord(inner) < 256 else None
     if text in _ASCII_NAMES:
         return _ASCII_NAMES[text]
     try:
@@ -110,14 +128,17 @@ def _error_events(text: str) -> tuple[str, ...]:
 def open_saleae(path: Path, options: ReadOptions) -> Capture:
     """Open a Saleae Async Serial CSV export."""
     text = path.read_bytes().decode("utf-8", errors="replace").lstrip("\ufeff")
-    rows = list(csv.reader(io.StringIO(text)))
+    lines = _lines(text)
     warnings: list[str] = []
     where = str(path)
-    header = tuple(cell.strip().lower() for cell in rows[0]) if rows else ()
+    header = _header(lines[0]) if lines else ()
     names: dict[str, int] = {}
     parsed: list[_Row] = []
-    for number, row in enumerate(rows[1:], start=2):
-        if not row or not "".join(row).strip():
+    for number, text_line in enumerate(lines[1:], start=2):
+        if not text_line.strip():
+            continue
+        row = _cells(header, text_line, number, where, warnings)
+        if row is None:
             continue
         item = _row(header, row, number, names, where, warnings)
         if item is not None:
@@ -157,6 +178,41 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
+def _lines(text: str) -> list[str]:
+    """The file's lines: cut at LF (a CR before it dropped), or at CR in a file with no
+    LF at all; a CR inside a line stays in its row."""
+    if "\n" not in text:
+        return text.split("\r") if text else []
+    return [line[:-1] if line.endswith("\r") else line for line in text.split("\n")]
+
+
+def _cells(
+    header: tuple[str, ...], line: str, number: int, where: str, warnings: list[str]
+) -> list[str] | None:
+    """A row's cells. Logic 1 rows are cut by hand: time first, the two error columns
+    last, the value (whatever characters it holds) between them. The other exports
+    quote their text cells, so each line goes through a CSV parser of its own."""
+    if header[:4] == _LOGIC1:
+        cells = line.split(",")
+        if len(cells) <= 4:
+            return cells
+        return [cells[0], ",".join(cells[1:-2]), cells[-2], cells[-1]]
+    try:
+        return next(csv.reader([line]), [])
+    except csv.Error as exc:
+        warnings.append(f"{where} line {number}: cannot read the row ({exc}); the row is skipped")
+        return None
+
+
+def _unquoted(value: str) -> str:
+    """A value without the double quotes a spreadsheet may have put around it; a lone `"`
+    (the byte 0x22) stays."""
+    text = value.strip()
+    if len(text) >= 2 and text[0] == text[-1] == '"':
+        return text[1:-1].replace('""', '"')
+    return value
+
+
 def _row(
     header: tuple[str, ...],
     row: Sequence[str],
@@ -184,7 +240,7 @@ def _row(
             errors = _error_events(error_text)
         elif header[:4] == _LOGIC1:
             name, start, duration = "", float(row[0]), None
-            value_text = row[1] if len(row) > 1 else ""
+            value_text = _unquoted(row[1]) if len(row) > 1 else ""
             parity = row[2].strip() if len(row) > 2 else ""
             framing = row[3].strip() if len(row) > 3 else ""
             errors = (("parity error",) if parity else ()) + (("framing error",) if framing else ())

@@ -1,6 +1,7 @@
 """Fuzz: every capture reader (pcap, pcapng with link types 147/250/252, sigrok .sr,
-socat and hex dumps, raw) over damaged copies of the test captures, read to the end and
-framed. Only CaptureError may escape; every byte a reader gives lands in one row."""
+socat and hex dumps, the text logs and Saleae exports of tests/captures/logs, raw) over
+damaged copies of the test captures, read to the end and framed. Only CaptureError may
+escape; every byte a reader gives lands in one row."""
 
 from __future__ import annotations
 
@@ -79,6 +80,7 @@ def _seeds() -> dict[str, list[bytes]]:
         "pcap": [_pcap()],
         "sigrok": [p.read_bytes() for p in SIGROK_SEEDS],
         "text": [p.read_bytes() for p in text if p.suffix in (".txt", ".log")],
+        "logs": [p.read_bytes() for p in sorted((CAPTURES / "logs").iterdir())],
         "raw": [b"".join(FRAMES), with_crc(b"\x01\x03\x00\x00\x00\x01") * 3],
     }
 
@@ -114,7 +116,8 @@ def read_and_frame(path: Path, options: ReadOptions) -> None:
         PcapExporter(io.BytesIO(), session.describer, session.line).write(rows)
     conserved(session.store, bytes_by_channel(chunks))
     for warning in capture.warnings:
-        assert warning.startswith(f"{path}: "), warning
+        # `FILE: ...`, or `FILE line 12: ...` where a text reader names the line
+        assert warning.startswith((f"{path}: ", f"{path} line ")), warning
 
 
 def _members(data: bytes) -> dict[str, bytes]:
@@ -155,7 +158,7 @@ def test_damaged_sigrok_sessions_never_raise(
 
 @pytest.mark.parametrize("kind", sorted(SEEDS))
 def test_seeds_read_clean(tmp_path: Path, kind: str) -> None:
-    options = list(SIGROK_SEEDS.values()) if kind == "sigrok" else [ReadOptions()] * 9
+    options = list(SIGROK_SEEDS.values()) if kind == "sigrok" else [ReadOptions()] * 99
     for k, seed in enumerate(SEEDS[kind]):
         path = tmp_path / f"seed{k}"
         path.write_bytes(seed)
@@ -168,7 +171,7 @@ def test_damaged_captures_never_raise_and_conserve_bytes(
     tmp_path_factory: pytest.TempPathFactory, kind: str
 ) -> None:
     folder = tmp_path_factory.mktemp(kind)
-    examples = {"sigrok": 300, "pcapng": 2000, "text": 1000, "pcap": 600, "raw": 300}
+    examples = {"sigrok": 300, "pcapng": 2000, "text": 1000, "logs": 1000, "pcap": 600, "raw": 300}
 
     @budget(examples[kind])
     @given(mutated(SEEDS[kind]), OPTIONS)

@@ -12,7 +12,9 @@ from __future__ import annotations
 import io
 import json
 import random
+import tempfile
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +37,14 @@ from sniffer.sources.pcapng_writer import PcapngWriter
 from sniffer.vocab import Kind, Status
 
 ECHOED = (5, 6, 8)  # the function codes whose answer repeats the request
+# forms whose clock cannot order a write, its retry and its echoed answer: see the property
+NO_TIME = (
+    "no time",
+    "evcc trace, 1 s",
+    "CAS Modbus Scanner, newest first, 1 s",
+    "ModbusTools, no time",
+    "libmodbus, no time",
+)
 LINE = LineSettings(baud=9600, parity="N", mode="rtu")
 CHAR = LINE.char_time
 
@@ -171,6 +181,98 @@ def shown_latencies(session: Session) -> list[float]:
     return out
 
 
+# -- the forms of the logs people post -----------------------------------------------------
+
+T0 = 1_722_250_000.0  # a whole second; the log clocks below cut times down to their unit
+
+
+def _local(t: float, form: str) -> str:
+    """`t` as a program prints local time; `MS` in `form` stands for the milliseconds."""
+    moment = datetime.fromtimestamp(T0 + t)
+    return moment.strftime(form).replace("MS", f"{moment.microsecond // 1000:03d}")
+
+
+def evcc_log(frames: list[Frame]) -> str:
+    """evcc's trace: a send printed before the write, a recv after the read; whole seconds."""
+    lines = []
+    for f in frames:
+        stamp = _local(f.start if f.master else f.end, "%Y/%m/%d %H:%M:%S")
+        word = "send" if f.master else "recv"
+        lines.append(f"[sdm   ] TRACE {stamp} modbus: {word} {f.data.hex(' ')}")
+    return "\n".join(lines) + "\n"
+
+
+def modbustools_log(frames: list[Frame], stamped: bool) -> str:
+    """ModbusTools' client log: Tx when written, Rx when read; milliseconds, or no time."""
+    lines = []
+    for f in frames:
+        stamp = _local(f.start if f.master else f.end, "%d.%m.%Y %H:%M:%S.MS ")
+        flag = "Tx" if f.master else "Rx"
+        lines.append(f"{stamp if stamped else ''}'Device' {flag}: {f.data.hex(' ').upper()} ")
+    return "\n".join(lines) + "\n"
+
+
+def cas_log(frames: list[Frame]) -> str:
+    """CAS Modbus Scanner's log window: whole seconds, the newest line first."""
+    lines = []
+    for f in frames:
+        stamp = _local(f.start if f.master else f.end, "[%H:%M:%S]")
+        word = "=> Poll" if f.master else "<= Response"
+        lines.append(f"{stamp} {word}: {f.data.hex(' ').upper()}")
+    return "\n".join(reversed(lines)) + "\n"
+
+
+def libmodbus_log(frames: list[Frame]) -> str:
+    """libmodbus debug output of a client: no time at all."""
+    lines = []
+    for f in frames:
+        if f.master:
+            lines += ["".join(f"[{b:02X}]" for b in f.data), "Waiting for a confirmation..."]
+        else:
+            lines.append("".join(f"<{b:02X}>" for b in f.data))
+    return "\n".join(lines) + "\n"
+
+
+def pymodbus_sync_log(frames: list[Frame]) -> str:
+    """A pymodbus 3.0-3.7 synchronous client: SEND, RECV and Processing, milliseconds."""
+    lines = []
+    for f in frames:
+        stamp = _local(f.end, "%Y-%m-%d %H:%M:%S,MS")
+        data = " ".join(hex(b) for b in f.data)
+        if f.master:
+            lines.append(f"{stamp} DEBUG transaction:293 SEND: {data}")
+        else:
+            lines.append(f"{stamp} DEBUG transaction:324 RECV: {data}")
+            lines.append(f"{stamp} DEBUG base:92 Processing: {data}")
+    return "\n".join(lines) + "\n"
+
+
+def saleae_ascii_hex(frames: list[Frame]) -> str:
+    """Saleae Logic 1's Async Serial export in the ASCII & Hex radix: each byte's start."""
+
+    def ascii_form(v: int) -> str:
+        names = {9: "\\t", 10: "\\n", 13: "\\r", 32: "' '", 44: "COMMA"}
+        return names.get(v) or (chr(v) if 0x21 <= v <= 0x7E else f"'{v}'")
+
+    rows = ["Time [s],Value,Parity Error,Framing Error"]
+    for f in frames:
+        for k, v in enumerate(f.data):
+            rows.append(f"{f.start + k * CHAR:.15f},{ascii_form(v)}\t(0x{v:02X}),,")
+    return "\n".join(rows) + "\n"
+
+
+def log_forms(frames: list[Frame]) -> dict[str, str]:
+    return {
+        "evcc trace, 1 s": evcc_log(frames),
+        "ModbusTools, 1 ms": modbustools_log(frames, stamped=True),
+        "ModbusTools, no time": modbustools_log(frames, stamped=False),
+        "CAS Modbus Scanner, newest first, 1 s": cas_log(frames),
+        "libmodbus, no time": libmodbus_log(frames),
+        "pymodbus synchronous, 1 ms": pymodbus_sync_log(frames),
+        "Saleae ASCII & Hex, exact": saleae_ascii_hex(frames),
+    }
+
+
 # -- the property --------------------------------------------------------------------------
 
 
@@ -198,18 +300,101 @@ def test_every_form_of_the_same_bytes_gives_the_same_frames(seed: int) -> None:
             [Chunk(f.data, k * 1.0) for k, f in enumerate(frames)], stamps=Stamp.NONE
         ),
     }
+    with tempfile.TemporaryDirectory() as folder:
+        for name, text in log_forms(frames).items():
+            path = Path(folder) / "log"
+            path.write_text(text)
+            forms[name] = replay_file(path, line_options())
+            # print times may come sooner than the line speed allows: said once; a coarse
+            # clock may leave a retried write's label against the order (below); no other
+            said = ("timestamps", "direction labels") if name in NO_TIME else ("timestamps",)
+            assert all(w.startswith(said) for w in forms[name].warnings), name
     for name, session in forms.items():
         got = outcome(session.store)
-        if name == "no time":
+        if name in NO_TIME:
             # Without time, a write repeated after a timeout and its echoed answer are the
             # same bytes in the same order: only the frames, and the kinds of every other
-            # code, can match.
+            # code, can match. A clock of whole seconds (evcc, CAS) is no better inside a
+            # second: the labels those logs carry could tell them apart, but a label is a
+            # hint, and the pairing goes by content and order.
             assert [r[0] for r in got] == [r[0] for r in want], name
             plain = [k for k, r in enumerate(want) if r[0][1] & 0x7F not in ECHOED]
             assert [got[k][1] for k in plain] == [want[k][1] for k in plain], name
+            if name != "no time":  # with labels, every other transaction pairs the same
+                assert [got[k][1:] for k in plain] == [want[k][1:] for k in plain], name
+            assert all(x > 0 for x in shown_latencies(session)), name
             continue
         assert got == want, name
         assert all(x > 0 for x in shown_latencies(session)), name
+
+
+# -- the same transactions over Modbus TCP, as logs print them ----------------------------
+
+
+def as_modbus_tcp(frames: list[Frame]) -> list[Frame]:
+    """The polling of `frames` by a Modbus TCP client: a new transaction id for each
+    request (a retry too), its answer with the same id; the RTU check left off."""
+    out = []
+    tid = 0
+    for f in frames:
+        if f.master:
+            tid += 1
+        pdu = f.data[:-2]
+        header = tid.to_bytes(2, "big") + b"\0\0" + len(pdu).to_bytes(2, "big")
+        out.append(Frame(header + pdu, f.start, f.master))
+    return out
+
+
+def tcp_log_forms(frames: list[Frame]) -> dict[str, str]:
+    stamp_ms = "%Y-%m-%d %H:%M:%S,MS"
+    return {
+        "evcc trace, 1 s": evcc_log(frames),
+        "mbpoll -v, no time": "Connecting to [192.168.1.20]:502\n" + libmodbus_log(frames),
+        "pymodbus, 1 ms": "".join(
+            f"{_local(f.start if f.master else f.end, stamp_ms)} DEBUG transport:357 "
+            + ("send: " if f.master else "recv: ")
+            + " ".join(hex(b) for b in f.data)
+            + ("" if f.master else " extra data: ")
+            + "\n"
+            for f in frames
+        ),
+        "ModbusTools, 1 ms": modbustools_log(frames, stamped=True),
+    }
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_every_modbus_tcp_log_of_the_same_transactions_gives_the_same_pairs(seed: int) -> None:
+    frames = as_modbus_tcp(polling(seed))
+    channels = {0: "tcp client > server modbus-tcp", 1: "tcp server > client modbus-tcp (server)"}
+    reference = Session(LINE, labels=Labels.CERTAIN, stamps=Stamp.EXACT, network=channels)
+    reference.ingest(
+        [
+            Chunk(
+                f.data,
+                f.end,
+                f.start,
+                0 if f.master else 1,
+                Direction.MASTER if f.master else Direction.SLAVE,
+            )
+            for f in frames
+        ]
+    )
+    want = outcome(reference.store)
+    assert sorted(row[0] for row in want) == sorted(f.data for f in frames)
+    with tempfile.TemporaryDirectory() as folder:
+        for name, text in tcp_log_forms(frames).items():
+            path = Path(folder) / "log"
+            path.write_text(text)
+            session = replay_file(path)
+            assert session.store.servers, name  # framed as Modbus TCP
+            got = outcome(session.store)
+            # the same frames, kinds and pairs; a request nobody answered times out only
+            # where the clock can show a wait of 3 s
+            assert [r[:2] + r[3:] for r in got] == [r[:2] + r[3:] for r in want], name
+            answered = [k for k, r in enumerate(want) if r[3] >= 0]
+            assert [got[k][2] for k in answered] == [want[k][2] for k in answered], name
+            assert all(x > 0 for x in shown_latencies(session)), name
 
 
 def test_labels_against_the_content_are_reported_once_and_change_nothing() -> None:

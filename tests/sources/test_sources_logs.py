@@ -41,6 +41,10 @@ INPUTS_ANSWER = with_crc(bytes.fromhex("0204140001000200030004000500060007000800
 
 M, S, U = Direction.MASTER, Direction.SLAVE, Direction.UNKNOWN
 EXCHANGE = [(READ, M), (READ_ANSWER, S), (WRITE, M), (WRITE, S)]
+ASCII_READ = b":010300000002FA\r\n"  # Modbus ASCII: the same read, LRC 0xFA
+ASCII_ANSWER = b":010304000A000DE1\r\n"
+GARBLED_ANSWER = b"\x81" + READ_ANSWER[1:]  # one bit flipped on the wire: the CRC fails
+ECHO_10 = with_crc(bytes.fromhex("0a0607d00004"))  # FC 6 to unit 10, answered by its echo
 
 
 def read(
@@ -133,6 +137,71 @@ CASES = [
     ),
     ("arrows_notime.log", "monitor", EXCHANGE, Stamp.NONE, 0.0, Labels.HINT),
     (
+        "evcc_rtu.log",
+        "evcc",
+        [*EXCHANGE, (INPUTS, M), (INPUTS, M), (INPUTS_ANSWER, S)],
+        Stamp.PRINT,
+        1.0,
+        Labels.HINT,
+    ),
+    (
+        "evcc_ascii.log",
+        "evcc",
+        [(ASCII_READ, M), (ASCII_ANSWER, S)] * 2,
+        Stamp.PRINT,
+        1.0,
+        Labels.HINT,
+    ),
+    (
+        "modbustools_client.log",
+        "modbustools",
+        [*EXCHANGE, (MULTI, M), (MULTI_ANSWER, S), (READ, M), (GARBLED_ANSWER, S)],
+        Stamp.PRINT,
+        1e-3,
+        Labels.HINT,
+    ),
+    (
+        "modbustools_ascii_notime.log",
+        "modbustools",
+        [(ASCII_READ, M), (ASCII_ANSWER, S), (ASCII_READ, M), (ASCII_ANSWER[:-4] + b"E2\r\n", S)],
+        Stamp.NONE,
+        0.0,
+        Labels.HINT,
+    ),
+    (
+        "cas_newest_first.log",  # read from its last line up
+        "cas",
+        [
+            (READ, M),
+            (READ_ANSWER, S),
+            (INPUTS, M),
+            (WRITE, M),
+            (WRITE, S),
+            (MULTI, M),
+            (MULTI_ANSWER, S),
+        ],
+        Stamp.PRINT,
+        1.0,
+        Labels.HINT,
+    ),
+    ("cas_one_second.log", "cas", [(ECHO_10, M), (ECHO_10, S)], Stamp.PRINT, 1.0, Labels.HINT),
+    (
+        "pymodbus_sync_37.log",
+        "pymodbus",
+        [(READ, M), (READ_ANSWER, S), (INPUTS, M), (INPUTS, M), (INPUTS_ANSWER, S)],
+        Stamp.PRINT,
+        1e-3,
+        Labels.HINT,
+    ),
+    (
+        "pymodbus_sync_38.log",  # answers only, and the write heard back as local echo
+        "pymodbus",
+        [(READ_ANSWER, S), (WRITE, M), (WRITE, S), (INPUTS_ANSWER[:9], S), (INPUTS_ANSWER[9:], S)],
+        Stamp.PRINT,
+        1e-3,
+        Labels.HINT,
+    ),
+    (
         "sscom_gbk.log",
         "monitor",
         [*EXCHANGE, (MULTI, M), (MULTI_ANSWER, S)],
@@ -172,7 +241,7 @@ def test_reader_gives_the_logged_bytes_directions_and_time_meaning(
     labels: Labels,
 ) -> None:
     capture = open_capture(LOGS / name)
-    chunks = list(capture.chunks())
+    chunks = [c for c in capture.chunks() if not c.event]
     assert capture.info.format == kind
     assert [(c.data, c.direction) for c in chunks] == expected
     assert {c.channel for c in chunks} == {0}
@@ -247,14 +316,17 @@ def test_pymodbus_repeating_marker_is_reported(tmp_path: Path) -> None:
     assert any("line 2:" in w and "Repeating" in w for w in capture.warnings)
 
 
-def test_modbus_tcp_in_a_pymodbus_log_is_named(tmp_path: Path) -> None:
+def test_modbus_tcp_in_a_pymodbus_log_is_framed_as_modbus_tcp(tmp_path: Path) -> None:
     path = tmp_path / "tcp.log"
     path.write_text(
         "DEBUG:pymodbus.logging:SEND: 0x0 0x7 0x0 0x0 0x0 0x6 0x1 0x1 0x0 0x1 0x0 0x8\n"
     )
     capture = open_capture(path)
-    list(capture.chunks())
-    assert any("Modbus TCP" in w and "line 1:" in w for w in capture.warnings)
+    chunks = list(capture.chunks())
+    assert capture.info.network
+    assert capture.info.channels[0].endswith("modbus-tcp")
+    assert [(c.channel, c.direction) for c in chunks] == [(0, M)]
+    assert not capture.warnings
 
 
 def test_a_log_with_no_bytes_says_so(tmp_path: Path) -> None:
@@ -278,6 +350,18 @@ lines_strategy = st.lists(
                     "recv: ",
                     "[12:00:00.123] TX: ",
                     "[01/05/2024 12:00:00] Read data (COM1)",
+                    "[sdm   ] TRACE 2024/07/29 11:25:25 modbus: send ",
+                    "[sdm   ] TRACE 2024/07/29 11:25:25 modbus: recv ",
+                    "Jul 29 x: [a] TRACE 2024/07/29 23:59:59 modbus: ",
+                    "14.05.2025 09:57:07.113 'Device' Tx: ",
+                    "'Device' Rx: ",
+                    "14.05.2025 09:57:07.113 'PORT' Error: ",
+                    "[11:20:03] => Poll: ",
+                    "[11:20:03] <= Response: ",
+                    "[23:59:59] ",
+                    "2025-03-02 08:00:00,042 DEBUG base:76 Processing: ",
+                    "sync recv skipping (local_echo): ",
+                    "Connecting to [192.168.1.20]:502",
                     "",
                 ]
             ),
@@ -297,7 +381,7 @@ def test_parsers_never_raise_and_keep_time_in_order(kind: str, lines: list[str])
     chunks = list(record_chunks(parsed.records, LineSettings(), "f.log", warnings))
     times = [c.t_end for c in chunks]
     assert times == sorted(times)
-    assert all(c.data for c in chunks)
+    assert all(bool(c.data) != bool(c.event) for c in chunks)  # bytes, or an event
     assert all(w.startswith("f.log") for w in [*parsed.warnings, *warnings])
 
 
@@ -456,7 +540,9 @@ def raw_file_frames(data: bytes, tmp_path: Path) -> list[tuple[bytes, bool, str]
 
 
 EXPECTED = {c[0]: c[2] for c in CASES}
-FRAME_CASES = [c[0] for c in CASES] + [
+# Modbus ASCII logs: framed as ASCII in tests/sources/test_sources_field_logs.py
+ASCII_LOGS = {"evcc_ascii.log", "modbustools_ascii_notime.log"}
+FRAME_CASES = [c[0] for c in CASES if c[0] not in ASCII_LOGS] + [
     "rvs_dn_example2_text2pcap.txt",
     "saleae_logic1.csv",
     "saleae_logic2_table.csv",

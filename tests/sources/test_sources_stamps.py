@@ -85,3 +85,26 @@ def test_sigrok_is_exact_and_certain_with_a_probe_per_direction() -> None:
     one = open_capture(path, ReadOptions(baud=9600, parity="N", probes=("RX",))).info
     assert (two.stamps, two.labels) == (Stamp.EXACT, Labels.CERTAIN)
     assert (one.stamps, one.labels) == (Stamp.EXACT, Labels.NONE)
+
+
+@pytest.mark.parametrize(
+    ("name", "stamps", "resolution", "labels", "network"),
+    [
+        ("evcc_rtu.log", Stamp.PRINT, 1.0, Labels.HINT, False),  # Go's log.Ltime
+        ("evcc_tcp.log", Stamp.PRINT, 1.0, Labels.CERTAIN, True),  # a socket's two ways
+        ("modbustools_client.log", Stamp.PRINT, 1e-3, Labels.HINT, False),
+        ("modbustools_ascii_notime.log", Stamp.NONE, 0.0, Labels.HINT, False),
+        ("modbustools_server_tcp.log", Stamp.PRINT, 1.0, Labels.CERTAIN, True),
+        ("cas_newest_first.log", Stamp.PRINT, 1.0, Labels.HINT, False),
+        ("mbpoll_tcp.log", Stamp.NONE, 0.0, Labels.CERTAIN, True),
+        ("libmodbus_client.log", Stamp.NONE, 0.0, Labels.HINT, False),
+        ("pymodbus_sync_37.log", Stamp.PRINT, 1e-3, Labels.HINT, False),
+        ("pymodbus_sync_38.log", Stamp.PRINT, 1e-3, Labels.HINT, False),
+        ("pymodbus_tcp.log", Stamp.PRINT, 1e-3, Labels.CERTAIN, True),
+        ("saleae_logic1_ascii_hex.csv", Stamp.EXACT, 0.0, Labels.NONE, False),
+    ],
+)
+def test_logs(name: str, stamps: Stamp, resolution: float, labels: Labels, network: bool) -> None:
+    info = open_capture(CAPTURES / "logs" / name).info
+    assert (info.stamps, info.labels, info.network) == (stamps, labels, network)
+    assert info.resolution == pytest.approx(resolution)

@@ -1,0 +1,393 @@
+"""Provides what every log reader shares: the file's text and lines, printed times,
+records (bytes or an event, with the line's time and direction), and the chunks made of
+them, on one channel for a serial log or a channel per connection direction for a log of
+Modbus TCP (see `route`).
+
+A record is what one logged line (or block) shows: bytes with the direction its label
+gives, or an event (an error or a notice the program printed, no bytes). Chunks keep the
+file's order; `t_end` is the printed time. Nothing here raises on content.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from datetime import datetime
+
+from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
+from sniffer.sources.net.carrier import MBAP_CARRIERS, MODBUS_TCP, ChannelLabel, Votes
+
+DAY = 86_400.0
+ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+HEX2 = re.compile(r"^[0-9A-Fa-f]{2}$")
+
+# ---------------------------------------------------------------- text and time
+
+
+def decode_text(raw: bytes) -> str | None:
+    """The file's text: UTF-8, else GBK (sscom saves its logs so), else None for binary."""
+    if b"\0" in raw:
+        return None
+    for encoding in ("utf-8", "gbk"):
+        try:
+            return raw.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return None
+
+
+def decode_head(head: bytes) -> str | None:
+    """Like decode_text, for the first bytes of a file (a character may be cut at the end)."""
+    if b"\0" in head:
+        return None
+    for encoding in ("utf-8", "gbk"):
+        text = head.decode(encoding, errors="replace")
+        if text.count("\ufffd") <= 2:
+            return text
+    return None
+
+
+def split_lines(text: str) -> list[str]:
+    """The file's lines as an editor numbers them: cut at LF (a CR before it dropped), or
+    at CR in a file that has no LF at all. A CR inside a line stays in it, so a stray CR
+    neither shifts the line numbers warnings give nor cuts a line in two."""
+    if "\n" not in text:
+        return text.split("\r") if text else []
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return [line[:-1] if line.endswith("\r") else line for line in lines]
+
+
+_TIME_PATTERNS = (
+    # 2024-05-01 12:00:00,123 / 2024-05-01T12:00:00.123 / 2024/05/01 12:00:00
+    re.compile(
+        r"(?P<y>\d{4})[-/](?P<mo>\d\d)[-/](?P<d>\d\d)[T ]"
+        r"(?P<h>\d\d):(?P<mi>\d\d):(?P<s>\d\d)(?:[.,](?P<f>\d+))?"
+    ),
+    # 26/02/2020 10:12:34.567 (day first; month first where the day cannot be a month)
+    re.compile(
+        r"(?P<d>\d\d)[/.](?P<mo>\d\d)[/.](?P<y>\d{4})[ @]+"
+        r"(?P<h>\d\d):(?P<mi>\d\d):(?P<s>\d\d)(?:[.,](?P<f>\d+))?"
+    ),
+    # 12:00:00.123 (seconds since midnight)
+    re.compile(r"(?P<h>\d{1,2}):(?P<mi>\d\d):(?P<s>\d\d)(?:[.,:](?P<f>\d{1,9}))?"),
+)
+
+
+@dataclass(frozen=True, slots=True)
+class Stamped:
+    """A time read from a line: seconds (Unix time with a date, else since midnight),
+    its resolution, whether it carried a date, and where the line goes on after it."""
+
+    seconds: float
+    resolution: float
+    dated: bool
+    end: int
+
+
+def _fraction(digits: str | None) -> tuple[float, float]:
+    if not digits:
+        return 0.0, 1.0
+    return int(digits) / 10 ** len(digits), 10.0 ** -len(digits)
+
+
+def parse_stamp(text: str, pos: int = 0) -> Stamped | None:
+    """The time at `pos` in `text` (optionally in brackets), or None. Forms: see _TIME_PATTERNS."""
+    lead = re.compile(r"\s*(\[)?\s*").match(text, pos)
+    start = lead.end() if lead else pos
+    bracket = bool(lead and lead[1])
+    for index, pattern in enumerate(_TIME_PATTERNS):
+        match = pattern.match(text, start)
+        if match is None:
+            continue
+        end = match.end()
+        if bracket:
+            close = re.compile(r"\s*\]").match(text, end)
+            if close is None:
+                return None
+            end = close.end()
+        fraction, resolution = _fraction(match["f"])
+        hour, minute, second = int(match["h"]), int(match["mi"]), int(match["s"])
+        if hour > 23 or minute > 59 or second > 60:
+            return None
+        if index == 2:
+            return Stamped(hour * 3600 + minute * 60 + second + fraction, resolution, False, end)
+        year, month, day = int(match["y"]), int(match["mo"]), int(match["d"])
+        if index == 1 and month > 12 and day <= 12:
+            month, day = day, month
+        try:
+            moment = datetime(year, month, day, hour, minute, min(second, 59))
+        except (ValueError, OverflowError):
+            return None
+        return Stamped(moment.timestamp() + fraction, resolution, True, end)
+    return None
+
+
+def hex_tokens(text: str) -> bytes | None:
+    """Bytes written as two hex digits each, separated by white space (`01 03 0A`), or
+    None when any token is not that."""
+    tokens = text.split()
+    if not tokens or not all(HEX2.match(t) for t in tokens):
+        return None
+    return bytes(int(t, 16) for t in tokens)
+
+
+def event_kind(text: str) -> str:
+    """`error` for a line that tells of a failure (error, timeout, failed, wrong check),
+    else `info`: the name an event line's chunk carries."""
+    return "error" if _FAILURE.search(text) else "info"
+
+
+_FAILURE = re.compile(
+    r"error|timed? ?out|fail|wrong|invalid|exception|refused|reset|lost|incomplete"
+    r"|no response|not respond|unable|cannot|can't",
+    re.I,
+)
+
+# ---------------------------------------------------------------- records
+
+
+@dataclass(frozen=True, slots=True)
+class LogRecord:
+    """What one log line (or block) shows: bytes, or an event (`event` names it, `note`
+    says it, no bytes); its line number, time and direction; the connection or device it
+    names (`conn`, for a log of several Modbus TCP connections)."""
+
+    data: bytes
+    line: int
+    stamp: Stamped | None
+    direction: Direction
+    event: str = ""
+    note: str = ""
+    conn: str = ""
+
+
+@dataclass
+class ParsedLog:
+    """What a format's parser found: records, warnings, and what the file says about itself.
+
+    `client` names the logging program and `servers` what each connection (`conn`) talks
+    to, for the channel labels of a Modbus TCP log; `server_port` is the port the file
+    names (or 502 when it says Modbus TCP), which tips an undecided connection to Modbus
+    TCP. `notes` are what the reader decided (a reversed order, a side not logged)."""
+
+    records: list[LogRecord] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    labels: Labels = Labels.NONE
+    line: LineSettings | None = None
+    channel_label: str = ""
+    client: str = ""
+    servers: dict[str, str] = field(default_factory=dict)
+    server_port: int = 0
+
+    def event(
+        self, number: int, stamp: Stamped | None, text: str, conn: str = "", kind: str = ""
+    ) -> None:
+        """Record an event line: `kind`, else `error` or `info` by its words; the text as
+        its note."""
+        text = text.strip()
+        if text:
+            kind = kind or event_kind(text)
+            self.records.append(LogRecord(b"", number, stamp, Direction.UNKNOWN, kind, text, conn))
+
+
+def stamps_of(records: Sequence[LogRecord]) -> tuple[Stamp, float]:
+    """What the records' times mean: print times with the coarsest resolution any line
+    has, or none."""
+    stamped = [r.stamp for r in records if r.stamp is not None]
+    if not stamped:
+        return Stamp.NONE, 0.0
+    return Stamp.PRINT, max(s.resolution for s in stamped)
+
+
+def record_chunks(
+    records: Sequence[LogRecord],
+    line: LineSettings,
+    where: str,
+    warnings: list[str],
+    channel: Callable[[LogRecord], int] | None = None,
+) -> Iterator[Chunk]:
+    """Chunks of `records` in file order, `t_end` = the printed time, on the channel
+    `channel` gives (0 without it).
+
+    Times never go backwards: a time of day that falls by more than 12 hours is taken as
+    the next day; a smaller fall (a clock step, threads printing out of order) keeps the
+    previous time, with one warning. A record without a time follows the previous one by
+    one character time per byte (`t_start` = the previous time): so does every record of
+    a file without times. An event without a time takes the previous record's.
+    """
+    char = line.char_time
+    t_prev: float | None = None
+    day_offset = 0.0
+    warned_back = False
+    for record in records:
+        ch = channel(record) if channel is not None else 0
+        if record.event:
+            t = _event_time(record, t_prev, day_offset)
+            t_prev = t if t_prev is None else max(t, t_prev)
+            yield Chunk(
+                data=b"",
+                t_end=t_prev,
+                channel=ch,
+                direction=record.direction,
+                event=record.event,
+                note=record.note,
+            )
+            continue
+        if record.stamp is None:
+            base = t_prev if t_prev is not None else 0.0
+            t_end = base + char * max(len(record.data), 1)
+            yield Chunk(
+                data=record.data, t_end=t_end, t_start=base, channel=ch, direction=record.direction
+            )
+            t_prev = t_end
+            continue
+        t = record.stamp.seconds + day_offset
+        if t_prev is not None and t < t_prev:
+            if not record.stamp.dated and t_prev - t > DAY / 2:
+                day_offset += DAY
+                t += DAY
+            else:
+                if not warned_back:
+                    warned_back = True
+                    warnings.append(
+                        f"{where} line {record.line}: the time goes back by "
+                        f"{t_prev - t:.3f} s; such lines keep the previous line's time"
+                    )
+                t = t_prev
+        t_prev = t
+        yield Chunk(data=record.data, t_end=t, channel=ch, direction=record.direction)
+
+
+def _event_time(record: LogRecord, t_prev: float | None, day_offset: float) -> float:
+    if record.stamp is None:
+        return t_prev if t_prev is not None else 0.0
+    t = record.stamp.seconds + day_offset
+    if t_prev is not None and not record.stamp.dated and t_prev - t > DAY / 2:
+        t += DAY  # the next day's first line may be an event
+    return t
+
+
+# ---------------------------------------------------------------- Modbus TCP logs
+
+MAX_PAIRS = 128  # channel pairs: the frame store keeps a channel number in one byte
+
+
+@dataclass(frozen=True, slots=True)
+class Routing:
+    """Where each record goes: the channel table, the records (directions swapped where a
+    connection's content shows the log was a server's), whether any connection carries
+    Modbus TCP (`network`: framed by MBAP headers, paired by transaction id), and what to
+    tell the user."""
+
+    channels: dict[int, str]
+    records: list[LogRecord]
+    network: bool
+    channel: Callable[[LogRecord], int]
+    notes: tuple[str, ...] = ()
+
+
+def route(parsed: ParsedLog, name: str) -> Routing:
+    """The channels of a parsed log. A log whose connections carry RTU or ASCII frames is
+    one serial stream on channel 0. A log with Modbus TCP frames (an MBAP header, no
+    check) gets a pair of channels per connection (`conn`): `2k` for what the client sends,
+    `2k + 1` for what the server sends, labelled as network captures are
+    (`sniffer.sources.net.carrier`); its frames are framed by their MBAP length and paired
+    by transaction id. Whether a connection carries Modbus TCP is decided by its bytes,
+    as for a network capture (`Votes`), with the port the file names as the tie-break."""
+    records = parsed.records
+    conns: list[str] = []
+    votes: dict[str, Votes] = {}
+    for record in records:
+        if record.event or not record.data:
+            continue
+        if record.conn not in votes:
+            conns.append(record.conn)
+            votes[record.conn] = Votes()
+        votes[record.conn].add(record.data)
+    carriers = {c: votes[c].verdict("tcp", parsed.server_port, final=True) for c in conns}
+    if not any(carrier in MBAP_CARRIERS for carrier in carriers.values()):
+        label = parsed.channel_label or name
+        return Routing({0: label}, list(records), False, lambda record: 0)
+    pairs = {conn: min(k, MAX_PAIRS - 1) for k, conn in enumerate(conns)}
+    swapped = {c for c in conns if carriers[c] == MODBUS_TCP and _server_side(records, c)}
+    notes = tuple(
+        f"the frames of {_conn_name(parsed, c)} read as a server's log: what it sent are "
+        "answers, what it received requests; they are read so"
+        for c in swapped
+    )
+    # an event goes on its connection's client channel, whose direction it carries:
+    # a channel's first chunk gives the channel its direction
+    records = [
+        replace(r, direction=Direction.MASTER)
+        if r.event
+        else replace(r, direction=_flip(r.direction))
+        if r.conn in swapped
+        else r
+        for r in records
+    ]
+    channels: dict[int, str] = {}
+    client = _token(parsed.client or "client")
+    for conn, k in pairs.items():
+        server = _token(parsed.servers.get(conn) or conn or "server")
+        if carriers[conn] == MODBUS_TCP:
+            channels[2 * k] = ChannelLabel("tcp", client, server, MODBUS_TCP, Direction.MASTER).text
+            channels[2 * k + 1] = ChannelLabel(
+                "tcp", server, client, MODBUS_TCP, Direction.SLAVE
+            ).text
+        else:
+            channels[2 * k] = f"{name} {conn or 'serial'}: sent".strip()
+            channels[2 * k + 1] = f"{name} {conn or 'serial'}: received".strip()
+
+    def channel(record: LogRecord) -> int:
+        k = pairs.get(record.conn, 0)
+        return 2 * k + (1 if record.direction == Direction.SLAVE else 0)
+
+    return Routing(channels, records, True, channel, notes)
+
+
+def _flip(direction: Direction) -> Direction:
+    return {Direction.MASTER: Direction.SLAVE, Direction.SLAVE: Direction.MASTER}.get(
+        direction, direction
+    )
+
+
+def _token(text: str) -> str:
+    """A name fit for a channel label (no spaces)."""
+    return re.sub(r"\s+", "_", text.strip()) or "?"
+
+
+def _conn_name(parsed: ParsedLog, conn: str) -> str:
+    server = parsed.servers.get(conn) or conn
+    return f"the connection to {server}" if server else "the log"
+
+
+def _request_like(frame: bytes) -> bool | None:
+    """Whether an MBAP frame reads as a request (True) or an answer (False), for the
+    reads whose two layouts differ (FC 1-4: a request is 12 bytes, an answer carries
+    its byte count), else None."""
+    if len(frame) < 9 or frame[7] not in (1, 2, 3, 4):
+        return None
+    if frame[8] == len(frame) - 9:
+        return False
+    return True if len(frame) == 12 else None
+
+
+def _server_side(records: Sequence[LogRecord], conn: str) -> bool:
+    """Whether a connection's content says the log was taken by the server: what it sent
+    reads as answers and what it received as requests, more often than the other way."""
+    agree = disagree = 0
+    for record in records:
+        if record.conn != conn or record.event or record.direction == Direction.UNKNOWN:
+            continue
+        request = _request_like(record.data)
+        if request is None:
+            continue
+        if request == (record.direction == Direction.MASTER):
+            agree += 1
+        else:
+            disagree += 1
+    return disagree > agree
