@@ -14,6 +14,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
+from sniffer.errors import CaptureError
 from sniffer.model import Chunk
 from sniffer.session.session import Session, open_session
 from sniffer.sources import open_capture, pcap
@@ -40,7 +41,12 @@ from tests.support.reads import (
 
 
 def _chunks(path: Path, batched: bool) -> tuple[list[Chunk], list[str], int]:
-    capture = open_capture(path)
+    """What a walk reads of `path`; a file the damage made no capture at all (its magic
+    overwritten: `PK\\3\\4` reads as a ZIP) is refused, and both walks must refuse it alike."""
+    try:
+        capture = open_capture(path)
+    except CaptureError as exc:
+        return [], [f"refused: {exc}"], 0
     with batching(batched):
         got: list[Chunk] = []
         for chunk in capture.chunks():
@@ -94,6 +100,13 @@ def _read_the_same_in_pieces(path: Path, piece: int, monkeypatch: pytest.MonkeyP
     packets=st.lists(packet, min_size=1, max_size=30),
     piece=st.sampled_from([12, 13, 40, 64, 100, 333]),
     hurt=damage,
+)
+@example(  # the magic overwritten with a ZIP's: no capture at all, refused alike
+    order="<",
+    linktypes=LINKTYPE_MIXES[0],
+    packets=[(0, "data", None, "", 0, 1, 0.004, 0.01)],
+    piece=12,
+    hurt=("poke", 0, b"PK\x03\x04"),
 )
 def test_bulk_walk_reads_the_same_in_small_pieces(
     tmp_path_factory: pytest.TempPathFactory,
