@@ -34,7 +34,8 @@ from sniffer.errors import UsageError
 from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
 from sniffer.session.index import DamagedError
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
-from sniffer.sources import Capture
+from sniffer.sources import Capture, ReadOptions
+from sniffer.sources.net import summary as net_summary
 from sniffer.text import plain
 
 
@@ -106,14 +107,21 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         slow = wrong_speed(session.store) if speed is None else speed.warning()
     if slow is not None:
         session.warnings.append(f"{shown or path}: {slow}")
-    for note in [*capture.info.notes, *session.notes]:
+    unused = _network_line_note(options, str(shown or path)) if capture.info.network else []
+    for note in [*capture.info.notes, *session.notes, *unused]:
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     status = finish_read(capture, session, err)
     if args.stats:
         labels = {u: plain(b.label) for u, b in bindings.items()}
-        out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
+        # a network capture has no serial line: say what it carries instead
+        what = (
+            net_summary(capture.info.channels)
+            if capture.info.network
+            else f"{session.line.describe()}, mode {session.mode}"
+        )
+        out.write(f"{plain(str(shown or path))} ({plain(what)})\n")
         out.write(session.stats.table(labels) + "\n\n")
         if session.store.servers:
             out.write(server_table(session.store) + "\n\n")
@@ -122,6 +130,27 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         return status
     write_listing(out, args, session, query)
     return status
+
+
+def _network_line_note(options: ReadOptions, name: str) -> list[str]:
+    """Serial line flags mean nothing to TCP or UDP payloads: say so rather than seem to
+    apply them."""
+    given = [
+        flag
+        for flag, value in (
+            ("--baud", options.baud),
+            ("--bytesize", options.bytesize),
+            ("--parity", options.parity),
+            ("--stopbits", options.stopbits),
+        )
+        if value is not None
+    ]
+    if not given:
+        return []
+    return [
+        f"{name}: a network capture: {', '.join(given)} not used for TCP or UDP payloads "
+        "(times are packet times; no serial line speed applies to them)"
+    ]
 
 
 # rows a replay keeps in memory when nothing needs them all at the end (`--stats`): about
