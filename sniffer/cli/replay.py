@@ -89,15 +89,16 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     progress = Progress(err, shown or path.name, None if shown else path)
     settle()
     cycles = speed = None
+    origin: float | None = None  # the first row's time: where the listing counts from
     if args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
-            cycles, speed = _windowed(session, capture, progress)
+            cycles, speed, origin = _windowed(session, capture, progress)
         except DamagedError:  # a sidecar damaged after rows of it were counted
             session, capture = open_session(
                 path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
             )  # (the damaged sidecar is not read again: indexed, and written anew)
-            cycles, speed = _windowed(session, capture, progress)
+            cycles, speed, origin = _windowed(session, capture, progress)
     else:
         session.ingest(capture.chunks(), progress.reading)
     progress.done()
@@ -126,7 +127,9 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         if session.store.servers:
             out.write(server_table(session.store) + "\n\n")
         found = poll_cycles(session.store) if cycles is None else cycles.cycles()
-        out.write(cycle_table(found, labels) + "\n")
+        if origin is None and len(session.store):
+            origin = session.store.t[0]
+        out.write(cycle_table(found, labels, origin or 0.0) + "\n")
         return status
     write_listing(out, args, session, query)
     return status
@@ -161,22 +164,25 @@ REPLAY_WINDOW = 1 << 16
 
 def _windowed(
     session: Session, capture: Capture, progress: Progress
-) -> tuple[PollCycles, SpeedCheck]:
+) -> tuple[PollCycles, SpeedCheck, float | None]:
     """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle and
     the baud check count each segment before it goes, the statistics carry on (bounded
     when no sidecar keeps their values), the sidecar index is written (or read) a
     segment at a time. The network server table and a network capture's rows are not
     windowed (`Session.settled`: they stay in one store)."""
     cycles, speed = PollCycles(), SpeedCheck()
+    first: list[float] = []  # the first row's time, from the first segment that has rows
 
     def segment(s: Session) -> None:
+        if not first and len(s.store):
+            first.append(s.store.t[0])
         cycles.add(s.store)
         speed.add(s.store)
 
     if not session.indexing:
         session.stats.bound()  # (a sidecar saves the values themselves)
     session.ingest(capture.chunks(), progress.reading, window=REPLAY_WINDOW, segment=segment)
-    return cycles, speed
+    return cycles, speed, first[0] if first else None
 
 
 REPLAY_EXAMPLES = """\

@@ -170,3 +170,23 @@ def test_a_latency_below_the_printed_precision_is_a_bound_not_zero(
     assert unit[6:10] == ["<0.1"] * 4
     assert server[7:10] == ["<0.1"] * 3
     assert "0.0" not in " ".join(unit + server)
+
+
+def test_a_gap_in_polling_is_placed_as_the_listing_places_rows(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Seconds from the first row, as the listing shows times, not epoch seconds."""
+    conv = Conversation()
+    packets = []
+    t = T0
+    for k in range(40):
+        packets += [
+            (t, conv.client(mbap_frame(k + 1, MB_REQ))),
+            (t + 0.002, conv.server(mbap_frame(k + 1, MB_ANS))),
+        ]
+        t += 10.0 if k == 30 else 0.5
+    path = write(tmp_path, packets)
+    _, stats, _ = run(["replay", path, "--stats"], capsys)
+    assert "      gap at 15.000s: 10.0s without polls" in stats
+    _, listing, _ = run(["replay", path, "--format", "text"], capsys)
+    assert any(line.split()[0] == "15.000000" for line in listing)
