@@ -190,3 +190,8 @@ def test_a_gap_in_polling_is_placed_as_the_listing_places_rows(
     assert "      gap at 15.000s: 10.0s without polls" in stats
     _, listing, _ = run(["replay", path, "--format", "text"], capsys)
     assert any(line.split()[0] == "15.000000" for line in listing)
+    _, listing, _ = run(
+        ["replay", rtu_over_tcp(tmp_path, delay=0.00003), "--format", "text"], capsys
+    )
+    answers = [line for line in listing if "S>M" in line]
+    assert len(answers) == 5 and all("<0.1ms" in line and "0.0ms" not in line for line in answers)
