@@ -62,6 +62,7 @@ ENVELOPE_BAD = int(Flag.ENVELOPE_BAD)  # MBAP protocol id not 0, or a length wro
 TID_REUSED = int(Flag.TID_REUSED)  # a request reusing a transaction id still waiting
 CUT_SHORT = int(Flag.CUT_SHORT)  # the frame was cut by a gap in the captured stream
 
+STAGING_ROWS = 4096  # rows a channel's staging store may hold merged before it is replaced
 TCP_TIMEOUT = 3.0  # seconds: Modbus TCP clients (pymodbus, libmodbus) wait about this long
 
 
@@ -531,7 +532,8 @@ class NetPipeline(Pipeline):
         for c in staged:
             st = c.staging
             assert st is not None
-            if c.read and c.read == len(st):
+            # rows merge as they come: a fresh staging store now and then, not every time
+            if c.read >= STAGING_ROWS and c.read == len(st):
                 c.staging = FrameStore(store.streams)
                 if c.framer is not None:
                     c.framer.out = c.staging
