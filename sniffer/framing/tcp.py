@@ -21,8 +21,8 @@ that speaks RTU framing over TCP) had the whole payload when it sent the packet,
 every byte has its packet's time, never a time back-dated by a baud rate. Each packet
 starts at a boundary, as silence does on a line: bytes no frame claims are split into
 noise at packet starts, and a whole packet of frame size (4 to 256 bytes) from a unit
-the connection knows, or with a function code the registry knows, is a frame with a
-bad check (a CRC garbled on the serial side, swapped by a buggy gateway), not noise. One
+the connection knows, or of the length its function code gives, is a frame with a bad
+check (a CRC garbled on the serial side, swapped by a buggy gateway), not noise. One
 request is in flight per connection: when one side sends, the bytes the other side
 left undecided are decided (its turn is over).
 
@@ -271,7 +271,13 @@ class PacketRtuFramer(RtuFramer):
             MIN_RTU <= length <= MAX_RTU
             and tl.is_boundary(start)
             and (stop == len(buf) or tl.is_boundary(stop))
-            and (buf[start] in self.units_seen or bool(self.rules[buf[start + 1]]))
+            and (
+                buf[start] in self.units_seen
+                or any(
+                    rule.length(buf, start, stop) == length
+                    for rule, _ in self.rules[buf[start + 1]]
+                )
+            )
         ):
             return True  # one whole packet: what the sender sent as one frame
         return super()._plausible_frame(start, length)

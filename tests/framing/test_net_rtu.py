@@ -33,12 +33,15 @@ def swapped(frame: bytes) -> bytes:
 
 
 def frame(
-    tmp_path: Path, packets: list[tuple[float, bytes]], baud: int | None = None
+    tmp_path: Path,
+    packets: list[tuple[float, bytes]],
+    baud: int | None = None,
+    port: int | None = None,
 ) -> FrameStore:
     """Framed and paired as `modscope replay` does (the capture's stamps and labels)."""
     path = tmp_path / "c.pcap"
     path.write_bytes(pcap(1, packets))
-    options = ReadOptions(baud=baud)
+    options = ReadOptions(baud=baud, port=port)
     capture = open_capture(path, options)
     info = capture.info
     pipeline = NetPipeline(
@@ -213,3 +216,25 @@ def test_rtu_over_udp_answers_follow_their_requests(tmp_path: Path) -> None:
     for i in answers:
         latency = measure(store, i)
         assert latency is not None and latency.seconds == pytest.approx(0.001, abs=2e-6)
+
+
+def test_a_garbled_answer_whose_request_the_capture_missed_is_still_a_frame(
+    tmp_path: Path,
+) -> None:
+    """The capture starts between a request and its answer, and that answer's CRC is
+    garbled: no unit is known yet, but the packet has the length its function code gives
+    (a byte count of 6: 11 bytes), so it is an answer with a bad check. (`--port` says
+    which side is the server: the capture saw no SYN.)"""
+    conv = Conversation(server_port=4001)
+    packets = [
+        (T0, conv.server(swapped(answer(7, 8)))),
+        (T0 + 0.2, conv.client(REQUEST)),
+        (T0 + 0.2005, conv.server(answer(7, 8))),
+    ]
+    store = frame(tmp_path, packets, port=4001)
+    assert [(store.kind[i], bool(store.flags[i] & Flag.CHECK_BAD)) for i in range(len(store))] == [
+        (Kind.RESPONSE, True),
+        (Kind.REQUEST, False),
+        (Kind.RESPONSE, False),
+    ]
+    assert store.t[0] == pytest.approx(T0, abs=1e-6) and store.status[0] == Status.ORPHAN

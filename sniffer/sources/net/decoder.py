@@ -307,9 +307,8 @@ class NetDecoder:
             return
         if not self.ready or self.ready[-1].t_end <= held[0].t_end:
             self.ready.extend(held)
-        else:
-            key = _time
-            self.ready = deque(heapq.merge(self.ready, held, key=key))
+        else:  # older than chunks already waiting: merged in by time
+            self.ready = deque(heapq.merge(self.ready, held, key=_time))
 
     def _summarise(self) -> None:
         others = [c for c in self.connections.values() if c.carrier == carriers.OTHER]
