@@ -11,8 +11,10 @@ answer end)) / 2.
 A TCP request is linked to the first serial request after it (within `timeout`, less
 `slack` before it for clock error) with the same unit and the same PDU, not linked yet.
 Verdicts (`Verdict`): ok, not sent on the serial side, device timed out, answer lost by
-the gateway, gateway exception explained by the serial side (0x0A/0x0B), gateway
-exception although the device answered, answers that differ.
+the gateway, gateway exception explained by the serial side (0x0A/0x0B), the device's
+answer garbled on the serial line (a bad check, or a framing or parity error: the
+gateway rightly refused it, with 0x0B or with silence), gateway exception although the
+device answered intact, answers that differ.
 """
 
 from __future__ import annotations
@@ -26,10 +28,12 @@ from dissectors import mbap
 from dissectors.envelope import ascii_body
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.framing.tcp import MBAP
-from sniffer.vocab import Flag, Kind
+from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 GATEWAY_PATH_UNAVAILABLE = 0x0A
 GATEWAY_TARGET_FAILED = 0x0B
+# an answer that reached the tap damaged: a gateway on the same line got it damaged too
+GARBLED = BAD_CHECK | int(Flag.LINE_ERROR)
 
 
 class Verdict(enum.Enum):
@@ -38,7 +42,8 @@ class Verdict(enum.Enum):
     DEVICE_TIMEOUT = "device-timeout"  # sent, the device did not answer
     ANSWER_LOST = "answer-lost"  # the device answered, the TCP client got nothing
     GATEWAY_EXCEPTION = "gateway-exception"  # 0x0A/0x0B, and the serial side agrees
-    GATEWAY_FAULT = "gateway-fault"  # 0x0A/0x0B although the device answered
+    LINE_ERROR = "line-error"  # the device's answer was garbled on the serial line
+    GATEWAY_FAULT = "gateway-fault"  # 0x0A/0x0B although the device answered intact
     MISMATCH = "mismatch"  # both answered, with different PDUs
 
 
@@ -54,6 +59,7 @@ class Side:
     t_answer_end: float | None
     body: bytes
     answer_body: bytes | None
+    answer_intact: bool = True  # the answer passed its check, with no line error
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,6 +104,7 @@ def transactions(store: FrameStore) -> list[Side]:
                 store.t_end[j] if answered else None,
                 _body(store, i),
                 _body(store, j) if answered else None,
+                not answered or not store.flags[j] & GARBLED,
             )
         )
     return out
@@ -262,8 +269,19 @@ def _verdict(t: Side, s: Side | None, offset: float) -> Link:
     if t.answer_body is not None and len(t.answer_body) >= 3 and t.answer_body[1] & 0x80:
         code = t.answer_body[2]
     device_answered = s is not None and s.answer_body is not None
+    garbled = device_answered and s is not None and not s.answer_intact
     if code in (GATEWAY_PATH_UNAVAILABLE, GATEWAY_TARGET_FAILED):
         name = "0x0A path unavailable" if code == GATEWAY_PATH_UNAVAILABLE else "0x0B target failed"
+        if garbled:
+            return Link(
+                t,
+                s,
+                Verdict.LINE_ERROR,
+                delay_in,
+                delay_out,
+                f"gateway answered {name}: the device's answer was garbled on the serial "
+                "line (its check failed), so the gateway rightly refused it",
+            )
         if device_answered:
             return Link(
                 t,
@@ -294,6 +312,16 @@ def _verdict(t: Side, s: Side | None, offset: float) -> Link:
             delay_in,
             None,
             "sent on the serial line; the device did not answer",
+        )
+    if t.answer_body is None and garbled:
+        return Link(
+            t,
+            s,
+            Verdict.LINE_ERROR,
+            delay_in,
+            None,
+            "the device's answer was garbled on the serial line (its check failed); the "
+            "gateway passed nothing on",
         )
     if t.answer_body is None:
         return Link(

@@ -10,9 +10,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from sniffer.analysis.gateway import Link, Verdict
+from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.pairing import measure
 from sniffer.framing.store import FrameStore
-from sniffer.vocab import Kind, Status
+from sniffer.vocab import BAD_CHECK, Kind, Status
 
 
 @dataclass
@@ -21,56 +22,68 @@ class _Counts:
     answers: int = 0
     exceptions: int = 0
     timeouts: int = 0
+    check_errors: int = 0
     latencies: list[float] = field(default_factory=list)
 
 
 def _quantile(values: Sequence[float], q: float) -> float | None:
-    if not values:
-        return None
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
+    return nearest_rank(values, q)
 
 
 def _ms(x: float | None) -> str:
-    return "-" if x is None else f"{x * 1000:.1f}"
+    if x is None:
+        return "-"
+    if 0 <= x < 0.00005:
+        return "<0.1"  # never a latency or delay that reads as 0
+    return f"{x * 1000:.1f}"
+
+
+_FRAMES = (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION, Kind.UNKNOWN)
 
 
 def server_table(store: FrameStore) -> str:
-    """Requests, answers, exceptions, timeouts and latency per (server, unit) of a
-    network capture's rows; empty when no row has a server (not a network capture)."""
+    """Requests, answers, exceptions, timeouts, frames with a bad check and latency per
+    (server, unit) of a network capture's rows, counted and measured as the per-unit
+    table counts them (`sniffer.analysis.stats`: frames with a good check; latencies
+    as `measure` gives them, nearest-rank quantiles); empty when no row has a server
+    (not a network capture)."""
     if not store.servers:
         return ""
     store.sync()
     table: dict[tuple[str, int], _Counts] = {}
     for i in range(len(store)):
         k = store.kind[i]
-        if k not in (Kind.REQUEST, Kind.RESPONSE, Kind.EXCEPTION):
+        if k not in _FRAMES:
             continue
         server = store.servers.get(store.channel[i])
         if server is None:
             continue
         c = table.setdefault((server, store.unit[i]), _Counts())
+        if store.flags[i] & BAD_CHECK:
+            c.check_errors += 1
+            continue
         if k == Kind.REQUEST:
             c.requests += 1
             if store.status[i] == Status.TIMEOUT:
                 c.timeouts += 1
             continue
+        if k == Kind.UNKNOWN:
+            continue
         c.answers += 1
         if k == Kind.EXCEPTION:
             c.exceptions += 1
-        # only what the stamps can measure: a log printing whole seconds gives a request
-        # and its answer one time, which is no latency of 0
-        if (m := measure(store, i)) is not None and not m.bound:
-            c.latencies.append(m.seconds)
+        measured = measure(store, i)
+        if measured is not None and not measured.bound:
+            c.latencies.append(measured.seconds)
     head = (
         f"{'server':<22} {'unit':>4} {'req':>7} {'resp':>7} {'exc':>5} {'t/o':>5} "
-        f"{'median':>8} {'p95':>8} {'max':>8}"
+        f"{'chk':>5} {'median':>8} {'p95':>8} {'max':>8}"
     )
     lines = ["per server and unit (latency in ms)", head, "-" * len(head)]
     for (server, unit), c in sorted(table.items()):
         lines.append(
             f"{server:<22} {unit:>4} {c.requests:>7} {c.answers:>7} {c.exceptions:>5} "
-            f"{c.timeouts:>5} {_ms(_quantile(c.latencies, 0.5)):>8} "
+            f"{c.timeouts:>5} {c.check_errors:>5} {_ms(_quantile(c.latencies, 0.5)):>8} "
             f"{_ms(_quantile(c.latencies, 0.95)):>8} {_ms(_quantile(c.latencies, 1)):>8}"
         )
     return "\n".join(lines)
@@ -82,7 +95,8 @@ VERDICT_WORDS = {
     Verdict.DEVICE_TIMEOUT: "sent on the serial line, the device did not answer",
     Verdict.ANSWER_LOST: "the device answered, the gateway did not pass it on",
     Verdict.GATEWAY_EXCEPTION: "gateway exception 0x0A/0x0B, the serial side agrees",
-    Verdict.GATEWAY_FAULT: "gateway exception 0x0A/0x0B although the device answered",
+    Verdict.LINE_ERROR: "the device's answer was garbled on the serial line",
+    Verdict.GATEWAY_FAULT: "gateway exception 0x0A/0x0B although the device answered intact",
     Verdict.MISMATCH: "both answered, the answers differ",
 }
 

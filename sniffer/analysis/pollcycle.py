@@ -327,8 +327,11 @@ def _ms(seconds: float) -> str:
     return f"{seconds * 1000:.0f}ms" if seconds < 10 else f"{seconds:.1f}s"
 
 
-def cycle_table(cycles: Mapping[int, UnitCycle], labels: Mapping[int, str] | None = None) -> str:
-    """The poll cycle as text for `--stats`."""
+def cycle_table(
+    cycles: Mapping[int, UnitCycle], labels: Mapping[int, str] | None = None, origin: float = 0.0
+) -> str:
+    """The poll cycle as text for `--stats`; gaps are placed in seconds from `origin` (the
+    listing's first row, as the listing shows times), not as epoch seconds."""
     labels = labels or {}
     rows = [
         "poll cycle",
@@ -349,7 +352,7 @@ def cycle_table(cycles: Mapping[int, UnitCycle], labels: Mapping[int, str] | Non
         if label and cycle.polls:
             rows[-len(cycle.polls)] += f"  {label}"
         for g in cycle.gaps[:3]:
-            rows.append(f"      gap at {g.start:.3f}s: {_ms(g.length)} without polls")
+            rows.append(f"      gap at {g.start - origin:.3f}s: {_ms(g.length)} without polls")
         if len(cycle.gaps) > 3:
             rows.append(f"      ... {len(cycle.gaps) - 3} more gaps")
     return "\n".join(rows)

@@ -462,7 +462,9 @@ class Stats:
         lines = [head, "-" * len(head)]
 
         def ms(x: float | None) -> str:
-            return "-" if x is None else f"{x:.1f}"
+            if x is None:
+                return "-"
+            return "<0.1" if x < 0.05 else f"{x:.1f}"  # never a latency that reads as 0
 
         for u in sorted(self.units):
             st = self.units[u]
@@ -475,7 +477,8 @@ class Stats:
                 f"{'-' if period is None else f'{period * 1000:.0f}ms':>8}"
             )
             if st.exceptions:
-                codes = ", ".join(f"{c:02d} x{n}" for c, n in sorted(st.exceptions.items()))
+                # in hex, as the listing and the specification write them (0B, not 11)
+                codes = ", ".join(f"{c:02X} x{n}" for c, n in sorted(st.exceptions.items()))
                 lines.append(f"{'':>4}  exceptions by code: {codes}")
         lines.append(
             f"noise: {self.noise_spans} spans, {self.noise_bytes} bytes; events: {self.events}"

@@ -34,7 +34,8 @@ from sniffer.errors import UsageError
 from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
 from sniffer.session.index import DamagedError
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
-from sniffer.sources import Capture
+from sniffer.sources import Capture, ReadOptions
+from sniffer.sources.net import summary as net_summary
 from sniffer.text import plain
 
 
@@ -88,15 +89,16 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
     progress = Progress(err, shown or path.name, None if shown else path)
     settle()
     cycles = speed = None
+    origin: float | None = None  # the first row's time: where the listing counts from
     if args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
-            cycles, speed = _windowed(session, capture, progress)
+            cycles, speed, origin = _windowed(session, capture, progress)
         except DamagedError:  # a sidecar damaged after rows of it were counted
             session, capture = open_session(
                 path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
             )  # (the damaged sidecar is not read again: indexed, and written anew)
-            cycles, speed = _windowed(session, capture, progress)
+            cycles, speed, origin = _windowed(session, capture, progress)
     else:
         session.ingest(capture.chunks(), progress.reading)
     progress.done()
@@ -106,22 +108,52 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         slow = wrong_speed(session.store) if speed is None else speed.warning()
     if slow is not None:
         session.warnings.append(f"{shown or path}: {slow}")
-    for note in [*capture.info.notes, *session.notes]:
+    unused = _network_line_note(options, str(shown or path)) if capture.info.network else []
+    for note in [*capture.info.notes, *session.notes, *unused]:
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     status = finish_read(capture, session, err)
     if args.stats:
         labels = {u: plain(b.label) for u, b in bindings.items()}
-        out.write(f"{plain(str(shown or path))} ({session.line.describe()}, mode {session.mode})\n")
+        # a network capture has no serial line: say what it carries instead
+        what = (
+            net_summary(capture.info.channels)
+            if capture.info.network
+            else f"{session.line.describe()}, mode {session.mode}"
+        )
+        out.write(f"{plain(str(shown or path))} ({plain(what)})\n")
         out.write(session.stats.table(labels) + "\n\n")
         if session.store.servers:
             out.write(server_table(session.store) + "\n\n")
         found = poll_cycles(session.store) if cycles is None else cycles.cycles()
-        out.write(cycle_table(found, labels) + "\n")
+        if origin is None and len(session.store):
+            origin = session.store.t[0]
+        out.write(cycle_table(found, labels, origin or 0.0) + "\n")
         return status
     write_listing(out, args, session, query)
     return status
+
+
+def _network_line_note(options: ReadOptions, name: str) -> list[str]:
+    """Serial line flags mean nothing to TCP or UDP payloads: say so rather than seem to
+    apply them."""
+    given = [
+        flag
+        for flag, value in (
+            ("--baud", options.baud),
+            ("--bytesize", options.bytesize),
+            ("--parity", options.parity),
+            ("--stopbits", options.stopbits),
+        )
+        if value is not None
+    ]
+    if not given:
+        return []
+    return [
+        f"{name}: a network capture: {', '.join(given)} not used for TCP or UDP payloads "
+        "(times are packet times; no serial line speed applies to them)"
+    ]
 
 
 # rows a replay keeps in memory when nothing needs them all at the end (`--stats`): about
@@ -132,22 +164,25 @@ REPLAY_WINDOW = 1 << 16
 
 def _windowed(
     session: Session, capture: Capture, progress: Progress
-) -> tuple[PollCycles, SpeedCheck]:
+) -> tuple[PollCycles, SpeedCheck, float | None]:
     """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle and
     the baud check count each segment before it goes, the statistics carry on (bounded
     when no sidecar keeps their values), the sidecar index is written (or read) a
     segment at a time. The network server table and a network capture's rows are not
     windowed (`Session.settled`: they stay in one store)."""
     cycles, speed = PollCycles(), SpeedCheck()
+    first: list[float] = []  # the first row's time, from the first segment that has rows
 
     def segment(s: Session) -> None:
+        if not first and len(s.store):
+            first.append(s.store.t[0])
         cycles.add(s.store)
         speed.add(s.store)
 
     if not session.indexing:
         session.stats.bound()  # (a sidecar saves the values themselves)
     session.ingest(capture.chunks(), progress.reading, window=REPLAY_WINDOW, segment=segment)
-    return cycles, speed
+    return cycles, speed, first[0] if first else None
 
 
 REPLAY_EXAMPLES = """\

@@ -15,9 +15,23 @@ flight; a request reusing an id still in flight gets `TID_REUSED`; an answer to 
 nobody asked for is an orphan. RTU frames over TCP/UDP are paired one transaction at a
 time per connection, as on a serial line.
 
+`PacketRtuFramer` is the RTU framer for RTU over TCP/UDP. No serial line speed applies
+to a payload: the sender (a serial server that read the frame off its line, or a device
+that speaks RTU framing over TCP) had the whole payload when it sent the packet, so
+every byte has its packet's time, never a time back-dated by a baud rate. Each packet
+starts at a boundary, as silence does on a line: bytes no frame claims are split into
+noise at packet starts, and a whole packet of frame size (4 to 256 bytes) from a unit
+the connection knows, or of the length its function code gives, is a frame with a bad
+check (a CRC garbled on the serial side, swapped by a buggy gateway), not noise. One
+request is in flight per connection: when one side sends, the bytes the other side
+left undecided are decided (its turn is over).
+
 `NetPipeline` is the pipeline with these plugged in: a channel whose label (see
 `sniffer.sources.net.carrier`) says `modbus-tcp` or `modbus-udp` is framed by a
-`TcpFramer`; the others by the RTU framer.
+`TcpFramer`; the other network channels by a `PacketRtuFramer`. The decoder gives
+chunks in time order over all connections (`sniffer.sources.net.decoder`), so rows are
+merged as soon as no channel can still give an older one: rows are stored in time
+order, a request before its answer when both have the same time.
 """
 
 from __future__ import annotations
@@ -29,8 +43,9 @@ from typing import TYPE_CHECKING, Any, cast
 
 from dissectors import mbap
 from dissectors.functions import FUNCTIONS, FunctionSpec
+from sniffer.framing.lengths import MAX_RTU, MIN_RTU
 from sniffer.framing.pipeline import Pipeline, _Channel
-from sniffer.framing.serial import MAX_NOISE
+from sniffer.framing.serial import MAX_NOISE, RtuFramer
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.sources.net.carrier import MBAP_CARRIERS, parse_label
@@ -39,6 +54,7 @@ from sniffer.vocab import Flag, Kind, Status
 
 if TYPE_CHECKING:
     from sniffer.framing.serial import Framer
+    from sniffer.sources.reads import Reads
 
 # Flag bits of network rows, named in the one table of meanings (sniffer.vocab)
 MBAP = int(Flag.MBAP)  # the row is a Modbus TCP frame: raw = MBAP header + PDU (a fact)
@@ -46,6 +62,7 @@ ENVELOPE_BAD = int(Flag.ENVELOPE_BAD)  # MBAP protocol id not 0, or a length wro
 TID_REUSED = int(Flag.TID_REUSED)  # a request reusing a transaction id still waiting
 CUT_SHORT = int(Flag.CUT_SHORT)  # the frame was cut by a gap in the captured stream
 
+STAGING_ROWS = 4096  # rows a channel's staging store may hold merged before it is replaced
 TCP_TIMEOUT = 3.0  # seconds: Modbus TCP clients (pymodbus, libmodbus) wait about this long
 
 
@@ -105,6 +122,10 @@ class TcpFramer:
     def gap(self) -> None:
         """Bytes are missing from the stream here: what is open is closed as it is."""
         self._scan(final=True)
+
+    def start_pending(self) -> float | None:
+        """The time of the first byte not yet in a row; None when every byte is."""
+        return self._time(self.pos) if self.pos < len(self.stream) else None
 
     # -- internals -------------------------------------------------------------------
 
@@ -203,6 +224,63 @@ class TcpFramer:
         )
         out.unit[-1] = header.unit
         out.fc[-1] = fc
+
+
+class PacketRtuFramer(RtuFramer):
+    """Frames one direction of an RTU over TCP/UDP connection (module doc)."""
+
+    def feed(self, chunk: Chunk) -> None:
+        if not chunk.data:
+            return
+        tl = self.timeline
+        start = len(self.stream)
+        tl.add_read(len(chunk.data), chunk.t_end, chunk.t_end)  # every byte at packet time
+        if not tl.boundaries or tl.boundaries[-1] != start:
+            tl.boundaries.append(start)  # a packet starts here, whatever the gap before
+        self.stream += chunk.data
+        self._scan(final=False)
+
+    def feed_reads(self, reads: Reads) -> None:
+        for chunk in reads.split():
+            self.feed(chunk)
+
+    def undecided(self) -> bool:
+        """Whether bytes wait to be decided (a frame not yet complete, or noise)."""
+        return self.pos < len(self.stream) or self.noise_start >= 0
+
+    def start_pending(self) -> float | None:
+        """The time of the first byte not yet in a row; None when every byte is."""
+        first = self.noise_start if self.noise_start >= 0 else self.pos
+        if first >= len(self.stream):
+            return None
+        return self.timeline.start_time(first)
+
+    def _emit_noise(self, start: int, end: int) -> None:
+        tl = self.timeline
+        while start < end:
+            nxt = tl.next_boundary(start)
+            stop = end if nxt is None or nxt >= end else nxt
+            super()._emit_noise(start, stop)
+            start = stop
+
+    def _plausible_frame(self, start: int, length: int) -> bool:
+        tl = self.timeline
+        stop = start + length
+        buf = self.stream
+        if (
+            MIN_RTU <= length <= MAX_RTU
+            and tl.is_boundary(start)
+            and (stop == len(buf) or tl.is_boundary(stop))
+            and (
+                buf[start] in self.units_seen
+                or any(
+                    rule.length(buf, start, stop) == length
+                    for rule, _ in self.rules[buf[start + 1]]
+                )
+            )
+        ):
+            return True  # one whole packet: what the sender sent as one frame
+        return super()._plausible_frame(start, length)
 
 
 class NetPairer:
@@ -363,12 +441,24 @@ class NetPipeline(Pipeline):
             wait += self.store.resolution  # a coarse clock shows no shorter wait (Pipeline)
         self.pairer = NetPairer(self.store, wait)  # type: ignore[assignment]
         self.mode = "rtu"  # RTU over TCP/UDP; Modbus TCP channels get their own framer
+        self.units: dict[int, set[int]] = {}  # units seen on each RTU connection
+        self.now = float("-inf")  # the newest chunk's time
 
     def feed(self, chunk: Chunk) -> None:
         if chunk.event == GAP:
             ch = self.channels.get(chunk.channel)
             if ch is not None and isinstance(ch.framer, TcpFramer):
                 ch.framer.gap()
+        if chunk.data:
+            # one request in flight: when one side sends, the other's turn is over
+            other = self.channels.get(chunk.channel ^ 1)
+            if (
+                other is not None
+                and isinstance(other.framer, PacketRtuFramer)
+                and other.framer.undecided()
+            ):
+                other.framer.idle()
+        self.now = max(self.now, chunk.t_end)
         super().feed(chunk)
 
     def too_fast(self) -> tuple[int, float | None]:
@@ -377,24 +467,86 @@ class NetPipeline(Pipeline):
 
     def _start_framer(self, ch: _Channel) -> None:
         label = parse_label(self.channel_labels.get(ch.number, ""))
-        if label is not None:
-            self.store.peers[ch.number] = label.sender
-            server = label.sender if label.role == Direction.SLAVE else label.receiver
-            self.store.servers[ch.number] = server
-        if label is None or label.carrier not in MBAP_CARRIERS:
+        if label is None:  # a serial interface of the same file
             super()._start_framer(ch)
             return
-        framer = TcpFramer(
-            self.line,
-            ch.staging if ch.staging is not None else self.store,
-            channel=ch.number,
-            direction=ch.direction,
-        )
-        ch.framer = cast("Framer", framer)  # the same interface; see docs/ethernet.md
+        self.store.peers[ch.number] = label.sender
+        server = label.sender if label.role == Direction.SLAVE else label.receiver
+        self.store.servers[ch.number] = server
+        out = ch.staging if ch.staging is not None else self.store
+        if label.carrier in MBAP_CARRIERS:
+            framer = TcpFramer(self.line, out, channel=ch.number, direction=ch.direction)
+            ch.framer = cast("Framer", framer)  # the same interface; see docs/ethernet.md
+        else:
+            rtu = PacketRtuFramer(
+                self.line, out, channel=ch.number, direction=ch.direction, functions=self.registry
+            )
+            rtu.pair_inline = False  # NetPairer pairs, per connection
+            rtu.timeout = self.pairer.timeout
+            # a unit one side names is known to the other (a garbled answer to it is a frame)
+            rtu.units_seen = self.units.setdefault(ch.number >> 1, rtu.units_seen)
+            ch.framer = rtu
         held, ch.held = ch.held or [], None
         for old in held:
             if old.event and not old.data:
                 self._add_event(ch, old)  # held in its place (Pipeline.feed)
                 continue
-            framer.feed(old)
+            ch.framer.feed(old)
             ch.last_t = old.t_end
+
+    def _release(self, final: bool, now: float | None = None) -> None:
+        """Merge the rows no channel can still precede: chunks come in time order, so a
+        network channel's next row is no older than its first undecided byte, or than
+        the newest chunk when it has none (a serial interface of the same file keeps the
+        merge slack)."""
+        for ch in self.channels.values():
+            if ch.framer is not None:
+                ch.framer.flush()
+        if not self.multi:
+            return
+        if final:
+            self._merge(float("inf"))
+            return
+        watermark = self.now
+        for ch in self.channels.values():
+            framer = ch.framer
+            if isinstance(framer, PacketRtuFramer | TcpFramer):
+                pending = framer.start_pending()
+                if pending is not None:
+                    watermark = min(watermark, pending)
+            elif framer is not None or parse_label(self.channel_labels.get(ch.number, "")) is None:
+                watermark = min(watermark, ch.last_t - self.merge_slack)
+        if now is not None:
+            watermark = max(watermark, now - self.merge_slack)
+        self._merge(watermark)
+
+    def _merge(self, watermark: float) -> None:
+        """Copy staged rows up to `watermark` into the store in time order; of rows with
+        the same time, the lower channel's first (a connection's request before its
+        answer)."""
+        store = self.store
+        staged = [c for c in self.channels.values() if c.staging is not None]
+        while True:
+            best: _Channel | None = None
+            best_key = (watermark, 1 << 16)
+            for c in staged:
+                st = c.staging
+                assert st is not None
+                if c.read < len(st):
+                    key = (st.t[c.read], c.number)
+                    if key[0] <= watermark and key < best_key:
+                        best, best_key = c, key
+            if best is None:
+                break
+            assert best.staging is not None
+            store.copy_row(best.staging, best.read)
+            best.read += 1
+        for c in staged:
+            st = c.staging
+            assert st is not None
+            # rows merge as they come: a fresh staging store now and then, not every time
+            if c.read >= STAGING_ROWS and c.read == len(st):
+                c.staging = FrameStore(store.streams)
+                if c.framer is not None:
+                    c.framer.out = c.staging
+                c.read = 0

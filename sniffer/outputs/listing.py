@@ -246,7 +246,7 @@ def update_text(d: FrameDetail) -> str:
     if v.partner != NO_PARTNER:
         line += f", answer #{v.partner}"
     if d.latency_ms is not None:
-        line += f" {d.latency_ms:.1f}ms"
+        line += f" {_tenths(d.latency_ms).strip()}ms"
     elif d.latency_max_ms is not None:
         line += f" <{d.latency_max_ms:.0f}ms"
     return line
@@ -297,10 +297,17 @@ def _text_parts(d: FrameDetail) -> tuple[str, str]:
 
 def _latency_text(ms: float | None, max_ms: float | None) -> str:
     if ms is not None:
-        return f" {ms:7.1f}ms"
+        return f" {_tenths(ms)}ms"
     if max_ms is not None:
         return f" {'<' + format(max_ms, '.0f'):>7}ms"
     return ""
+
+
+def _tenths(ms: float) -> str:
+    """A latency in ms to 0.1, 7 wide; one under 0.05 ms as `<0.1`, never as 0.0 (a
+    packet capture resolves microseconds: a server on the capturing host answers in
+    tens of them)."""
+    return f"{'<0.1':>7}" if ms < 0.05 else f"{ms:7.1f}"
 
 
 def _json_float(x: float) -> str:
@@ -508,7 +515,7 @@ class Lister:
             return when + parts[2]
         if measured.bound:
             return f"{when}{parts[0]} {'<' + format(measured.seconds * 1000, '.0f'):>7}ms{parts[1]}"
-        return f"{when}{parts[0]} {measured.seconds * 1000:7.1f}ms{parts[1]}"
+        return f"{when}{parts[0]} {_tenths(measured.seconds * 1000)}ms{parts[1]}"
 
     def _json_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s JSONL line from what rows with its content share, with the row's

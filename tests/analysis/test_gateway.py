@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
 from sniffer.analysis.gateway import Verdict, estimate_offset, link, transactions
+from sniffer.analysis.gateway_report import gateway_table
 from sniffer.framing.pipeline import frame_capture
 from sniffer.framing.store import FrameStore
 from sniffer.framing.tcp import NetPipeline
@@ -21,6 +22,7 @@ from tests.support.gateway import (
     CASES,
     DELAY_IN,
     DELAY_OUT,
+    EXC_0B,
     EXPECTED,
     LINE,
     RTU_TIME,
@@ -172,3 +174,51 @@ def test_fast_repeated_polls_link_one_for_one(fates: list[str]) -> None:
     assert offset == pytest.approx(37.0, abs=0.02)
     links = link(tcp, serial, offset=offset)
     assert [x.verdict for x in links] == [FATE_VERDICT[f] for f in fates]
+
+
+# (TCP answer, the device's answer garbled on the serial line?, verdict)
+GARBLED = [
+    (EXC_0B, True, "line-error"),
+    (None, True, "line-error"),
+    (EXC_0B, False, "gateway-fault"),
+    (None, False, "answer-lost"),
+]
+
+
+def test_an_answer_garbled_on_the_serial_line_is_a_line_error_not_a_gateway_fault(
+    tmp_path: Path,
+) -> None:
+    """The device answered, but its CRC came garbled over the serial line: the gateway
+    rightly refused it (0x0B, or nothing). That is a serial-side line error; a gateway
+    exception although the device answered intact is the gateway's fault."""
+    conv = Conversation()
+    packets: list[tuple[float, bytes]] = []
+    chunks: list[Chunk] = []
+    for k, (tcp_answer, garbled, _) in enumerate(GARBLED):
+        t = 3000.0 + k
+        request = read_request(k)
+        packets.append((t, conv.client(mbap_frame(k + 1, request))))
+        sent_end = t + DELAY_IN + RTU_TIME
+        chunks.append(Chunk(with_crc(request), t_end=sent_end))
+        raw = with_crc(read_answer(40 + k))
+        if garbled:
+            assert raw[-1] != raw[-2]
+            raw = raw[:-2] + raw[-1:] + raw[-2:-1]  # the CRC bytes swapped
+        answer_end = sent_end + 0.005 + RTU_TIME
+        chunks.append(Chunk(raw, t_end=answer_end))
+        if tcp_answer is not None:
+            packets.append((answer_end + 0.2, conv.server(mbap_frame(k + 1, tcp_answer))))
+    path = tmp_path / "tcp.pcap"
+    path.write_bytes(pcap(1, packets))
+    capture = open_capture(path)
+    pipeline = NetPipeline(LINE, channels=capture.info.channels)
+    pipeline.feed_all(capture.chunks())
+    pipeline.finish()
+    links = link(pipeline.store, frame_capture(chunks, LINE))
+    assert [x.verdict.value for x in links] == [v for _, _, v in GARBLED]
+    assert "garbled on the serial line" in links[0].text and "0x0B" in links[0].text
+    assert "garbled on the serial line" in links[1].text
+    assert "intact" not in links[2].text and "device answered" in links[2].text
+    table = gateway_table(links).splitlines()
+    row = next(line for line in table if line.split()[:1] == ["line-error"])
+    assert row.split(maxsplit=2)[1:] == ["2", "the device's answer was garbled on the serial line"]

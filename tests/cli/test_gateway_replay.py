@@ -379,3 +379,40 @@ def test_export_and_diff_take_the_network_options(
     assert [r["raw"] for r in rows if r["kind"] != "event"] == [request.hex(), answer.hex()]
     code, _, err = run(["diff", str(path), str(path), "--carrier", "rtu-over-tcp"], capsys)
     assert code == 0, err
+
+
+def test_an_answer_garbled_on_the_serial_line_is_a_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The device answers, its CRC garbled on the RS-485 side; the gateway answers 0x0B.
+    The gateway did right: the verdict blames the serial line, not the gateway."""
+    conv = Conversation()
+    packets = [(1000.0 + k * 0.001, p) for k, p in enumerate(conv.handshake())]
+    serial: list[tuple[float, bytes]] = []
+    for k in range(4):
+        t = 1001.0 + k
+        request = gw.read_request(10 + k)
+        packets.append((t, conv.client(gw.mbap_frame(k + 1, request))))
+        serial_end = t + gw.DELAY_IN + gw.RTU_TIME
+        serial.append((serial_end, with_crc(request)))
+        answer = with_crc(gw.read_answer(20 + k))
+        garbled = k == 2
+        if garbled:
+            answer = answer[:-2] + answer[-1:] + answer[-2:-1]
+        answer_end = serial_end + 0.02 + gw.RTU_TIME
+        serial.append((answer_end, answer))
+        reply = gw.EXC_0B if garbled else gw.read_answer(20 + k)
+        packets.append((answer_end + gw.DELAY_OUT, conv.server(gw.mbap_frame(k + 1, reply))))
+    tcp_path, serial_path = tmp_path / "tcp.pcap", tmp_path / "serial.pcap"
+    tcp_path.write_bytes(pcap(1, packets))
+    serial_path.write_bytes(pcap(147, serial))
+    given = ["--offset", "serial.pcap=0"]
+    rows, _ = jsonl(["replay", str(tcp_path), str(serial_path), *LINE, *given], capsys)
+    requests = [r for r in rows if r["mode"] == "tcp" and r["kind"] == "request"]
+    assert [r["gateway"]["verdict"] for r in requests] == ["ok", "ok", "line-error", "ok"]
+    assert "garbled on the serial line" in requests[2]["gateway"]["text"]
+    _, lines, _ = run(["replay", str(tcp_path), str(serial_path), *LINE, *given, "--stats"], capsys)
+    verdicts = {
+        x.split()[0]: x.split()[1] for x in lines if x.startswith("  ") and len(x.split()) > 1
+    }
+    assert verdicts.get("line-error") == "1" and "gateway-fault" not in verdicts

@@ -13,11 +13,18 @@ from dataclasses import replace
 
 from sniffer.model import Labels, SourceInfo, Stamp
 from sniffer.sources.base import ReadOptions
-from sniffer.sources.net.carrier import ChannelLabel, parse_label
+from sniffer.sources.net.carrier import ChannelLabel, parse_label, summary
 from sniffer.sources.net.decoder import NetDecoder
 from sniffer.sources.net.packets import NET_LINKTYPES
 
-__all__ = ["NET_LINKTYPES", "ChannelLabel", "NetDecoder", "for_capture", "parse_label"]
+__all__ = [
+    "NET_LINKTYPES",
+    "ChannelLabel",
+    "NetDecoder",
+    "for_capture",
+    "parse_label",
+    "summary",
+]
 
 
 def for_capture(

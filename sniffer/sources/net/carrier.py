@@ -19,6 +19,7 @@ so consumers of `SourceInfo.channels` can find the peer and the carrier.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from dissectors import mbap
@@ -137,3 +138,36 @@ def parse_label(label: str) -> ChannelLabel | None:
         return None
     role = Direction.SLAVE if match[5] else Direction.MASTER
     return ChannelLabel(match[1], match[2], match[3], match[4], role)
+
+
+SHOWN_SERVERS = 4  # servers a summary names; the others are counted
+
+
+def summary(channels: Mapping[int, str]) -> str:
+    """What a network capture holds, from its channel labels, for a header in place of
+    serial line settings: `network: 2 TCP connections, modbus-tcp, servers
+    192.168.1.20:502, 192.168.1.30:503`."""
+    connections: dict[str, set[tuple[str, str]]] = {}  # transport -> (client, server)
+    carriers: list[str] = []
+    servers: list[str] = []
+    for _, text in sorted(channels.items()):  # connections in the order first seen
+        label = parse_label(text)
+        if label is None or label.role != Direction.MASTER:
+            continue
+        connections.setdefault(label.transport, set()).add((label.sender, label.receiver))
+        if label.carrier not in carriers:
+            carriers.append(label.carrier)
+        if label.receiver not in servers:
+            servers.append(label.receiver)
+    if not connections:
+        return "network: no Modbus connection"
+    parts = []
+    for transport, word in (("tcp", "TCP connection"), ("udp", "UDP flow")):
+        n = len(connections.get(transport, ()))
+        if n:
+            parts.append(f"{n} {word}{'s' if n != 1 else ''}")
+    named = ", ".join(servers[:SHOWN_SERVERS])
+    if len(servers) > SHOWN_SERVERS:
+        named += f" and {len(servers) - SHOWN_SERVERS} more"
+    noun = "server" if len(servers) == 1 else "servers"
+    return f"network: {' and '.join(parts)}, {' and '.join(carriers)}, {noun} {named}"

@@ -10,14 +10,26 @@ The server is the side on `--port` when one is given, else the side on port 502 
 else the side a SYN was sent to, else the side that did not speak first.
 
 TCP bytes come out reassembled (see `tcp`); a UDP datagram is one chunk. Chunk times are
-packet capture times. A connection's chunks are held back until its carrier is known
-(a few payloads, see `carrier`); connections that carry neither Modbus TCP nor RTU are
-left out with one warning that names them.
+packet capture times, and a chunk's bytes all have its packet's time (`t_start` is
+`t_end`): the sender had the whole payload when it sent the packet, so no line speed
+applies and no byte is dated before the packet that carried it.
+
+A connection's chunks are held back until its carrier is known (a few payloads, see
+`carrier`); connections that carry neither Modbus TCP nor RTU are left out with one
+warning that names them. Chunks leave in time order over all connections: those of
+connections already known wait behind the chunks a connection still holds. So that
+nothing waits long, a connection's carrier is decided when it closes (FIN or RST), when
+its oldest held chunk is `HOLD_SPAN` seconds of capture time old, or when `MAX_READY`
+chunks wait behind it, on the evidence it has by then. A connection that has sent no
+payload by then (opened, then silent) gives its events out under a provisional label
+(the port's guess: Modbus TCP on 502 and 503, else `other`) and is decided by its
+first payloads when they come.
 """
 
 from __future__ import annotations
 
-from collections import Counter
+import heapq
+from collections import Counter, deque
 from dataclasses import dataclass, field
 
 import sniffer.sources.net.carrier as carriers
@@ -27,6 +39,8 @@ from sniffer.sources.net.tcp import Piece, TcpHalf
 
 MAX_CHANNEL = 255  # the frame store keeps channel numbers in one byte
 MAX_HELD = 64  # chunks a connection may hold while its carrier is being detected
+HOLD_SPAN = 10.0  # seconds of capture time a connection may hold chunks back
+MAX_READY = 1 << 16  # chunks that may wait behind a connection holding its own back
 
 
 @dataclass(eq=False)
@@ -41,6 +55,7 @@ class _Connection:
     halves: tuple[TcpHalf, TcpHalf] = field(default_factory=lambda: (TcpHalf(), TcpHalf()))
     held: list[Chunk] = field(default_factory=list)
     bytes: int = 0
+    provisional: bool = False  # labelled by its port's guess while its payload is awaited
 
 
 class NetDecoder:
@@ -70,65 +85,98 @@ class NetDecoder:
         self.next_pair = 0
         self.refused: set[tuple[str, str, str]] = set()
         self.last_t = 0.0
+        # chunks of connections whose carrier is known, in time order, waiting until no
+        # connection holds an older one
+        self.ready: deque[Chunk] = deque()
+        # connections holding chunks, in the order they began to (oldest held first)
+        self.holding: dict[_Connection, None] = {}
 
     # -- input ---------------------------------------------------------------------------
 
     def packet(self, linktype: int, t: float, data: bytes) -> list[Chunk]:
         self.last_t = max(self.last_t, t)
         found = decode(linktype, data)
-        out: list[Chunk] = []
-        self._check_holes(t, out)
+        self._check_holes(t)
         if isinstance(found, Skip):
             self.skipped[found.reason] += 1
-            return out
+            return self._flow(t)
         conn = self._connection(found)
         if conn is None:
-            return out
+            return self._flow(t)
         sending = 0 if found.src == conn.client else 1
         if found.transport == "udp":
             if found.payload:
-                self._emit(conn, sending, [Piece(t, data=found.payload)], out)
+                self._emit(conn, sending, [Piece(t, data=found.payload)])
             if found.missing:
                 note = f"{found.missing} bytes cut off by the capture's snap length"
-                self._emit(conn, sending, [Piece(t, event="gap", note=note)], out)
-            return out
+                self._emit(conn, sending, [Piece(t, event="gap", note=note)])
+            return self._flow(t)
         half = conn.halves[sending]
         pieces = half.segment(found, t)
         if found.ack is not None:
             other = conn.halves[1 - sending]
             pieces_other = other.acknowledged(found.ack, t)
-            self._emit(conn, 1 - sending, pieces_other, out)
-        self._emit(conn, sending, pieces, out)
+            self._emit(conn, 1 - sending, pieces_other)
+        self._emit(conn, sending, pieces)
         for side in (0, 1):
             key = (conn, side)
             if conn.halves[side].waiting:
                 self.waiting.add(key)
             else:
                 self.waiting.discard(key)
-        return out
+        return self._flow(t)
 
     def finish(self) -> list[Chunk]:
         """The capture ended: holes become gaps, held chunks leave, warnings are written."""
-        out: list[Chunk] = []
         t = self.last_t
         for conn in self.connections.values():
             for side in (0, 1):
-                self._emit(conn, side, conn.halves[side].flush(t), out)
-            if conn.carrier is None:
-                self._decide(conn, final=True, out=out)
+                self._emit(conn, side, conn.halves[side].flush(t))
+        for conn in list(self.holding):
+            self._decide(conn, final=True)
         self.waiting.clear()
         self._summarise()
+        out = list(self.ready)
+        self.ready.clear()
         return out
 
     # -- internals -----------------------------------------------------------------------
 
-    def _check_holes(self, t: float, out: list[Chunk]) -> None:
+    def _flow(self, now: float) -> list[Chunk]:
+        """The chunks that may leave at capture time `now`: those no older than every
+        chunk a connection still holds (see the module doc)."""
+        out: list[Chunk] = []
+        self._release(out)
+        holding = self.holding
+        while holding:
+            first = next(iter(holding))
+            if now - first.held[0].t_end <= HOLD_SPAN and len(self.ready) <= MAX_READY:
+                break
+            self._decide(first, final=True, waited=True)
+            self._release(out)
+        return out
+
+    def _release(self, out: list[Chunk]) -> None:
+        """Move the ready chunks that no held chunk precedes to `out`."""
+        ready = self.ready
+        if not ready:
+            return
+        if not self.holding:
+            out.extend(ready)
+            ready.clear()
+            return
+        # the first holder began to hold first: no other holds an older chunk
+        until = next(iter(self.holding)).held[0].t_end
+        while ready and ready[0].t_end <= until:
+            out.append(ready.popleft())
+
+    def _check_holes(self, t: float) -> None:
         if not self.waiting:
             return
         for conn, side in list(self.waiting):
             pieces = conn.halves[side].check(t)
             if pieces:
-                self._emit(conn, side, pieces, out)
+                self._emit(conn, side, pieces)
             if not conn.halves[side].waiting:
                 self.waiting.discard((conn, side))
 
@@ -193,41 +241,74 @@ class NetDecoder:
             label = carriers.ChannelLabel(conn.transport, sender, receiver, conn.carrier, role)
             self.channels[channel] = label.text
 
-    def _emit(self, conn: _Connection, side: int, pieces: list[Piece], out: list[Chunk]) -> None:
+    def _emit(self, conn: _Connection, side: int, pieces: list[Piece]) -> None:
         if not pieces:
             return
         channel = conn.channels[side]
         direction = Direction.MASTER if side == 0 else Direction.SLAVE
+        closes = False
         for piece in pieces:
             chunk = Chunk(
                 data=piece.data,
                 t_end=piece.t,
+                t_start=piece.t if piece.data else None,  # a packet's bytes: all at its time
                 channel=channel,
                 direction=direction,
                 event=piece.event,
                 note=piece.note,
             )
+            closes = closes or piece.closes
             if piece.data:
                 conn.bytes += len(piece.data)
-            if conn.carrier is None:
+            if conn.carrier is None and (piece.data or conn.held or not conn.provisional):
+                if not conn.held:
+                    self.holding[conn] = None
                 conn.held.append(chunk)
                 if piece.data:
                     conn.votes.add(piece.data)
             elif conn.carrier != carriers.OTHER:
-                out.append(chunk)
-        if conn.carrier is None:
-            final = len(conn.held) >= MAX_HELD
-            self._decide(conn, final=final, out=out)
+                self.ready.append(chunk)
+        if conn.carrier is None and conn.held:
+            self._decide(conn, final=closes or len(conn.held) >= MAX_HELD)
 
-    def _decide(self, conn: _Connection, *, final: bool, out: list[Chunk]) -> None:
+    def _decide(self, conn: _Connection, *, final: bool, waited: bool = False) -> None:
+        """Decide the carrier of `conn` from its votes (`final`: on what it has); the
+        chunks it held join those ready, in time order. `waited`: it held them too long
+        (see the module doc)."""
+        if waited and not conn.votes.seen:
+            # opened, then silent: its events go out under the port's guess, and its
+            # first payloads decide
+            conn.carrier = (
+                (carriers.MODBUS_TCP if conn.transport == "tcp" else carriers.MODBUS_UDP)
+                if conn.server_port in carriers.MODBUS_PORTS
+                else carriers.OTHER
+            )
+            self._label(conn)
+            conn.carrier = None
+            conn.provisional = True
+            self._release_held(conn)
+            return
         verdict = conn.votes.verdict(conn.transport, conn.server_port, final)
         if verdict is None:
             return
         conn.carrier = verdict
+        conn.provisional = False
         if verdict != carriers.OTHER:
             self._label(conn)
-            out.extend(conn.held)
-        conn.held = []
+            self._release_held(conn)
+        else:
+            self.holding.pop(conn, None)
+            conn.held = []
+
+    def _release_held(self, conn: _Connection) -> None:
+        self.holding.pop(conn, None)
+        held, conn.held = conn.held, []
+        if not held:
+            return
+        if not self.ready or self.ready[-1].t_end <= held[0].t_end:
+            self.ready.extend(held)
+        else:  # older than chunks already waiting: merged in by time
+            self.ready = deque(heapq.merge(self.ready, held, key=_time))
 
     def _summarise(self) -> None:
         others = [c for c in self.connections.values() if c.carrier == carriers.OTHER]
@@ -253,3 +334,7 @@ class NetDecoder:
         if self.skipped:
             parts = ", ".join(f"{n} {reason}" for reason, n in sorted(self.skipped.items()))
             self.warnings.append(f"packets without Modbus left out: {parts}")
+
+
+def _time(chunk: Chunk) -> float:
+    return chunk.t_end

@@ -40,12 +40,14 @@ def seq_diff(a: int, b: int) -> int:
 
 @dataclass(frozen=True, slots=True)
 class Piece:
-    """Bytes in stream order (`data`), or an event (`event` with its `note`), at time `t`."""
+    """Bytes in stream order (`data`), or an event (`event` with its `note`), at time `t`;
+    `closes`: the event is the sender's FIN or a reset."""
 
     t: float
     data: bytes = b""
     event: str = ""
     note: str = ""
+    closes: bool = False
 
 
 @dataclass(slots=True)
@@ -87,9 +89,13 @@ class TcpHalf:
             note = "accepted (SYN ACK)" if seg.flags & TCP_ACK else "opened (SYN)"
             out.append(Piece(t, event=CONNECTION, note=note))
         if seg.flags & TCP_RST:
+            if self.next is None:
+                # the first this side sent (a refused SYN is answered RST ACK): its bytes,
+                # if any, start the stream
+                self.next = seq
             out.extend(self._arrive(seq, seg.payload, seg.missing, False, t))
             out.extend(self.flush(t, "the connection was reset"))
-            out.append(Piece(t, event=CONNECTION, note="reset (RST)"))
+            out.append(Piece(t, event=CONNECTION, note="reset (RST)", closes=True))
             self.closed = True
             return out
         fin = bool(seg.flags & TCP_FIN)
@@ -172,7 +178,7 @@ class TcpHalf:
         if fin and not self.closed:
             self.closed = True
             self.next = (self.next + 1) % SEQ_MOD
-            out.append(Piece(t, event=CONNECTION, note="closed by the sender (FIN)"))
+            out.append(Piece(t, event=CONNECTION, note="closed by the sender (FIN)", closes=True))
         return out
 
     def _drain(self, t: float) -> list[Piece]:
