@@ -131,7 +131,7 @@ def test_two_cabinets_whose_ports_share_a_name_keep_every_entity() -> None:
     one = len(_configs(retained))
     _publish_demo("site/cabinet2", "ttyUSB0", retained)
     configs = _configs(retained)
-    assert one > 36 and len(configs) == 2 * one
+    assert one == 41 and len(configs) == 2 * one  # the publisher, 4 units, 36 registers
     assert ha_rules.check_all(configs) == []
     uniques = {json.loads(p)["unique_id"] for p in configs.values()}
     assert len(uniques) == len(configs)

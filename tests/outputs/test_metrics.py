@@ -7,6 +7,7 @@ exposition with prometheus_client's own parser."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import re
 import signal
@@ -121,6 +122,17 @@ def test_options_that_cannot_be_used_are_plain_errors(capsys: pytest.CaptureFixt
         assert main(["replay", "--stats", "--metrics", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"--metrics 127.0.0.1:{port}: cannot listen there" in err and "choose another" in err
+
+
+def test_without_the_extra_metrics_say_what_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = importlib.util.find_spec
+
+    def find_spec(name: str, package: str | None = None) -> Any:
+        return None if name == "prometheus_client" else real(name, package)
+
+    monkeypatch.setattr(importlib.util, "find_spec", find_spec)
+    with pytest.raises(MetricsError, match=r"pip install 'modscope\[metrics\]'"):
+        Metrics()
 
 
 # -- the figures ------------------------------------------------------------------------------
@@ -345,6 +357,7 @@ def test_a_real_prometheus_scrapes_what_replay_stats_counts(
             "histogram_quantile(0.5, sum by (unit, le) (modscope_response_seconds_bucket))",
             "unit",
         )
+        dashboard = {expr: _query(web, expr) for expr in _dashboard_queries(".*", "5s")}
     finally:
         replay.send_signal(signal.SIGINT)  # (the hold ends at Ctrl-C)
         out, err = replay.communicate(timeout=30)
@@ -365,6 +378,35 @@ def test_a_real_prometheus_scrapes_what_replay_stats_counts(
     assert up == {("1",): 1, ("2",): 1, ("3",): 1, ("4",): 0}
     # the median bucket holds --stats' median: unit 3 answers in 7.2 ms, between 5 and 10
     assert 0.005 <= median[("3",)] <= 0.01
+    # every query of the Grafana dashboard runs (a PromQL error fails _query); the units
+    # panel names the four units
+    units = [r for e, r in dashboard.items() if "modscope_unit_up" in e]
+    assert {r["metric"]["unit"] for r in units[0]} == {"1", "2", "3", "4"}
+
+
+# -- the Grafana dashboard
+
+DASHBOARD = Path(__file__).resolve().parents[2] / "docs" / "grafana-modscope.json"
+
+
+def _dashboard_queries(instance: str, interval: str) -> list[str]:
+    dashboard = json.loads(DASHBOARD.read_text())
+    return [
+        t["expr"].replace("$__rate_interval", interval).replace("$instance", instance)
+        for p in dashboard["panels"]
+        for t in p["targets"]
+    ]
+
+
+def test_the_dashboard_shows_what_modscope_serves() -> None:
+    dashboard = json.loads(DASHBOARD.read_text())
+    titles = [p["title"] for p in dashboard["panels"]]
+    for words in ("Frames", "Requests", "Exceptions", "Timeouts", "Answer time", "Units up"):
+        assert any(words in t for t in titles), words
+    _, metrics = _demo()
+    served = {name for name, _ in _exposition(metrics)}
+    named = set(re.findall(r"modscope_\w+", " ".join(_dashboard_queries(".*", "1m"))))
+    assert named and named <= served, named - served
 
 
 # -- live and record --------------------------------------------------------------------------
