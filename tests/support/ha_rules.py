@@ -23,7 +23,8 @@ What it checks, and where Home Assistant says it (home-assistant/core, read for 
 - `homeassistant/components/mqtt/discovery.py` (`TOPIC_MATCHER`): the config topic is
   `<prefix>/<component>/[<node_id>/]<object_id>/config`, ids of `[a-zA-Z0-9_-]`;
 - `homeassistant/components/mqtt/binary_sensor.py`: payloads `ON`/`OFF` unless
-  `payload_on`/`payload_off` say otherwise; a payload that is neither is ignored;
+  `payload_on`/`payload_off` say otherwise, `None` for unknown; any other payload is
+  ignored ("No matching payload found for entity");
 - the MQTT integration's documentation (home-assistant.io, "MQTT Discovery" and "MQTT
   Sensor"): `unique_id` unique across every MQTT entity; with `availability_mode: all`
   every availability topic must say available.
@@ -371,7 +372,7 @@ def check_state(topic: str, config: Mapping[str, Any], payload: str) -> list[str
         return [f"{topic}: template fails on {payload[:120]}: {exc}"]
     where = f"{topic}: {state!r} from {payload[:160]}"
     if component_of(topic) == "binary_sensor":
-        accepted = {config.get("payload_on", "ON"), config.get("payload_off", "OFF")}
+        accepted = {config.get("payload_on", "ON"), config.get("payload_off", "OFF"), PAYLOAD_NONE}
         return [] if state in accepted else [f"{where}: neither {sorted(accepted)}"]
     if state == PAYLOAD_NONE:
         return []
