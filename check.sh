@@ -15,7 +15,8 @@ VENV=${MODSCOPE_VENV:-.venv}
 PYTHON=${PYTHON:-python3}
 # program -> Debian package; tests that need a missing program skip, naming it
 PEERS="tshark:tshark socat:socat mbpoll:mbpoll mosquitto:mosquitto \
-mosquitto_pub:mosquitto-clients tcpdump:tcpdump tmux:tmux chromium:chromium ip:iproute2"
+mosquitto_pub:mosquitto-clients tcpdump:tcpdump tmux:tmux chromium:chromium ip:iproute2 \
+prometheus:prometheus"
 
 T0=$SECONDS
 STEP_START=$SECONDS

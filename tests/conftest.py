@@ -24,6 +24,7 @@ PACKAGES = {  # program -> the Debian package that has it
     "mosquitto_sub": "mosquitto-clients",
     "tcpdump": "tcpdump",
     "tmux": "tmux",
+    "prometheus": "prometheus",
 }
 
 

@@ -59,6 +59,7 @@ LAZY = {
     ("sniffer.outputs.mqtt.subscribe", "paho"): "the optional MQTT extra, when watching",
     ("sniffer.outputs.mqtt.subscribe", "ssl"): "TLS only for an mqtts:// broker",
     ("sniffer.outputs.parquet", "pyarrow"): "the optional analytics extra, for Parquet",
+    ("sniffer.outputs.metrics", "prometheus_client"): "the optional metrics extra, for --metrics",
     ("dissectors.checks", "fastcrc"): "the fast CRC where installed, else pure Python",
     ("dissectors.dictionary.imports_ha", "yaml"): "the optional imports extra (PyYAML)",
     ("dissectors.dictionary.limits", "yaml"): "the optional imports extra (PyYAML)",

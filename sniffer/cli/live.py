@@ -31,6 +31,7 @@ from sniffer.cli.lines import (
     ring_options,
     stop_requests,
 )
+from sniffer.cli.metrics import add_metrics_options, live_outputs, open_metrics
 from sniffer.cli.options import SubParsers, add_device_options, add_output_options, bindings_for
 from sniffer.cli.scan import AUTO, accept_auto_baud, scan_for_live
 from sniffer.errors import UsageError
@@ -114,13 +115,25 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     except BaseException:
         reader.stop()
         raise
+    metrics = None
     try:
+        metrics = open_metrics(args, err)
         publisher = live_publisher(args, session, bindings, specs, reader.clock.now, tell, err)
     except BaseException:
         reader.stop()
         if recorder is not None:
             recorder.close(reader.clock.now())
+        if metrics is not None:
+            metrics.close()
         raise
+    if metrics is not None:
+        metrics.watch(
+            session.source,
+            session,
+            bindings,
+            clock=reader.clock.now,
+            lost=lambda: capture.lost_bytes,
+        )
     capture = LiveCapture(
         reader,
         session,
@@ -128,7 +141,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         queue_size=queue,
         notify=None if use_tui else notify,
         quiet=MQTT_QUIET if source is not None else None,
-        publisher=publisher,
+        publisher=live_outputs(publisher, metrics),  # (the metrics taken after each pump)
         # headless, rows listed and settled are let go (the TUI scrolls back through all)
         window=None if use_tui else WINDOW_ROWS,
         gather=0.0 if use_tui else PUMP_GATHER,
@@ -188,6 +201,8 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         )
     finally:
         capture.stop()
+        if metrics is not None:
+            metrics.close()
         if pcap_file is not None and pcap_file is not sys.stdout.buffer:
             pcap_file.close()
 
@@ -432,4 +447,5 @@ def register(sub: SubParsers) -> None:
         "they are printed once anyway when the capture ends",
     )
     add_mqtt_options(p)
+    add_metrics_options(p)
     p.set_defaults(func=cmd_live)

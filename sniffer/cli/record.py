@@ -22,6 +22,7 @@ from sniffer.cli.lines import (
     status,
     stop_requests,
 )
+from sniffer.cli.metrics import add_metrics_options, live_outputs, open_metrics
 from sniffer.cli.options import SubParsers, add_device_options, bindings_for
 from sniffer.errors import UsageError
 from sniffer.framing.pipeline import LIVE_MERGE_SLACK
@@ -48,8 +49,10 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     notify = notifier(err)
     session: Session | None = None
     publisher: BusPublisher | None = None
-    if args.mqtt:
-        # publishing needs the frames: the session frames what is recorded, as live does
+    metrics = None
+    if args.mqtt or args.metrics:
+        # publishing and metrics need the frames: the session frames what is recorded, as
+        # live does
         try:
             bindings = bindings_for(args)
             session = Session(
@@ -59,20 +62,31 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 source=", ".join(s.name for s in specs),
                 merge_slack=LIVE_MERGE_SLACK,
             )
+            metrics = open_metrics(args, err)
             publisher = live_publisher(
                 args, session, bindings, specs, reader.clock.now, notify, err
             )
         except BaseException:
             reader.stop()
             recorder.close(reader.clock.now())
+            if metrics is not None:
+                metrics.close()
             raise
+        if metrics is not None:
+            metrics.watch(
+                session.source,
+                session,
+                bindings,
+                clock=reader.clock.now,
+                lost=lambda: capture.lost_bytes,
+            )
     capture = LiveCapture(
         reader,
         session,
         recorder=recorder,
         queue_size=queue,
         notify=notify,
-        publisher=publisher,
+        publisher=live_outputs(publisher, metrics),  # (the metrics taken after each pump)
         window=WINDOW_ROWS,  # --mqtt: rows published are let go
     )
     announce(err, "recording", specs, recorder)
@@ -86,7 +100,7 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 if wait <= 0:
                     break
                 if session is not None:
-                    capture.pump(wait)  # frames for the publisher; the recording has its own
+                    capture.pump(wait)  # frames for the outputs; the recording has its own
                 else:
                     stop.wait(wait)
                 if show:
@@ -94,6 +108,8 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                     err.flush()
     finally:
         capture.stop()
+        if metrics is not None:
+            metrics.close()
     if show:
         err.write("\r\x1b[K")
     err.write(f"modscope: {status(capture)}{_published(publisher)}\n")
@@ -131,4 +147,5 @@ def register(sub: SubParsers) -> None:
     add_recording_options(p, required=True)
     add_device_options(p)
     add_mqtt_options(p)
+    add_metrics_options(p)
     p.set_defaults(func=cmd_record)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
 
@@ -13,6 +14,7 @@ from sniffer.analysis.gateway_report import server_table
 from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
 from sniffer.cli.filtering import add_filter_options, query_of
 from sniffer.cli.heap import settle
+from sniffer.cli.metrics import add_metrics_options, finish_metrics, open_metrics, reading_with
 from sniffer.cli.options import (
     READ_EPILOG,
     SubParsers,
@@ -31,6 +33,8 @@ from sniffer.cli.replaying import stdin_copy, write_listing
 from sniffer.cli.together import replay_together
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
+from sniffer.meaning.annotate import Binding
+from sniffer.outputs.metrics import Metrics
 from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
 from sniffer.session.index import DamagedError
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
@@ -77,6 +81,40 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
     )
     told = line_warnings(options, capture.info.recorded_line, str(path))
+    if use_tui and getattr(args, "metrics", None):
+        raise UsageError(
+            "--metrics serves what a listing or --stats reads: add --format or --stats"
+        )
+    metrics = open_metrics(args, err)
+    if metrics is not None:
+        metrics.watch(path.name, session, bindings)
+    try:
+        status = _read(
+            args, out, err, shown, path, bindings, session, capture, told, metrics, use_tui
+        )
+    except BaseException:
+        if metrics is not None:
+            metrics.close()
+        raise
+    finish_metrics(metrics, args.metrics_hold)  # the totals, served a while longer if asked
+    return status
+
+
+def _read(
+    args: argparse.Namespace,
+    out: TextIO,
+    err: TextIO,
+    shown: str | None,
+    path: Path,
+    bindings: dict[int, Binding],
+    session: Session,
+    capture: Capture,
+    told: list[str],
+    metrics: Metrics | None,
+    use_tui: bool,
+) -> int:
+    query = query_of(args)
+    options = read_options(args)
     if getattr(args, "mqtt", None):
         return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
     if use_tui:
@@ -87,20 +125,23 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
 
         return run_tui(session, capture, reopen=reopen)
     progress = Progress(err, shown or path.name, None if shown else path)
+    reading = reading_with(metrics, progress.reading)  # (the metrics' figures taken too)
     settle()
     cycles = speed = None
     origin: float | None = None  # the first row's time: where the listing counts from
     if args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
-            cycles, speed, origin = _windowed(session, capture, progress)
+            cycles, speed, origin = _windowed(session, capture, reading)
         except DamagedError:  # a sidecar damaged after rows of it were counted
             session, capture = open_session(
                 path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
             )  # (the damaged sidecar is not read again: indexed, and written anew)
-            cycles, speed, origin = _windowed(session, capture, progress)
+            if metrics is not None:
+                metrics.rewatch(path.name, session)
+            cycles, speed, origin = _windowed(session, capture, reading)
     else:
-        session.ingest(capture.chunks(), progress.reading)
+        session.ingest(capture.chunks(), reading)
     progress.done()
     session.warnings.extend(capture.warnings)
     slow = None
@@ -163,7 +204,7 @@ REPLAY_WINDOW = 1 << 16
 
 
 def _windowed(
-    session: Session, capture: Capture, progress: Progress
+    session: Session, capture: Capture, reading: Callable[[int, int], None]
 ) -> tuple[PollCycles, SpeedCheck, float | None]:
     """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle and
     the baud check count each segment before it goes, the statistics carry on (bounded
@@ -181,7 +222,7 @@ def _windowed(
 
     if not session.indexing:
         session.stats.bound()  # (a sidecar saves the values themselves)
-    session.ingest(capture.chunks(), progress.reading, window=REPLAY_WINDOW, segment=segment)
+    session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=segment)
     return cycles, speed, first[0] if first else None
 
 
@@ -254,4 +295,5 @@ def register(sub: SubParsers) -> None:
         help="longest a gateway takes to put a TCP request on the serial line (default 1 s)",
     )
     add_mqtt_options(p, replay=True)
+    add_metrics_options(p, replay=True)
     p.set_defaults(func=cmd_replay)

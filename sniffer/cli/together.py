@@ -11,13 +11,18 @@ from typing import TextIO
 
 from sniffer.analysis.gateway_report import gateway_table, server_table
 from sniffer.cli.filtering import query_of
+from sniffer.cli.metrics import finish_metrics, open_metrics
 from sniffer.cli.options import bindings_for, read_options
 from sniffer.cli.replaying import stdin_copy, write_listing
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
+from sniffer.meaning.annotate import Binding
+from sniffer.meaning.query import Query
+from sniffer.outputs.metrics import Metrics
 from sniffer.session.multifile import align, link_files, merge
 from sniffer.session.session import open_session
 from sniffer.session.verdict import ALL_READ, READ_WITH_WARNINGS
+from sniffer.sources import ReadOptions
 from sniffer.text import plain
 
 
@@ -59,6 +64,28 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
     options = read_options(args)
     if getattr(args, "mqtt", None):
         raise UsageError("--mqtt takes one capture; replay the files one at a time")
+    metrics = open_metrics(args, err, several=True)  # a `bus` label: each file's name
+    try:
+        status = _together(args, files, out, err, given, query, bindings, options, metrics)
+    except BaseException:
+        if metrics is not None:
+            metrics.close()
+        raise
+    finish_metrics(metrics, getattr(args, "metrics_hold", 0.0))
+    return status
+
+
+def _together(
+    args: argparse.Namespace,
+    files: list[str],
+    out: TextIO,
+    err: TextIO,
+    given: dict[str, float],
+    query: Query | None,
+    bindings: dict[int, Binding],
+    options: ReadOptions,
+    metrics: Metrics | None,
+) -> int:
     with ExitStack() as stack:
         paths = []
         for f in files:
@@ -72,9 +99,13 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
             if f != "-" and not path.exists():
                 raise UsageError(f"{f}: no such file")
             session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
-            session.ingest(capture.chunks())
-            session.warnings.extend(capture.warnings)
             shown = "standard input" if f == "-" else f
+            if metrics is not None:
+                metrics.watch(shown, session, bindings)
+                session.ingest(capture.chunks(), lambda done, rows: metrics.update())
+            else:
+                session.ingest(capture.chunks())
+            session.warnings.extend(capture.warnings)
             for note in [*capture.info.notes, *session.notes]:
                 err.write(f"modscope: note: {plain(shown)}: {plain(note)}\n")
             for w in session.warnings:

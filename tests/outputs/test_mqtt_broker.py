@@ -90,7 +90,9 @@ def test_demo_fills_the_broker_with_every_named_register(broker: Broker) -> None
     assert by_name == {k: v for k, v in last.items()}
     configs = _retained(broker, "homeassistant/#")
     assert len(configs) >= len(last)
-    voltage = json.loads(configs[f"homeassistant/sensor/modscope_demo_2/{slug('Voltage')}/config"])
+    voltage = json.loads(
+        configs[f"homeassistant/sensor/modscope_modscope_demo_2/{slug('Voltage')}/config"]
+    )
     assert voltage["state_topic"] == "modscope/demo/unit/2/voltage"
     assert voltage["device_class"] == "voltage" and voltage["unit_of_measurement"] == "V"
     status = _retained(broker, "modscope/demo/status", "modscope/demo/unit/+/status")

@@ -1,19 +1,16 @@
-"""MQTT without a broker: raw message blocks, broker URLs, topic slugs, HA discovery."""
+"""MQTT without a broker: raw message blocks, broker URLs, topic slugs (Home Assistant
+discovery: test_ha_discovery.py)."""
 
 from __future__ import annotations
 
-import json
 import struct
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dissectors.dictionary.device import DeviceDictionary
-from dissectors.dictionary.model import Entry, ValueSpec
 from sniffer.model import Chunk, Direction
 from sniffer.outputs.mqtt import MqttError
-from sniffer.outputs.mqtt.ha import discovery_configs, entity_kind
 from sniffer.outputs.mqtt.payload import (
     PayloadError,
     RegisterKey,
@@ -168,58 +165,3 @@ def test_slugs_are_unique_per_unit() -> None:
 def test_iso_time_only_for_dates() -> None:
     assert iso_time(1768464000.5) == "2026-01-15T08:00:00.500000Z"
     assert iso_time(12.5) is None
-
-
-# -- Home Assistant -------------------------------------------------------------------------------
-
-DICT = DeviceDictionary(model="pump", name="Pump starter", path="pump.toml")
-
-
-def _configs(entry: Entry) -> list[dict[str, object]]:
-    found = discovery_configs(
-        prefix="homeassistant",
-        bus="demo",
-        unit=3,
-        label="Pump 1",
-        dictionary=DICT,
-        entry=entry,
-        register_slug=slug(entry.name),
-        state_topic=f"modscope/demo/unit/3/{slug(entry.name)}",
-        availability_topic="modscope/demo/status",
-    )
-    return [{"topic": d.topic, **json.loads(d.payload)} for d in found]
-
-
-def test_ha_sensor_with_unit_device_class_and_state_class() -> None:
-    (c,) = _configs(Entry("input_registers", 2, "Voltage", ValueSpec(unit="V")))
-    assert c["topic"] == "homeassistant/sensor/modscope_demo_3/voltage/config"
-    assert c["unit_of_measurement"] == "V" and c["device_class"] == "voltage"
-    assert c["state_class"] == "measurement"
-    assert c["state_topic"] == "modscope/demo/unit/3/voltage"
-    assert c["device"] == {
-        "identifiers": ["modscope_demo_3"],
-        "name": "Pump 1",
-        "model": "Pump starter",
-        "manufacturer": "via modscope",
-        "serial_number": "demo unit 3",
-    }
-    assert c["unique_id"] == "modscope_demo_3_voltage"
-
-
-def test_ha_enum_bits_and_binary() -> None:
-    enum = Entry("input_registers", 3, "Phase Sequence", ValueSpec(enum={0: "Wrong", 1: "Correct"}))
-    (c,) = _configs(enum)
-    assert c["device_class"] == "enum" and c["options"] == ["Wrong", "Correct"]
-    assert "state_class" not in c
-    coil = Entry("coils", 2, "Start", ValueSpec(type="bool"))
-    assert entity_kind(coil) == "binary"
-    (c,) = _configs(coil)
-    assert c["topic"] == "homeassistant/binary_sensor/modscope_demo_3/start/config"
-    bits = Entry("input_registers", 0, "Logic Status", ValueSpec(bits={6: "Stopped", 9: "Running"}))
-    found = _configs(bits)
-    assert [c["topic"] for c in found] == [
-        "homeassistant/binary_sensor/modscope_demo_3/logic-status-bit6/config",
-        "homeassistant/binary_sensor/modscope_demo_3/logic-status-bit9/config",
-    ]
-    assert found[1]["name"] == "Logic Status: Running"
-    assert "value_json.bits['9']" in str(found[1]["value_template"])

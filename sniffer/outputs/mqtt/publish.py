@@ -12,7 +12,9 @@ Topics under the base (see docs/mqtt.md for an example of each message):
   violations, each a JSON object naming its frame;
 - `unit/<N>/status` (retained): counts, latency, polling period, online or silent;
 - `status` (retained, and the connection's last will): `online` or `offline`;
-- with Home Assistant discovery, `<prefix>/.../config` (retained) per named register.
+- with Home Assistant discovery, `<prefix>/.../config` (retained): the bus, each unit
+  polled, each named register (see `sniffer.outputs.mqtt.ha`); a unit's configs are
+  published again when the bus shows its software or hardware version.
 
 Retained messages are published again after a reconnection, so a broker restarted
 without persistence gets them back.
@@ -36,7 +38,13 @@ from sniffer.meaning.annotate import Binding
 from sniffer.meaning.describe import FrameDetail
 from sniffer.model import Chunk, SourceInfo
 from sniffer.outputs.listing import KIND_NAMES
-from sniffer.outputs.mqtt.ha import discovery_configs
+from sniffer.outputs.mqtt.ha import (
+    UnitDevice,
+    bus_configs,
+    register_configs,
+    unit_configs,
+    versions_from,
+)
 from sniffer.outputs.mqtt.link import MqttLink, Notify
 from sniffer.outputs.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_payload
 from sniffer.outputs.mqtt.target import MqttTarget
@@ -49,6 +57,7 @@ STATUS_EVERY = 5.0  # seconds between two unit status messages
 SILENT_AFTER = 3.0  # polling periods without an answer after which a unit is silent
 SILENT_MIN = 2.0  # ... but never fewer seconds than this
 WINDOW = RECENT  # answers (and requests) a unit's latency quantiles and poll period are over
+READ_IDENTIFICATION = 43  # FC 43 (MEI 14 Read Device Identification names the versions)
 
 
 class UnitWindow:
@@ -141,6 +150,11 @@ class BusPublisher:
         self._last: dict[str, _Published] = {}
         self._retained: dict[str, str] = {}
         self._discovered: set[str] = set()
+        # Home Assistant: each unit's registers discovered (state topic -> entry, slug),
+        # the units whose device is announced, and the versions the bus showed
+        self._ha_registers: dict[int, dict[str, tuple[Entry, str]]] = {}
+        self._ha_units: set[int] = set()
+        self._versions: dict[int, dict[str, str]] = {}
         self._open: set[int] = set()
         self._answered: dict[int, float] = {}
         self._status_t: float | None = None
@@ -172,8 +186,15 @@ class BusPublisher:
     # -- what the session sees ----------------------------------------------------------------
 
     def announce(self) -> None:
-        """The `interface` message: publish once, before the first chunk."""
+        """The `interface` message: publish once, before the first chunk. With Home
+        Assistant discovery, the bus's device and the bound units' devices too."""
         self._send(self.target.topic("interface"), json.dumps(self.interface()), retain=True)
+        prefix = self.options.ha_prefix
+        if prefix is not None:
+            for config in bus_configs(prefix, self.target.base, self.options.bus):
+                self._send(config.topic, config.payload, retain=True)
+            for unit in sorted(self.bindings):
+                self._discover_unit(unit)
 
     def interface(self) -> dict[str, Any]:
         line = self.session.line
@@ -269,6 +290,8 @@ class BusPublisher:
         d: FrameDetail | None = None
         if kind in (Kind.RESPONSE, Kind.EXCEPTION):
             self._answered[unit] = store.t_end[i]
+        if kind == Kind.RESPONSE and store.fc[i] == READ_IDENTIFICATION:
+            self._identification(describer.detail(i))
         if unit in self.bindings and kind == Kind.RESPONSE:
             d = describer.detail(i)
             self._values(d, "read")
@@ -329,20 +352,13 @@ class BusPublisher:
             ):
                 continue
             entry = self._entry(unit, r)
-            if self.options.ha_prefix is not None and topic not in self._discovered:
-                self._discovered.add(topic)
-                for config in discovery_configs(
-                    prefix=self.options.ha_prefix,
-                    bus=self.options.bus,
-                    unit=unit,
-                    label=binding.label,
-                    dictionary=binding.dictionary,
-                    entry=entry,
-                    register_slug=slug,
-                    state_topic=topic,
-                    availability_topic=self.target.topic("status"),
-                ):
-                    self._send(config.topic, config.payload, retain=True)
+            if self.options.ha_prefix is not None:
+                if topic not in self._discovered:
+                    self._discovered.add(topic)
+                    self._ha_registers.setdefault(unit, {})[topic] = (entry, slug)
+                    self._discover_register(unit, entry, slug, topic)
+                if value is not None:
+                    self._learn_versions(unit, {r.name: str(value)})
             message: dict[str, Any] = {
                 "unit": unit,
                 "device": binding.label,
@@ -396,6 +412,8 @@ class BusPublisher:
 
     def unit_status(self) -> None:
         """A retained status message for every unit seen so far."""
+        if self.options.ha_prefix is not None:
+            self._discover_polled()
         now = self._last_t
         for u, st in sorted(self.session.stats.units.items()):
             window = self._windows.setdefault(u, UnitWindow())
@@ -425,6 +443,64 @@ class BusPublisher:
             self._send(
                 self.target.topic("unit", str(u), "status"), json.dumps(message), retain=True
             )
+
+    # -- Home Assistant discovery ---------------------------------------------------------------
+
+    def _device(self, unit: int) -> UnitDevice:
+        binding = self.bindings.get(unit)
+        versions = self._versions.get(unit, {})
+        return UnitDevice(
+            self.target.base,
+            unit,
+            label=binding.label if binding is not None else "",
+            model=(binding.dictionary.name or binding.dictionary.model) if binding else "",
+            sw_version=versions.get("sw_version", ""),
+            hw_version=versions.get("hw_version", ""),
+        )
+
+    def _discover_unit(self, unit: int) -> None:
+        assert self.options.ha_prefix is not None
+        self._ha_units.add(unit)
+        for config in unit_configs(self.options.ha_prefix, self._device(unit)):
+            self._send(config.topic, config.payload, retain=True)
+
+    def _discover_polled(self) -> None:
+        """A device for each unit the master polls (a request with a good check), bound or
+        not: not for unit bytes seen only in broken frames."""
+        for unit, st in sorted(self.session.stats.units.items()):
+            if unit not in self._ha_units and st.requests > 0:
+                self._discover_unit(unit)
+
+    def _discover_register(self, unit: int, entry: Entry, slug: str, topic: str) -> None:
+        assert self.options.ha_prefix is not None
+        for config in register_configs(
+            self.options.ha_prefix, self._device(unit), entry, slug, topic
+        ):
+            self._send(config.topic, config.payload, retain=True)
+
+    def _identification(self, d: FrameDetail) -> None:
+        """Versions from a Read Device Identification answer (FC 43 / MEI 14):
+        `MajorMinorRevision` is the software version."""
+        if self.options.ha_prefix is None or not d.view.check_ok:
+            return
+        objects = next((f for f in d.fields if f.name == "objects"), None)
+        if objects is not None:
+            self._learn_versions(d.view.unit, {f.name: f.text for f in objects.children})
+
+    def _learn_versions(self, unit: int, fields: Mapping[str, str]) -> None:
+        """Keep the versions `fields` show; when they change a discovered unit's device,
+        publish its configs again (Home Assistant takes device details from them)."""
+        found = versions_from(fields)
+        if not found:
+            return
+        known = self._versions.setdefault(unit, {})
+        if all(known.get(k) == v for k, v in found.items()):
+            return
+        known.update(found)
+        if unit in self._ha_units:
+            self._discover_unit(unit)
+        for topic, (entry, slug) in self._ha_registers.get(unit, {}).items():
+            self._discover_register(unit, entry, slug, topic)
 
     def close(self, drain: float = 10.0) -> str:
         """Final statuses, `status` offline, wait for delivery; the link's report."""
