@@ -2588,6 +2588,21 @@ static int figure_by_python(Figures *f, PyObject *counter, int whole, double x) 
     return r;
 }
 
+/* counter[round(x, 3)] += 1, by Python: a latency under 0.1 ms is tallied to the
+ * microsecond (Tallies.add_latencies), rare enough (a network capture's local server)
+ * to be left to Python. */
+static int thousandth_by_python(Figures *f, PyObject *counter, double x) {
+    if (figures_flush(f, counter, 0) < 0) return -1;
+    PyObject *value = PyFloat_FromDouble(x);
+    if (value == NULL) return -1;
+    PyObject *rounded = PyObject_CallMethod(value, "__round__", "i", 3);
+    Py_DECREF(value);
+    if (rounded == NULL) return -1;
+    int r = counter_add(counter, rounded, 1);
+    Py_DECREF(rounded);
+    return r;
+}
+
 /* round(y, 1) as Python rounds a float: y's exact binary value to the nearest tenth,
  * half to even (CPython's double_round: a correctly rounded decimal string, read back),
  * which is the nearest double to q / 10 for the integer q nearest 10 * y. Here y = m *
@@ -2615,7 +2630,8 @@ static int round_tenth(double y, double *out) {
 
 /* tally_latencies(counter, values) -> how many were counted
  * Tallies.add_latencies' counting: for each latency x (float64, seconds) that is not
- * NaN, counter[round(x * 1000, 1)] += 1. */
+ * NaN, counter[latency_figure(x * 1000)] += 1: round(ms, 1), or round(ms, 3) under
+ * 0.1 ms. */
 static PyObject *py_tally_latencies(PyObject *self, PyObject *args) {
     PyObject *counter;
     Py_buffer vv;
@@ -2632,7 +2648,9 @@ static PyObject *py_tally_latencies(PyObject *self, PyObject *args) {
         if (isnan(x[i])) continue;
         kept += 1;
         double y = x[i] * 1000.0, r;
-        if (round_tenth(y, &r) == 0) {
+        if (fabs(y) < 0.1) {
+            if (thousandth_by_python(&f, counter, y) < 0) goto done;
+        } else if (round_tenth(y, &r) == 0) {
             if (figures_count(&f, r) < 0) goto done;
         } else if (figure_by_python(&f, counter, 0, y) < 0) {
             goto done;

@@ -242,7 +242,7 @@ class Space:
         if dot:
             if not tail.isdigit() or not head:
                 return None
-            body, bit = head, int(tail) - self.bit_first
+            body, bit = head, _bounded_int(tail, 10) - self.bit_first
         if self.suffix:
             if not body.lower().endswith(self.suffix.lower()):
                 return None
@@ -252,7 +252,7 @@ class Space:
             return None
         if self.width is not None and len(body) != self.width:
             return None
-        number = int(body, self.radix)
+        number = _bounded_int(body, self.radix)
         address = self.pdu + number - self.first
         return RefMatch(self, address, bit, len(self.prefix), len(self.suffix))
 
@@ -310,3 +310,17 @@ class RegisterValue:
     raw: tuple[int, ...]
     partial: bool = False
     problems: tuple[str, ...] = ()
+
+
+MAX_REF_DIGITS = 32  # more digits than any register or bit number has (nor needs)
+
+
+def _bounded_int(digits: str, radix: int) -> int:
+    """`digits` read in `radix`; a number longer than MAX_REF_DIGITS (leading zeros
+    aside) is read as radix ** MAX_REF_DIGITS, out of every range the caller checks, so
+    that a damaged file's thousand-digit ref is refused as out of range (int() would
+    raise on a number of more than 4300 digits, and printing one would too)."""
+    significant = digits.lstrip("0")
+    if len(significant) > MAX_REF_DIGITS:
+        return int(radix**MAX_REF_DIGITS)
+    return int(significant or "0", radix)

@@ -33,8 +33,8 @@ def _quantile(values: Sequence[float], q: float) -> float | None:
 def _ms(x: float | None) -> str:
     if x is None:
         return "-"
-    if 0 <= x < 0.00005:
-        return "<0.1"  # never a latency or delay that reads as 0
+    if 0 <= x < 0.0001:  # to the microsecond, as `--stats`: never one that reads as 0
+        return "<0.001" if x < 0.0000005 else f"{x * 1000:.3f}"
     return f"{x * 1000:.1f}"
 
 

@@ -14,12 +14,15 @@ from array import array
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import compress, repeat
+from math import ceil
 from operator import add, lt, sub
 from typing import Any, cast
 
 from sniffer import core
 from sniffer.analysis.polls import FRAMED_APART, core_rules, frame_body, poll_identity
+from sniffer.analysis.stats import resolved_period
 from sniffer.framing.columns import both, but_not, flag_mask, marking
+from sniffer.framing.pairing import RESOLVED, shown_step, span_words
 from sniffer.framing.store import FrameStore
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 
@@ -49,6 +52,18 @@ class Poll:
     first: float
     last: float
     retries: int = 0  # sendings that repeated one left unanswered (counted in `count`)
+    # stamps too coarse for the waits (see `sniffer.framing.pairing.judge`): the period
+    # and the jitter are then upper bounds (at most), and `resolution` says how coarse
+    period_bound: bool = False
+    jitter_bound: bool = False
+    resolution: float = 0.0
+
+    def period_text(self) -> str:
+        """`250ms`, `<2s`: the period no finer than the stamps hold."""
+        return _shown(self.period, self.period_bound, self.resolution)
+
+    def jitter_text(self) -> str:
+        return _shown(self.jitter, self.jitter_bound, self.resolution)
 
 
 @dataclass
@@ -112,10 +127,12 @@ class PollCycles:
         self._groups: list[_Sent] = []
         self._number: dict[int, int] = {}  # id of a _Sent (held in _groups) -> its group
         self._keys = 0
+        self.resolution = 0.0  # what the stamps of the rows added are worth
 
     def add(self, store: FrameStore, start: int = 0) -> None:
         """Count the requests among the rows of `store` from `start` on."""
         store.sync()
+        self.resolution = store.resolution  # as measured so far: the newest rows' store
         n = len(store)
         if start >= n:
             return
@@ -205,14 +222,14 @@ class PollCycles:
         """Every unit's poll cycle, from the requests added so far and those of `more`
         (not added: a live window's rows, counted again when the next summary comes)."""
         if more is None:
-            return _cycles(self.sendings)
+            return _cycles(self.sendings, self.resolution)
         both = PollCycles()
         both.sendings = {
             unit: {key: _Sent(s.what, s.fc, array("d", s.times), s.retries) for key, s in r.items()}
             for unit, r in self.sendings.items()
         }
         both.add(more)
-        return _cycles(both.sendings)
+        return _cycles(both.sendings, both.resolution)
 
 
 def poll_cycles(store: FrameStore) -> dict[int, UnitCycle]:
@@ -257,8 +274,13 @@ def _keys(store: FrameStore, lo: int, rows: bytes) -> list[object]:
     return keys
 
 
-def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, UnitCycle]:
-    """The cycles of the requests sent (the times of each)."""
+def _cycles(
+    sendings: dict[int, dict[tuple[object, ...], _Sent]], resolution: float = 0.0
+) -> dict[int, UnitCycle]:
+    """The cycles of the requests sent (the times of each), with stamps good to
+    `resolution`: each wait may be off by one resolution either way, so a period or a
+    jitter too short for it is an upper bound (`resolved_period`), and a wait is a gap
+    only when even its shortest reading is one."""
     out: dict[int, UnitCycle] = {}
     for unit, requests in sorted(sendings.items()):
         cycle = out[unit] = UnitCycle(unit)
@@ -275,8 +297,10 @@ def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, U
                 low, period, high = (_rank(ordered, q) for q in (0.05, 0.5, 0.95))
             else:
                 low, period, high, longest = picked
-            jitter = high - low
-            limit = GAP_FACTOR * period
+            period, period_bound, jitter, jitter_bound = resolved_cycle(
+                period, high - low, resolution
+            )
+            limit = GAP_FACTOR * period + resolution
             gaps: tuple[Gap, ...] = ()
             if waits is None and longest > limit:
                 waits = list(map(sub, times[1:], times[:-1]))
@@ -297,10 +321,31 @@ def _cycles(sendings: dict[int, dict[tuple[object, ...], _Sent]]) -> dict[int, U
                     times[0],
                     times[-1],
                     sent.retries,
+                    period_bound,
+                    jitter_bound,
+                    resolution,
                 )
             )
         cycle.polls.sort(key=lambda p: (p.period, p.what))
     return out
+
+
+def resolved_cycle(
+    period: float, jitter: float, resolution: float
+) -> tuple[float, bool, float, bool]:
+    """A poll's period and jitter (the median wait and the p95 - p5 spread of the waits)
+    as stamps good to `resolution` vouch for them: (period, whether it is only an upper
+    bound, jitter, likewise). The period is `resolved_period`'s (infinite where the
+    stamps bound nothing); each end of a wait may be off by a resolution, so a spread
+    shorter than RESOLVED times both is at most the spread plus both."""
+    if resolution <= 0:
+        return period, False, jitter, False
+    told = resolved_period(period, resolution)
+    if told is None:  # repeated, but how often the stamps cannot say
+        return float("inf"), True, float("inf"), True
+    if jitter < RESOLVED * 2 * resolution:
+        return told.seconds, told.bound, jitter + 2 * resolution, True
+    return told.seconds, told.bound, jitter, False
 
 
 def _picked_waits(times: array[float]) -> tuple[float, float, float, float] | None:
@@ -323,8 +368,23 @@ def _rank(ordered: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
 
 
-def _ms(seconds: float) -> str:
-    return f"{seconds * 1000:.0f}ms" if seconds < 10 else f"{seconds:.1f}s"
+def _ms(seconds: float, resolution: float = 0.0) -> str:
+    """A wait as the table prints it, no finer than the stamps hold."""
+    return _shown(seconds, False, resolution)
+
+
+def _shown(seconds: float, bound: bool, resolution: float) -> str:
+    """A period, jitter or gap in words: to 1 ms (0.1 s past 10 s); stamps coarser than
+    a second round it (a bound up) to whole seconds (`pairing.shown_step`)."""
+    if not seconds < float("inf"):
+        return "?"  # stamps that bound nothing
+    if resolution >= 1.0:
+        step = shown_step(resolution)
+        value = ceil(seconds / step - 1e-9) * step if bound else round(seconds / step) * step
+        text = span_words(value * 1000)
+    else:
+        text = f"{seconds * 1000:.0f}ms" if seconds < 10 else f"{seconds:.1f}s"
+    return "<" + text if bound else text
 
 
 def cycle_table(
@@ -344,15 +404,17 @@ def cycle_table(
             gaps = str(len(p.gaps)) if p.gaps else "-"
             retries = str(p.retries) if p.retries else "-"
             rows.append(
-                f"{head}{p.what:<28} {p.count:>6} {_ms(p.period):>8} {_ms(p.jitter):>8}  "
+                f"{head}{p.what:<28} {p.count:>6} {p.period_text():>8} {p.jitter_text():>8}  "
                 f"{gaps:>4}  {retries:>7}"
             )
         if not cycle.polls:
             rows.append(f"{unit:>4}  (no request repeated {MIN_REPEATS} times)")
         if label and cycle.polls:
             rows[-len(cycle.polls)] += f"  {label}"
+        shown = max((p.resolution for p in cycle.polls), default=0.0)
         for g in cycle.gaps[:3]:
-            rows.append(f"      gap at {g.start - origin:.3f}s: {_ms(g.length)} without polls")
+            at = g.start - origin
+            rows.append(f"      gap at {at:.3f}s: {_ms(g.length, shown)} without polls")
         if len(cycle.gaps) > 3:
             rows.append(f"      ... {len(cycle.gaps) - 3} more gaps")
     return "\n".join(rows)

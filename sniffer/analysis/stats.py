@@ -7,13 +7,24 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from itertools import compress, islice, repeat
-from math import isnan
-from operator import ge, lt, ne, not_, sub
+from math import ceil, isnan
+from operator import lt, ne, not_, sub
 from typing import Any
 
 from sniffer import core
 from sniffer.framing.columns import flag_mask, marking
-from sniffer.framing.pairing import UNRESOLVED
+from sniffer.framing.pairing import (
+    INF,
+    RESOLVED,
+    TIMING_WORDS,
+    UNRESOLVED,
+    Latency,
+    StampClock,
+    duration,
+    judge,
+    shown_step,
+    timing_note,
+)
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
@@ -21,16 +32,30 @@ from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
 RECENT = 1024  # newest latencies and request times a bounded unit keeps (the MQTT status)
 
 
+def latency_figure(ms: float) -> float:
+    """A latency in ms as the table prints it: to 0.1 ms, or to the microsecond under
+    0.1 ms (a server on the capturing host answers in tens of µs; never 0.0)."""
+    return round(ms, 1) if abs(ms) >= 0.1 else round(ms, 3)
+
+
+def latency_text(ms: float) -> str:
+    """`latency_figure(ms)` as the table prints it. Equal for a value and its figure
+    (rounding twice to the same places changes nothing), which the tallies rely on."""
+    figure = latency_figure(ms)
+    return f"{figure:.1f}" if abs(figure) >= 0.1 else f"{figure:.3f}"
+
+
 class Tallies:
     """A unit's latencies and request times in a bounded form, for a live capture that
     runs for days (`Stats.bound`): the printed figures, counted, instead of every value.
 
-    The table prints latencies in ms to 0.1 and the poll period in ms to 1, both as the
-    nearest-rank quantile of the values. Rounding is monotonic, so the value at a rank,
-    rounded, is the rounded value at that rank: counting how many values round to each
-    printed figure (`latency_ms`: `round(ms, 1)`, `gap_ms`: `round(gap * 1000)`, exactly
-    what `{:.1f}` and `{:.0f}` print) gives the very figures the whole arrays give, in
-    memory that grows with the number of distinct figures, not of frames. The newest
+    The table prints latencies in ms to 0.1 (under 0.1 ms to 0.001) and the poll period
+    in ms to 1, both as the nearest-rank quantile of the values. Rounding is monotonic,
+    so the value at a rank, rounded, is the rounded value at that rank: counting how
+    many values round to each printed figure (`latency_ms`: `latency_figure(ms)`,
+    `gap_ms`: `round(gap * 1000)`, exactly what `latency_text` and `{:.0f}` print) gives
+    the very figures the whole arrays give, in memory that grows with the number of
+    distinct figures, not of frames. The newest
     RECENT values of each are kept as they are, for the MQTT unit status (its own
     window of exact values). Latencies are never NaN live (stamps from the clock); one
     that were would be left out."""
@@ -46,7 +71,7 @@ class Tallies:
     )
 
     def __init__(self) -> None:
-        self.latency_ms: Counter[float] = Counter()  # round(ms, 1) -> how many
+        self.latency_ms: Counter[float] = Counter()  # latency_figure(ms) -> how many
         self.gap_ms: Counter[int] = Counter()  # round(gap s * 1000) -> how many
         self.latencies = 0  # latencies counted
         self.requests = 0  # request times seen
@@ -59,7 +84,7 @@ class Tallies:
         fast = core.FAST
         if fast is not None and isinstance(values, array) and values.typecode == "d":
             # the counting in C (sniffer/_core.c: tally_latencies), the figures rounded
-            # exactly as round(x * 1000, 1) rounds them
+            # exactly as latency_figure(x * 1000) rounds them
             kept = fast.tally_latencies(self.latency_ms, values)
             self.latencies += kept
             if kept < len(values):  # NaN among them
@@ -69,7 +94,7 @@ class Tallies:
         values = [x for x in values if not isnan(x)]
         self.latencies += len(values)
         self.recent_latencies.extend(_tail(values))
-        self.latency_ms.update(round(x * 1000, 1) for x in values)
+        self.latency_ms.update(latency_figure(x * 1000) for x in values)
 
     def add_requests(self, times: Sequence[float]) -> None:
         """Count request times (seconds, in the order they came): their gaps."""
@@ -160,6 +185,14 @@ class UnitStats:
             return _tally_ranked(gaps, 0.5) / 1000 if gaps else None
         return median_gap(self.request_times)
 
+    def period(self, resolution: float) -> Latency | None:
+        """The polling period as stamps of `resolution` can vouch for it
+        (`resolved_period`)."""
+        median = self.polling_period()
+        if median is not None and self.tallies is None and median == median:
+            median = round(median * 1000) / 1000  # to the 1 ms the tallies count, as they
+        return resolved_period(median, resolution)
+
     @property
     def latency_count(self) -> int:
         """Latencies measured so far."""
@@ -212,6 +245,32 @@ def nearest_rank(values: Sequence[float], q: float) -> float | None:
 def _ranked(ordered: Sequence[float], q: float) -> float:
     """The q-quantile of values already sorted (at least one), nearest rank."""
     return ordered[min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))]
+
+
+def resolved_period(median: float | None, resolution: float) -> Latency | None:
+    """A period (the median wait between sendings) as stamps good to `resolution` can
+    vouch for it, as a latency is (`pairing.judge`): the median when it is at least
+    RESOLVED resolutions long; else at most the median plus one resolution (each end of
+    a wait may be off by that much: a poll every 250 ms logged by a 1 s clock is `<2s`);
+    None when there is none or the stamps bound nothing."""
+    if median is None or not resolution < INF:
+        return None
+    step = shown_step(resolution)
+    if median != median:  # (a NaN, from stamps that had none, as it is)
+        return Latency(median, False, step, median)
+    if not median < max(RESOLVED * resolution, UNRESOLVED):
+        return Latency(_to_step(median, resolution), False, step, median)
+    if resolution > 0 and median + resolution > 0:
+        return Latency(ceil((median + resolution) / step - 1e-9) * step, True, step, median)
+    return None
+
+
+def _to_step(seconds: float, resolution: float) -> float:
+    """A period rounded to whole seconds where the stamps hold no more (`shown_step`);
+    finer ones are printed to the millisecond as they are (the bounded tallies count
+    them so, and a second rounding would differ from theirs)."""
+    step = shown_step(resolution)
+    return round(seconds / step) * step if step >= 1.0 else seconds
 
 
 def median_gap(times: Sequence[float]) -> float | None:
@@ -277,6 +336,10 @@ class Stats:
         self._timed_out: set[int] = set()
         self._open: set[int] = set()
         self.bounded = False  # see `bound`
+        # what the table's timing line says besides the store's stamps and resolution:
+        # the response timeout and what the resolution was measured from (the session's)
+        self.timeout: float | None = None
+        self.clock: StampClock | None = None
 
     def bound(self) -> None:
         """Keep each unit's latencies and request times in the bounded form (`Tallies`)
@@ -313,7 +376,9 @@ class Stats:
         if start >= n:
             return
         fast = core.FAST
-        if fast is not None:
+        if fast is not None and s.stamps is not Stamp.PRINT:
+            # (print times: each latency's bound depends on its request's length too,
+            # which the compiled scan does not look at; logs are short)
             self._fast_update(fast, start, n)
             return
         kinds = s.kind[start:n].tobytes()
@@ -351,11 +416,11 @@ class Stats:
         unit by unit in the order of their first frames. The per-row work is then a
         step of a C loop, not of the interpreter."""
         s = self.store
-        stamps = s.stamps
-        mode = 0 if stamps == Stamp.NONE else 1 if stamps == Stamp.EXACT else 2
-        below = stamps == Stamp.READ_END and s.resolution > 0
+        resolution = s.resolution
+        mode = 0 if s.stamps == Stamp.NONE or not resolution < INF else 2
+        below = mode and resolution > 0
         spans, noise_bytes, events, units, exceptions, still_open = fast.stats_scan(
-            s, start, n, mode, UNRESOLVED
+            s, start, n, mode, max(RESOLVED * resolution, UNRESOLVED)
         )
         self.events += events
         self.noise_spans += spans
@@ -431,15 +496,24 @@ class Stats:
             times = list(compress(times, answered))
             answering = bytes(compress(answering, answered))
         # row i answers row j: t[i] - t_end[j], as pairing.latency; then sorted out as
-        # pairing.measure does: kept, below the resolution, or not measurable
+        # pairing.measure does: a value (kept), or not (a bound or unknown)
         raw = list(map(sub, times, map(s.t_end.__getitem__, partners)))
-        if s.stamps == Stamp.NONE:
+        resolution = s.resolution
+        if s.stamps in (Stamp.NONE, Stamp.PRINT) or not resolution < INF:
             kept = [False] * len(raw)
-        elif s.stamps == Stamp.EXACT:
-            kept = list(map(ge, raw, repeat(0.0)))  # NaN: not kept
         else:
-            kept = list(map(not_, map(lt, raw, repeat(UNRESOLVED))))  # NaN: kept
-        below = s.stamps == Stamp.READ_END and s.resolution > 0
+            threshold = max(RESOLVED * resolution, UNRESOLVED)
+            kept = list(map(not_, map(lt, raw, repeat(threshold))))  # NaN: kept
+        if s.stamps is Stamp.PRINT and resolution < INF:
+            # a print time's latency is a bound, unless the prints came too close
+            for u, j, x in zip(answering, partners, raw, strict=True):
+                told = judge(x, resolution, Stamp.PRINT, s.t_end[j] - s.t[j])
+                if told is None:
+                    stats[u].unmeasured += 1
+                else:
+                    stats[u].below_resolution += 1
+            return
+        below = s.stamps != Stamp.NONE and 0 < resolution < INF
         for u, count in Counter(compress(answering, map(not_, kept))).items():
             if below:
                 stats[u].below_resolution += count
@@ -461,20 +535,28 @@ class Stats:
         )
         lines = [head, "-" * len(head)]
 
+        resolution = self.store.resolution
+        step_ms = shown_step(resolution) * 1000
+
         def ms(x: float | None) -> str:
+            # a latency no finer than the stamps give it (0.1 ms at the finest)
             if x is None:
                 return "-"
-            return "<0.1" if x < 0.05 else f"{x:.1f}"  # never a latency that reads as 0
+            if x != x:  # (a NaN as it is)
+                return f"{x:.1f}"
+            if step_ms < 1:  # below 0.1 ms to the microsecond, as listings: never 0.0
+                return latency_text(x)
+            return f"{round(x / step_ms) * step_ms:.0f}"
 
         for u in sorted(self.units):
             st = self.units[u]
-            period = st.polling_period() if self.store.stamps != Stamp.NONE else None
+            period = st.period(resolution) if self.store.stamps != Stamp.NONE else None
             least, median, p95, most = st.latencies_ms(0, 0.5, 0.95, 1)
             lines.append(
                 f"{u:>4}  {labels.get(u, '')[:16]:<16} {st.requests:>7} {st.responses:>7} "
                 f"{st.exception_count:>5} {st.timeouts:>5} {st.check_errors:>5} "
                 f"{ms(least):>8} {ms(median):>8} {ms(p95):>8} {ms(most):>8} "
-                f"{'-' if period is None else f'{period * 1000:.0f}ms':>8}"
+                f"{'-' if period is None else _period_text(period):>8}"
             )
             if st.exceptions:
                 # in hex, as the listing and the specification write them (0B, not 11)
@@ -487,25 +569,40 @@ class Stats:
         return "\n".join(lines)
 
     def timing_line(self) -> str:
-        """What the latencies and periods above are worth, given the source's stamps."""
+        """What the latencies and periods above are worth, given the source's stamps:
+        `pairing.timing_note`, and how many answers' latencies are left out of the
+        columns (bounded, or not measurable at all)."""
         s = self.store
         below = sum(u.below_resolution for u in self.units.values())
         unmeasured = sum(u.unmeasured for u in self.units.values())
         if s.stamps == Stamp.NONE:
-            return (
-                "timing: synthetic (the source has no timestamps): "
-                "no latency or poll period is measured"
-            )
-        text = f"timing: {TIMING_WORDS[s.stamps]}"
-        if s.resolution > 0:
-            text += f", resolution about {s.resolution * 1000:.3g} ms"
+            return timing_note(s.stamps, s.resolution)
+        # why stamps bound nothing is the source's (a sidecar read back says it alike);
+        # what a resolution was measured from is said once in the session's notes
+        clock = self.clock
+        why = clock.why() if clock is not None and not s.resolution < INF else ""
+        text = timing_note(s.stamps, s.resolution, self.timeout, why)
+        if not text:
+            text = f"timing: {TIMING_WORDS[s.stamps]}"
+            if s.resolution > 0:
+                text += f", resolution {duration(s.resolution)}"
         if below:
-            text += f"; {below} answer(s) faster than that (<{s.resolution * 1000:.3g} ms)"
+            shown = "faster than that" if s.stamps is not Stamp.PRINT else "logged"
+            text += f"; {below} answer(s) {shown}, only bounded (<x)"
         if unmeasured:
             text += f"; {unmeasured} latency(ies) the stamps cannot give"
         if below or unmeasured:
             text += ", left out of the latency columns"
         return text
+
+
+def _period_text(period: Latency) -> str:
+    """A poll period as the table prints it: `250ms` (whole milliseconds, as the bounded
+    tallies count them), `<2s`, `3s` (whole seconds, where the stamps hold no more)."""
+    if period.step >= 1.0:
+        return period.text()
+    shown = f"{period.seconds * 1000:.0f}ms"
+    return "<" + shown if period.bound else shown
 
 
 def _hand_out(
@@ -525,16 +622,6 @@ def _hand_out(
         tallies = stats[u].tallies
         assert tallies is not None
         add(tallies, xs)
-
-
-TIMING_WORDS = {
-    Stamp.EXACT: "exact (per character)",
-    Stamp.READ_END: "end of each host read",
-    Stamp.FRAME_START: "start of each frame",
-    Stamp.FRAME_END: "end of each frame",
-    Stamp.PRINT: "when each line was logged",
-    Stamp.NONE: "synthetic",
-}
 
 
 _FRAMED_APART = int(Flag.ASCII | Flag.MBAP)  # rows whose body is not their bytes less the CRC

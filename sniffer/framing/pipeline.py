@@ -28,7 +28,13 @@ from operator import add
 
 from dissectors.functions import FUNCTIONS, Registry
 from sniffer import core
-from sniffer.framing.pairing import Pairer, default_timeout
+from sniffer.framing.pairing import (
+    INF,
+    Pairer,
+    StampClock,
+    default_timeout,
+    timing_note,
+)
 from sniffer.framing.serial import AsciiFramer, Framer, RtuFramer, looks_ascii
 from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
@@ -37,7 +43,6 @@ from sniffer.vocab import Flag, Kind
 
 CAPTURE_COMPLETE = "capture complete"  # a source's last word: when the capture ended
 BYTE_ERRORS = ("framing error", "parity error")  # events about the byte before them
-READ_GAPS = 4096  # gaps between host reads that the read resolution is estimated from
 MERGE_SLACK = 1.0  # seconds a channel's rows are held back so that others can catch up
 LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 # Batches of reads (a reader's, at most MAX_BATCH_SPAN each) held and framed together,
@@ -85,15 +90,12 @@ class Pipeline:
         self.stamps = stamps
         self.merge_slack = merge_slack
         self.store = store if store is not None else FrameStore()
+        # what the stamps are worth, measured from the first of them as they come
+        # (sniffer.framing.pairing.StampClock); the store keeps the resolution
+        self.clock = StampClock(stamps, resolution)
         self.store.stamps = stamps
-        self.store.resolution = resolution
-        # host reads of unknown resolution: gaps between reads are kept until there are
-        # enough (READ_GAPS) to give it
-        self._estimating = stamps == Stamp.READ_END and not resolution
+        self.store.resolution = self.clock.resolution
         self._frame_starts = stamps == Stamp.FRAME_START
-        self._read_gaps: list[float] = []  # for host reads of unknown resolution
-        self._resolution_from = 0  # gaps the estimate was made from
-        self._last_read: float | None = None
         self.contradictions = 0  # frames whose content contradicts their label
         self.first_contradiction = -1  # the row of the first
         self._hint_checked = 0  # rows of the store checked against their labels
@@ -133,12 +135,14 @@ class Pipeline:
             return
         if self._held:
             self._frame_held()
+        if self.clock.learning and chunk.data:
+            self.clock.note(chunk.t_end)
+            if self.clock.due:
+                self.measure_stamps()
         if self._frame_starts and chunk.data and chunk.t_start is None:
             # the stamp is when the frame began: it ends when its bytes are through
             end = chunk.t_end + len(chunk.data) * self.line.char_time
             chunk = Chunk(chunk.data, end, chunk.t_end, chunk.channel, chunk.direction)
-        elif self._estimating and chunk.data:
-            self._note_read(chunk.t_end)
         ch = self.channels.get(chunk.channel)
         if ch is None:
             ch = self._add_channel(chunk.channel, chunk.direction)
@@ -194,11 +198,12 @@ class Pipeline:
             for chunk in reads.split():
                 self.feed(chunk)
             return
-        if self._estimating:
+        clock = self.clock
+        if clock.learning:
             for t in reads.t_ends:
-                self._note_read(t)
-                if not self._estimating:
-                    break  # READ_GAPS reached here, as it would be read by read
+                clock.note(t)
+                if not clock.learning:
+                    break  # measured enough here, as it would be read by read
         ch.fed += len(reads.data)
         ch.last_t = reads.t_end
         # framed with the batches before it: the framer frames a batch read by read,
@@ -233,7 +238,7 @@ class Pipeline:
         Readers of the store call this (Session.refresh does) before they look."""
         self._frame_held()
         self._release(final=False)
-        self._estimate_resolution()
+        self.measure_stamps()
         self.pairer.update()
         self._check_hints()
 
@@ -256,30 +261,28 @@ class Pipeline:
             assert ch.framer is not None
             ch.framer.finish()
         self._release(final=True)
-        self._estimate_resolution()
+        self.measure_stamps()
         self.pairer.finish()
         self._check_hints()
 
     # -- what the source's labels and stamps turned out to be worth ----------------------
 
-    def _note_read(self, t_end: float) -> None:
-        """Keep the first gaps between host reads: their median is the read resolution."""
-        if self._last_read is not None:
-            gap = t_end - self._last_read
-            if 0 < gap < 0.1:  # reads of a busy line, not pauses between polls
-                self._read_gaps.append(gap)
-                if len(self._read_gaps) >= READ_GAPS:
-                    self._estimating = False  # enough to tell
-        self._last_read = t_end
+    def measure_stamps(self) -> None:
+        """The stamps' resolution, measured again from those seen since (the clock's
+        step, the host reads' rhythm and lateness), into the store."""
+        if self.clock.update():
+            resolution = self.store.resolution = self.clock.resolution
+            for ch in self.channels.values():
+                tl = getattr(ch.framer, "timeline", None)  # (a serial framer's)
+                if tl is not None:  # stamps this coarse are not too close
+                    tl.slack = max(tl.slack, resolution)
 
-    def _estimate_resolution(self) -> None:
-        """Host reads of unknown resolution: the median gap between reads of a busy line
-        (an FTDI adapter's 16 ms latency timer shows as reads 16 ms apart)."""
-        gaps = self._read_gaps
-        if self._resolution_from == len(gaps) or len(gaps) < 16:
-            return
-        self._resolution_from = len(gaps)
-        self.store.resolution = sorted(gaps)[len(gaps) // 2]
+    def read_stamps_as(self, stamps: Stamp, reading: str) -> None:
+        """Per-frame stamps turned out to mark the other end of each frame (before any
+        chunk was fed): `reading` says how that was told."""
+        self.stamps = self.store.stamps = self.clock.stamps = stamps
+        self.clock.reading = reading
+        self._frame_starts = stamps == Stamp.FRAME_START
 
     def _check_hints(self) -> None:
         """Compare each new frame's kind with the label of the bytes it starts in."""
@@ -347,7 +350,14 @@ class Pipeline:
                 "timing: the source has no timestamps; times are synthetic (one character "
                 "time per byte) and no latency or poll period is measured"
             ]
-        return []
+        # coarse times are said where they are shown (a listing's first line, --stats);
+        # here, once, what was measured from the stamps to say so: stamps that bound
+        # nothing, a resolution coarser than the source declared, frame stamps read the
+        # other way round than their format says
+        clock = self.clock
+        if self.store.resolution < INF and not clock.reading and not clock.measured_coarser:
+            return []
+        return [timing_note(self.stamps, self.store.resolution, self.pairer.timeout, clock.why())]
 
     # -- internals -----------------------------------------------------------------------
 
@@ -403,7 +413,8 @@ class Pipeline:
         )
         if isinstance(ch.framer, RtuFramer):
             ch.framer.pair_inline = ch.staging is None
-        ch.framer.timeout = self.pairer.timeout
+        # (the wait the row times show as overdue: the timeout plus their resolution)
+        ch.framer.timeout = self.pairer.timeout + self.store.resolution
         ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
         held, ch.held = ch.held or [], None
         for old in held:

@@ -35,7 +35,9 @@ from __future__ import annotations
 import csv
 import json
 import struct
+from array import array
 from collections.abc import Iterable, Iterator
+from itertools import compress
 from math import floor
 from typing import Any, BinaryIO, TextIO, cast
 
@@ -45,9 +47,15 @@ from sniffer import __version__, core
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.framing.tcp import MBAP
 from sniffer.meaning.describe import VALUED_FLAGS, Describer, FrameDetail, Shared
-from sniffer.model import LineSettings
-from sniffer.outputs.listing import FORMATS, KIND_NAMES
+from sniffer.model import LineSettings, Stamp
+from sniffer.outputs.listing import (
+    FORMATS,
+    KIND_NAMES,
+    shown_latency_max_ms,
+    shown_latency_ms,
+)
 from sniffer.sources.linktypes import MBTCP_PORT, TcpEnds, build_mbtcp_pdu
+from sniffer.sources.pcap import SEPARATION_MARGIN
 from sniffer.sources.pcapng_writer import (
     EPB_FLAG_CRC_ERROR,
     EPB_FLAG_INBOUND,
@@ -80,8 +88,8 @@ EXTENSIONS = {
 }
 TRANSACTION_COLUMNS = (
     "request", "t", "unit", "device", "function", "name", "request_summary",
-    "response", "t_response", "latency_ms", "status", "exception_code", "response_summary",
-    "problems", "request_raw", "response_raw",
+    "response", "t_response", "latency_ms", "latency_max_ms", "status", "exception_code",
+    "response_summary", "problems", "request_raw", "response_raw",
 )  # fmt: skip
 REGISTER_COLUMNS = (
     "index", "t", "unit", "device", "access", "table", "address", "name", "value",
@@ -211,6 +219,10 @@ _DEVICE_SLOW = int(Flag.DEVICE_SLOW)
 _REQUEST = int(Kind.REQUEST)
 _MODE = int(Flag.ASCII | Flag.MBAP)
 TICKS = 1_000_000_000  # the writer's default resolution (nanoseconds)
+# what an exported packet's time is said to be, by the capture's stamps: each packet is
+# stamped at its frame's end as the capture placed it (read ends stay read ends, good to
+# the resolution the capture had, which the reader then takes as it is)
+_EXPORTED_STAMPS = {Stamp.FRAME_START: Stamp.FRAME_END}
 EXPORT_RUN = 4096  # rows a call of the compiled loop takes at most (see _write_compiled)
 
 
@@ -247,8 +259,13 @@ class PcapExporter:
         self.writer = PcapngWriter(
             cast(BinaryIO, self._blocks), application=f"modscope {__version__}"
         )
+        # the times' worth goes with them, so that reading the export back gives the
+        # latencies the capture gave, to what it says they are worth (`exported_timing`)
+        timing = exported_timing(describer.store, line) if header else None
         self.interface = self.writer.add_interface(
-            LINKTYPE_WIRESHARK_UPPER_PDU, name=name, description=describe_interface(line)
+            LINKTYPE_WIRESHARK_UPPER_PDU,
+            name=name,
+            description=describe_interface(line, timing=timing),
         )
         if not header:  # a parallel worker's range: its packets only
             self._blocks.parts.clear()
@@ -257,6 +274,11 @@ class PcapExporter:
         self._key = f"pcapng {self.style} {self.interface}"  # its templates' key in a memo
         self._last: Shared | None = None  # see `_rows`
         self._table: object | None = None  # the compiled core's templates (export_table)
+        # each packet's time (`packet_time`), for the rows so far of the store they were
+        # made for (the compiled loop reads them as the store's `t_end`)
+        self._char = line.char_time
+        self._times: array[float] = array("d")
+        self._timed: FrameStore | None = None
 
     @staticmethod
     def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
@@ -319,19 +341,36 @@ class PcapExporter:
         table = self._table
         if table is None:
             table = self._table = fast.export_table()
+        columns = _PacketColumns(store, self._packet_times(store))
         apart = (annotator.sunspec.units, annotator.windows_of)
         it = iter(rows)
         n = 0
         more = True
         while more:
             blocks, count, found, more = fast.export_rows(
-                table, store, it, store.notes, apart, annotator.bindings, alike,
+                table, columns, it, store.notes, apart, annotator.bindings, alike,
                 _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, EXPORT_RUN,
             )  # fmt: skip
             self.stream.write(blocks)
             describer.count_found(found)
             n += count
         return n
+
+    def _packet_times(self, store: FrameStore) -> array[float]:
+        """`packet_time` of every row of `store`, made for the rows new since the last
+        call (all of them for another store: a live capture's next segment)."""
+        if store is not self._timed:
+            self._timed, self._times = store, array("d")
+        times, have, n = self._times, len(self._times), len(store)
+        if have < n:
+            part = store.t_end[have:n]
+            answers = store.kind[have:n].tobytes().translate(_IS_ANSWER)
+            t, length, flags, char = store.t, store.length, store.flags, self._char
+            for i in compress(range(have, n), answers):
+                if not flags[i] & _MBAP_FLAG:
+                    part[i - have] = min(part[i - have], t[i] + length[i] * char)
+            times.extend(part)
+        return times
 
     def _rows(self, rows: Iterable[int]) -> int:
         """The blocks of `rows`, in order, into the writer's blocks (the pure-Python core,
@@ -340,7 +379,7 @@ class PcapExporter:
         n = 0
         describer = self.describer
         store = describer.store
-        t_end, kinds, partners, flags = store.t_end, store.kind, store.partner, store.flags
+        kinds, partners, flags = store.kind, store.partner, store.flags
         streams, offsets, lengths, channels = (
             store.streams,
             store.offset,
@@ -355,8 +394,9 @@ class PcapExporter:
         # values may share a content (see Describer.contents); their bytes are spliced
         # into the template, or, if it cannot take them, the row is written on its own
         alike = self.style == "modbus-tcp"
+        char = self._char
         for i, shared in describer.contents(rows, values=not alike):
-            t = t_end[i]
+            t = packet_time(store, i, char)
             if t < 0.0:
                 t = 0.0
             if shared is None or flags[i] & _DEVICE_SLOW:
@@ -428,6 +468,79 @@ class PcapExporter:
         return v.raw, block[:12], block[20 : 28 + at], tail, spliced
 
 
+_IS_ANSWER = bytes(k in (Kind.RESPONSE, Kind.EXCEPTION) for k in range(256))
+_MBAP_FLAG = int(Flag.MBAP)
+
+
+def packet_time(store: FrameStore, i: int, char_time: float) -> float:
+    """The time of row `i`'s packet: a frame's end, read back as the frame starting its
+    bytes' line time before; for an answer that took longer than that (split over two
+    host reads), its start plus its line time, so that read back it starts where the
+    capture placed it and its latency (from its request's end, which that packet's time
+    gives) is the capture's. (An answer placed in less than its line time keeps its
+    end: `exported_timing` counts the difference.)"""
+    t, end = store.t[i], store.t_end[i]
+    if store.kind[i] in (Kind.RESPONSE, Kind.EXCEPTION) and not store.flags[i] & _MBAP_FLAG:
+        return min(end, t + store.length[i] * char_time)
+    return end
+
+
+class _PacketColumns:
+    """A store's columns as the compiled export reads them (sniffer/_core.c:
+    export_rows), `t_end` being the packets' times (`packet_time`)."""
+
+    __slots__ = (
+        "channel",
+        "fc",
+        "flags",
+        "kind",
+        "length",
+        "offset",
+        "partner",
+        "status",
+        "streams",
+        "t_end",
+        "unit",
+    )
+
+    def __init__(self, store: FrameStore, times: array[float]) -> None:
+        self.kind, self.flags, self.offset = store.kind, store.flags, store.offset
+        self.length, self.channel, self.partner = store.length, store.channel, store.partner
+        self.status, self.unit, self.fc = store.status, store.unit, store.fc
+        self.streams, self.t_end = store.streams, times
+
+
+def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float]:
+    """What the times of an export of `store` are worth, said in its interface
+    description: the capture's stamps, and its resolution widened by what one time per
+    packet loses. Read back, each frame starts its bytes' line time before its packet's
+    time (`packet_time`), and at least t3.5 after the frame before (modscope's reader
+    keeps exported frames apart so): a request's end or an answer's start the capture
+    placed closer than that (an answer within t3.5, a frame squeezed after another)
+    moves, so each latency read back is good to the capture's resolution plus the
+    largest such move."""
+    stamps = _EXPORTED_STAMPS.get(store.stamps, store.stamps)
+    store.sync()
+    char, apart = line.char_time, line.t35 + SEPARATION_MARGIN
+    moved = 0.0
+    last: float | None = None  # the end of the frame before, as read back
+    kinds, flags = store.kind, store.flags
+    for i, (t, n) in enumerate(zip(store.t, store.length, strict=True)):
+        kind = kinds[i]
+        if kind == Kind.EVENT or flags[i] & Flag.MBAP or not n:
+            continue
+        at = packet_time(store, i, char)
+        start = at - n * char if last is None else max(at - n * char, last + apart)
+        last = max(at, start)
+        if kind == Kind.REQUEST:
+            moved = max(moved, abs(last - store.t_end[i]))
+        elif kind != Kind.NOISE:
+            moved = max(moved, abs(start - t))
+    if moved < 1e-6:  # (the microseconds a recording keeps its times to)
+        moved = 0.0
+    return stamps, store.resolution + moved
+
+
 _Spliced = tuple[bytes, bytes, bytes, bytes]
 _Template = tuple[bytes, bytes, bytes, bytes | None, _Spliced | None]
 
@@ -496,7 +609,10 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
         assert main is not None
         v = main.view
         problems = [*(req.problem_texts if req else ()), *(resp.problem_texts if resp else ())]
-        latency = (resp.latency_ms if resp is not None else None) if req is not None else None
+        # the answer's latency pair, as the listing gives it (pairing.measure)
+        latency = bound = None
+        if req is not None and resp is not None:
+            latency, bound = shown_latency_ms(resp), shown_latency_max_ms(resp)
         yield {
             "request": req.view.index if req else None,
             "t": req.view.t if req else None,
@@ -507,7 +623,8 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
             "request_summary": req.summary if req else "",
             "response": resp.view.index if resp else None,
             "t_response": resp.view.t if resp else None,
-            "latency_ms": None if latency is None else round(latency, 3),
+            "latency_ms": latency,
+            "latency_max_ms": bound,
             "status": STATUS_NAMES[v.status] or KIND_NAMES[Kind(v.kind)],
             "exception_code": _exception_code(resp) if resp else None,
             "response_summary": resp.summary if resp else "",

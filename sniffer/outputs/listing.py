@@ -11,7 +11,7 @@ from datetime import UTC, datetime
 from typing import Any, TextIO
 
 from dissectors.values import Field
-from sniffer.framing.pairing import measure
+from sniffer.framing.pairing import coarse, latency_words, measure, timing_note
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.meaning.describe import Describer, FrameDetail, Shared
 from sniffer.model import Stamp
@@ -40,6 +40,7 @@ CSV_COLUMNS = (
     "check_ok",
     "status",
     "latency_ms",
+    "latency_max_ms",  # the bound where the timing only bounds the latency
     "summary",
     "problems",
     "raw",
@@ -189,18 +190,17 @@ def problem_details(d: FrameDetail) -> list[dict[str, Any]]:
     ]
 
 
-def shown_latency_ms(d: FrameDetail, store: FrameStore | None) -> float | None:
-    """A measured latency in ms to the microsecond: with the `store`, the answer's `t`
-    minus the request's `t_end` as the listing gives them (to the microsecond), so the
-    number is the same whether the times came from a live clock or from a recording
-    that keeps microseconds; without it, the measured value rounded."""
-    if d.latency_ms is None:
-        return None
-    v = d.view
-    if store is None or v.partner == NO_PARTNER:
-        return round(d.latency_ms, 3)
-    req, resp = (v.index, v.partner) if v.kind == Kind.REQUEST else (v.partner, v.index)
-    return round((round(store.t[resp], 6) - round(store.t_end[req], 6)) * 1000, 3)
+def shown_latency_ms(d: FrameDetail, store: FrameStore | None = None) -> float | None:
+    """A row's measured latency in ms as every listing gives it (`pairing.measure`: the
+    difference of the row times as listed, to what the stamps hold), or None where the
+    timing only bounds it (`latency_max_ms`) or cannot give it."""
+    return None if d.latency_ms is None else round(d.latency_ms, 3)
+
+
+def shown_latency_max_ms(d: FrameDetail) -> float | None:
+    """A row's latency bound in ms (the latency is below it), where the timing gives no
+    more; None otherwise."""
+    return None if d.latency_max_ms is None else round(d.latency_max_ms, 3)
 
 
 def transaction_of(d: FrameDetail, store: FrameStore | None = None) -> dict[str, Any] | None:
@@ -214,7 +214,7 @@ def transaction_of(d: FrameDetail, store: FrameStore | None = None) -> dict[str,
         "id": req,
         "role": "request" if v.kind == Kind.REQUEST else "response",
         "latency_ms": shown_latency_ms(d, store),
-        "latency_max_ms": None if d.latency_max_ms is None else round(d.latency_max_ms, 3),
+        "latency_max_ms": shown_latency_max_ms(d),
         "status": STATUS_NAMES[v.status],
         "partner": None if v.partner == NO_PARTNER else v.partner,
     }
@@ -245,11 +245,8 @@ def update_text(d: FrameDetail) -> str:
     line = f"update #{v.index}: {STATUS_NAMES[v.status]}"
     if v.partner != NO_PARTNER:
         line += f", answer #{v.partner}"
-    if d.latency_ms is not None:
-        line += f" {_tenths(d.latency_ms).strip()}ms"
-    elif d.latency_max_ms is not None:
-        line += f" <{d.latency_max_ms:.0f}ms"
-    return line
+    shown = latency_words(shown_latency_ms(d), shown_latency_max_ms(d))
+    return f"{line} {shown}" if shown else line
 
 
 def _ms(value: float | None) -> str:
@@ -272,7 +269,11 @@ def text_line(d: FrameDetail, origin: float, absolute: bool = False, peer: str =
     if v.kind == Kind.EVENT:
         return f"{when}  ---  {d.summary}"
     head, tail = _text_parts(d)
-    lat = "" if v.kind == Kind.REQUEST else _latency_text(d.latency_ms, d.latency_max_ms)
+    lat = (
+        ""
+        if v.kind == Kind.REQUEST
+        else _latency_text(shown_latency_ms(d), shown_latency_max_ms(d))
+    )
     return when + head + lat + tail
 
 
@@ -296,18 +297,8 @@ def _text_parts(d: FrameDetail) -> tuple[str, str]:
 
 
 def _latency_text(ms: float | None, max_ms: float | None) -> str:
-    if ms is not None:
-        return f" {_tenths(ms)}ms"
-    if max_ms is not None:
-        return f" {'<' + format(max_ms, '.0f'):>7}ms"
-    return ""
-
-
-def _tenths(ms: float) -> str:
-    """A latency in ms to 0.1, 7 wide; one under 0.05 ms as `<0.1`, never as 0.0 (a
-    packet capture resolves microseconds: a server on the capturing host answers in
-    tens of them)."""
-    return f"{'<0.1':>7}" if ms < 0.05 else f"{ms:7.1f}"
+    shown = latency_words(ms, max_ms)
+    return f" {shown:>9}" if shown else ""
 
 
 def _json_float(x: float) -> str:
@@ -394,14 +385,7 @@ def _transaction_json(
     partner = store.partner[i]
     request = kind == Kind.REQUEST
     req = i if request or partner == NO_PARTNER else partner
-    if ms is None:
-        shown = "null"
-    elif partner == NO_PARTNER:
-        shown = _json_float(round(ms, 3))
-    else:
-        answer, req_row = (partner, i) if request else (i, partner)
-        gap = round(store.t[answer], 6) - round(store.t_end[req_row], 6)
-        shown = _json_float(round(gap * 1000, 3))
+    shown = "null" if ms is None else _json_float(round(ms, 3))
     bound = "null" if max_ms is None else _json_float(round(max_ms, 3))
     return (
         f', "transaction": {{"id": {req}, "role": "{"request" if request else "response"}", '
@@ -441,7 +425,10 @@ class Lister:
         self._csv = csv.writer(out) if fmt == "csv" else None
         self._stamps: Stamp | None = None
         self._timing = ""  # the JSONL `timing` item for `_stamps`
-        if self._csv is not None and header:  # a parallel worker's range goes without
+        # what the times are worth is said once, before the first row (a parallel worker's
+        # range goes without, as without the CSV header)
+        self._noted = not header
+        if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
     def write(self, rows: Iterable[int], flush: bool = True) -> int:
@@ -462,9 +449,15 @@ class Lister:
             else ((i, None) for i in rows)
         )
         for i, shared in contents:
+            note = ""
+            if not self._noted:
+                self._noted = True
+                note = self.timing_note()
+                if note and text:
+                    self.out.write(f"# {note}\n")
             if self.origin is None:
                 self.origin = store.t[i]
-                if text and store.stamps == Stamp.NONE:
+                if text and store.stamps == Stamp.NONE and not note:
                     self.out.write(SYNTHETIC_HEADER + "\n")
             peer = store.peers.get(store.channel[i], "") if store.peers else ""
             line = None
@@ -474,6 +467,8 @@ class Lister:
                 )
             if line is None:
                 line = self._line(describer.detail(i), peer)
+            if note and line is not None and self.fmt == "jsonl":
+                line = line[:-1] + ", " + _json_item("timing_note", note) + "}"
             n += 1
             if line is None:  # CSV: written by the csv module
                 if flush:
@@ -491,6 +486,15 @@ class Lister:
             pending.append("")
             self.out.write("\n".join(pending))
         return n
+
+    def timing_note(self) -> str:
+        """The sentence a listing starts with when its times are coarse (print times, a
+        resolution of a millisecond or more) or synthetic: what is shown as a bound, or
+        not at all, because of them (`pairing.timing_note`)."""
+        store = self.describer.store
+        if store.stamps != Stamp.NONE and not coarse(store.stamps, store.resolution):
+            return ""
+        return timing_note(store.stamps, store.resolution)
 
     def _text_line(self, i: int, shared: Shared, peer: str) -> str:
         """Row `i`'s text line from what rows with its content share (see
@@ -513,9 +517,7 @@ class Lister:
         measured = measure(store, i)
         if measured is None:
             return when + parts[2]
-        if measured.bound:
-            return f"{when}{parts[0]} {'<' + format(measured.seconds * 1000, '.0f'):>7}ms{parts[1]}"
-        return f"{when}{parts[0]} {_tenths(measured.seconds * 1000)}ms{parts[1]}"
+        return f"{when}{parts[0]} {measured.text():>9}{parts[1]}"
 
     def _json_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s JSONL line from what rows with its content share, with the row's
@@ -532,9 +534,9 @@ class Lister:
             measured = measure(store, i)
             if measured is not None:
                 if measured.bound:
-                    max_ms = measured.seconds * 1000
+                    max_ms = measured.ms
                 else:
-                    ms = measured.seconds * 1000
+                    ms = measured.ms
         memo = shared.memo
         json_parts = memo.get("jsonl")
         raw = b""
@@ -609,6 +611,7 @@ class Lister:
                 v.check_ok,
                 d.status,
                 _ms(shown_latency_ms(d, store)),
+                _ms(shown_latency_max_ms(d)),
                 d.summary,
                 "; ".join(d.problem_texts),
                 v.raw.hex(),
@@ -636,8 +639,9 @@ class Lister:
                 v = d.view
                 latency = _ms(shown_latency_ms(d, store))
                 answer = "" if v.partner == NO_PARTNER else f"answer #{v.partner}"
+                bound = _ms(shown_latency_max_ms(d))
                 cells = (v.index, "", "", "", "update", "", "", "", "", "", d.status, latency)
-                row = (*cells, answer)
+                row = (*cells, bound, answer)
                 self._csv_row((*row, *("",) * (len(CSV_COLUMNS) - len(row))))
             n += 1
         return n

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from itertools import compress
 from typing import TYPE_CHECKING, Any
 
-from sniffer.analysis.stats import UnitStats, median_gap
+from sniffer.analysis.stats import UnitStats, latency_figure, median_gap
 from sniffer.framing.columns import flag_mask, marking
 from sniffer.meaning.annotate import Binding
 from sniffer.model import Chunk
@@ -144,9 +144,9 @@ class _Latencies:
             self.add(exact)
             if len(exact) < new:
                 # a burst longer than the newest values kept: the rest from the tally of
-                # printed figures (0.1 ms), less those taken exactly just above
+                # printed figures (0.1 ms, 1 µs under 0.1 ms), less those taken exactly just above
                 older = tallies.latency_ms - self.tally
-                older.subtract(Counter(round(x * 1000, 1) for x in exact))
+                older.subtract(Counter(latency_figure(x * 1000) for x in exact))
                 for ms, times in older.items():
                     if times > 0:
                         self.add((ms / 1000,), times)

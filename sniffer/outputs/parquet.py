@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from dissectors.functions import function_name
+from sniffer.framing.pairing import measure
 from sniffer.framing.store import NO_PARTNER
 from sniffer.meaning.describe import Describer
 from sniffer.outputs.export import register_records, transaction_records
@@ -65,6 +66,7 @@ def _schema(what: str) -> Any:
             ("flags", pa.uint32()),
             ("partner", pa.int64()),
             ("latency_ms", pa.float64()),
+            ("latency_max_ms", pa.float64()),
             ("raw", pa.binary()),
         ]
     elif what == "transactions":
@@ -80,6 +82,7 @@ def _schema(what: str) -> Any:
             ("response", pa.int64()),
             ("t_response", pa.float64()),
             ("latency_ms", pa.float64()),
+            ("latency_max_ms", pa.float64()),
             ("status", names),
             ("exception_code", pa.uint8()),
             ("response_summary", pa.string()),
@@ -126,11 +129,15 @@ def frame_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, 
         framed = kind not in (Kind.NOISE, Kind.EVENT)
         fc = store.fc[i]
         j = store.partner[i]
-        latency = None
-        if j != NO_PARTNER and kind != Kind.REQUEST:
-            latency = (store.t[i] - store.t_end[j]) * 1000
-        elif j != NO_PARTNER:
-            latency = (store.t[j] - store.t_end[i]) * 1000
+        # the latency pair every listing gives (pairing.measure): a value, or a bound
+        # where the timing gives no more, never a difference of times it cannot resolve
+        latency = bound = None
+        measured = measure(store, i) if j != NO_PARTNER else None
+        if measured is not None:
+            if measured.bound:
+                bound = measured.ms
+            else:
+                latency = measured.ms
         view_ok = framed and not store.flags[i] & 0x11  # CHECK_BAD | NON_HEX
         yield {
             "index": i,
@@ -150,6 +157,7 @@ def frame_rows(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, 
             "flags": store.flags[i],
             "partner": None if j == NO_PARTNER else j,
             "latency_ms": latency,
+            "latency_max_ms": bound,
             "raw": store.raw(i),
         }
 

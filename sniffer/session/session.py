@@ -9,15 +9,17 @@ reads back.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
 from functools import partial
 from importlib import resources
+from itertools import chain, islice
 from pathlib import Path
 from typing import Any, Generic, TypeVar, overload
 
 from sniffer.analysis.baud import estimate_line
 from sniffer.analysis.stats import Stats
+from sniffer.framing.pairing import declared_resolution, frame_reading
 from sniffer.framing.pipeline import MERGE_SLACK, Pipeline
 from sniffer.framing.store import FrameStore
 from sniffer.framing.tcp import NetPipeline
@@ -123,6 +125,8 @@ class Session:
             **extra,
         )
         self.state = SessionState(store, pipeline, annotator, Stats(store))
+        # what --stats says of the times shown: the timeout and the stamps' worth
+        self.stats.timeout, self.stats.clock = pipeline.pairer.timeout, pipeline.clock
         self.describer = Describer(store, annotator)
         self._contradiction_placed = False  # pipeline.first_contradiction counts from 0
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
@@ -239,15 +243,38 @@ class Session:
             self._contradiction_placed = True
 
     def _timed(self) -> bool:
-        """Whether the rows framed so far may be counted for good: not while the host
-        reads' resolution is still unknown (`Pipeline` estimates it from the first
-        reads), since the statistics count an answer faster than the stamps resolve as
-        such only once it is known. A whole store counts its rows at the end, or at the
-        first progress (0.25 s in, the resolution long known), and a windowed replay must
-        count them alike; one whose reads never come close enough to tell (a slow poll,
-        a read a second) keeps every row, as a whole store does."""
-        store = self.store
-        return store.stamps != Stamp.READ_END or store.resolution > 0
+        """Whether the rows framed so far may be counted for good: not while the
+        stamps' resolution is still being measured (`Pipeline.clock`, from the first
+        stamps and host reads), since what counts as a measured latency, a bound or a
+        poll period depends on it. A whole store counts its rows at the end, and a
+        windowed replay must count them alike; one whose stamps never finish telling
+        (fewer than the clock looks at) keeps every row, as a whole store does."""
+        return not self.pipeline.clock.learning
+
+    def _first_stamps(self, chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+        """`chunks`, once their first READING_CHUNKS stamps were measured (the clock's
+        step: a log printing `.000` has a 1 s clock), before any is framed, so that the
+        framer takes stamps that coarse as they are; and, for per-frame stamps, once
+        they told whether they mark frame starts or frame ends: the reading under which
+        the bytes fit the line speed (`sniffer.framing.pairing.frame_reading`), which
+        the pipeline then takes them as."""
+        it = iter(chunks)
+        first = list(islice(it, READING_CHUNKS))
+        pipeline, store = self.pipeline, self.store
+        for chunk in first:
+            if chunk.data and pipeline.clock.learning:
+                pipeline.clock.note(chunk.t_end)
+        pipeline.measure_stamps()
+        if store.stamps in (Stamp.FRAME_END, Stamp.FRAME_START) and type(pipeline) is Pipeline:
+            stamps, reading = frame_reading(
+                [c for c in first if not isinstance(c, Reads)],
+                store.stamps,
+                self.line.char_time,
+                max(store.resolution, READING_SLACK),
+            )
+            if stamps is not store.stamps:
+                pipeline.read_stamps_as(stamps, reading)
+        return chain(first, it)
 
     def forget_annotation(self) -> None:
         """See `SessionState.forget_annotation`."""
@@ -315,6 +342,8 @@ class Session:
             if segment is not None:
                 segment(self)  # every row, or (windowed) the last block's
             return
+        if not len(self.store) and self.store.stamps not in (Stamp.READ_END, Stamp.NONE):
+            chunks = self._first_stamps(chunks)
         last = time.monotonic()
         done = 0
         writer = None
@@ -375,6 +404,10 @@ class Session:
             progress(done, self.base + len(self.store))
 
 
+READING_CHUNKS = 256  # frames per-frame stamps are told frame starts or ends from
+READING_SLACK = 50e-6  # how much two frames may seem to overlap and still fit
+
+
 def _open(writer: Writer | None) -> Writer | None:
     """The writer, if it still writes its sidecar (not abandoned: a folder filled up)."""
     return writer if writer is not None and writer.out is not None else None
@@ -400,6 +433,7 @@ def open_session(
         options = replace(options, estimator=estimate_line)
     capture = open_capture(path, options)
     line = options.line(capture.info.line)
+    resolution, basis = declared_resolution(capture.info)
     session = Session(
         line,
         bindings=bindings,
@@ -408,9 +442,10 @@ def open_session(
         source=str(path),
         labels=capture.info.labels,
         stamps=capture.info.stamps,
-        resolution=capture.info.resolution,
+        resolution=resolution,
         network=capture.info.channels if capture.info.network else None,
     )
+    session.pipeline.clock.basis = basis
     if index:
         _sidecar(session, capture, Path(path), options, timeout)
     return session, capture

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sniffer.analysis.stats import Stats
+from sniffer.framing.pairing import StampClock
 from sniffer.framing.pipeline import Pipeline
 from sniffer.framing.store import FrameStore
 from sniffer.meaning.annotate import Annotator
@@ -36,6 +37,13 @@ class SessionState:
     # (`stream_base`), and how many of them were frames (not noise or events)
     stream_base: dict[int, int] = field(default_factory=dict)
     frames_before: int = 0
+
+    @property
+    def timing(self) -> StampClock:
+        """What the source's stamps are worth: their resolution as declared and as
+        measured from the stamps seen (the store keeps the resolution the rows are
+        shown with, `store.resolution`)."""
+        return self.pipeline.clock
 
     def forget_annotation(self) -> None:
         """The annotator's state carried into an emptied store (a new segment): what it

@@ -30,7 +30,7 @@ import re
 import struct
 from dataclasses import dataclass
 
-from sniffer.model import MODES, Direction, LineSettings
+from sniffer.model import MODES, Direction, LineSettings, Stamp
 
 LINKTYPE_USER0 = 147
 LINKTYPE_RTAC_SERIAL = 250
@@ -239,6 +239,7 @@ def open_mbap(adu: bytes) -> bytes | None:
 
 
 _FORMAT = re.compile(r"^([78])([NEOMS])([12])$", re.IGNORECASE)
+_STAMPS = {stamp.value: stamp for stamp in Stamp}
 _ROLES = {
     "master": Direction.MASTER,
     "requests": Direction.MASTER,
@@ -249,19 +250,31 @@ _ROLES = {
 
 @dataclass(frozen=True, slots=True)
 class InterfaceNote:
-    """What a modscope interface description says: line settings and a role."""
+    """What a modscope interface description says: line settings and a role; for an
+    export, what the times it holds are worth (the stamps and resolution of the
+    capture it was exported from)."""
 
     line: LineSettings | None
     role: Direction = Direction.UNKNOWN
+    stamps: Stamp | None = None
+    resolution: float | None = None
 
 
-def describe_interface(line: LineSettings, role: Direction = Direction.UNKNOWN) -> str:
-    """The `if_description` modscope writes: `modscope 19200 8E1 rtu`, maybe ` master`."""
+def describe_interface(
+    line: LineSettings,
+    role: Direction = Direction.UNKNOWN,
+    timing: tuple[Stamp, float] | None = None,
+) -> str:
+    """The `if_description` modscope writes: `modscope 19200 8E1 rtu`, maybe ` master`,
+    and for an export the times' worth: ` stamps=read-end resolution=0.016`."""
     text = f"modscope {line.describe()}"
     if role == Direction.MASTER:
         text += " master"
     elif role == Direction.SLAVE:
         text += " slave"
+    if timing is not None:
+        stamps, resolution = timing
+        text += f" stamps={stamps.value} resolution={resolution!r}"
     return text
 
 
@@ -274,9 +287,21 @@ def parse_interface_description(text: str) -> InterfaceNote:
     char: tuple[int, str, int] | None = None
     mode = "auto"
     role = Direction.UNKNOWN
+    stamps: Stamp | None = None
+    resolution: float | None = None
     for word in words[1:]:
         lower = word.lower()
-        if word.isascii() and word.isdigit() and baud is None:
+        key, _, value = lower.partition("=")
+        if key == "stamps" and value in _STAMPS:
+            stamps = _STAMPS[value]
+        elif key == "resolution":
+            try:
+                resolution = float(value)
+            except ValueError:
+                continue
+            if not resolution >= 0:
+                resolution = None
+        elif word.isascii() and word.isdigit() and baud is None:
             baud = int(word)
         elif (match := _FORMAT.match(word)) and char is None:
             char = (int(match[1]), match[2].upper(), int(match[3]))
@@ -285,7 +310,7 @@ def parse_interface_description(text: str) -> InterfaceNote:
         elif lower in _ROLES:
             role = _ROLES[lower]
     if baud is None and char is None and mode == "auto":
-        return InterfaceNote(None, role)
+        return InterfaceNote(None, role, stamps, resolution)
     base = LineSettings()
     try:
         line = LineSettings(
@@ -296,5 +321,5 @@ def parse_interface_description(text: str) -> InterfaceNote:
             mode=mode,
         )
     except ValueError:
-        return InterfaceNote(None, role)
-    return InterfaceNote(line, role)
+        return InterfaceNote(None, role, stamps, resolution)
+    return InterfaceNote(line, role, stamps, resolution)

@@ -802,6 +802,10 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
     line = options.line(section.file_line)
     channels = {iface.channel: iface.label for iface in section.all}
     roles = [iface.note.role for iface in section.all]
+    resolution = 0.0
+    said = [iface.note for iface in section.all if iface.note.stamps is not None]
+    if said:  # a modscope export: its times are worth what its source's were
+        stamps, resolution = said[0].stamps or stamps, said[0].resolution or 0.0
     info = SourceInfo(
         path=str(path),
         format="pcapng",
@@ -809,6 +813,7 @@ def open_pcapng(path: Path, options: ReadOptions) -> Capture:
         channels=channels,
         recorded_line=section.file_line,
         stamps=stamps,
+        resolution=resolution,
         # interfaces with a modscope role are one port per direction; EPB flags are hints
         labels=Labels.CERTAIN if roles and Direction.UNKNOWN not in roles else labels,
     )

@@ -20,12 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dissectors.checks import with_crc
-from sniffer.model import LineSettings
-from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL
+from sniffer.model import LineSettings, Stamp
+from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL, describe_interface
 from sniffer.sources.pcapng_writer import PcapngWriter, rtac_record
 
 LINE = LineSettings(baud=19200, bytesize=8, parity="E", stopbits=1, mode="rtu")
 START = 1768464000.0  # 2026-01-15 08:00:00 UTC
+READ_LATE = 0.002  # the latest a simulated host read returns after its last byte
 
 
 @dataclass(frozen=True, slots=True)
@@ -163,10 +164,12 @@ def write_demo(path: Path, cycles: int = 240) -> int:
     reads = 0
     with path.open("wb") as handle:
         writer = PcapngWriter(handle, application="modscope demo simulator")
+        # the reads below are stamped at most READ_LATE after their last byte: the
+        # capture says so, as a recorder that knows its adapter would
         iface = writer.add_interface(
             LINKTYPE_RTAC_SERIAL,
             name="demo",
-            description=f"modscope {LINE.baud} 8E1 rtu",
+            description=describe_interface(LINE, timing=(Stamp.READ_END, READ_LATE)),
         )
         for t, data in traffic(cycles):
             # the adapter hands bytes over in reads of up to 16 ms worth; a frame may be
@@ -177,8 +180,10 @@ def write_demo(path: Path, cycles: int = 240) -> int:
                     continue
                 # a host read is stamped when it returns: after its last byte, plus
                 # the adapter's latency
-                when = t + (start + len(part)) * char + rng.uniform(0.0005, 0.002)
-                writer.write_packet(iface, when, rtac_record(when, part))
+                when = t + (start + len(part)) * char + rng.uniform(0.0005, READ_LATE)
+                # the record's time is its first byte's, as modscope's recorder writes it:
+                # estimated from the read's end and the baud rate
+                writer.write_packet(iface, when, rtac_record(when - len(part) * char, part))
                 reads += 1
     return reads
 

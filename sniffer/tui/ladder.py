@@ -105,11 +105,7 @@ def _put(cells: list[str], x: int, s: str) -> None:
 def latency_label(store: FrameStore, row: int) -> str:
     """A transaction's latency as `measure` vouches for it: `12.3ms`, `<16ms` or `?`."""
     m = measure(store, row)
-    if m is None:
-        return "?"
-    ms = m.seconds * 1000
-    value = f"{ms:.1f}ms" if ms < 1000 else f"{m.seconds:.2f}s"
-    return ("<" + f"{ms:.0f}ms") if m.bound else value
+    return "?" if m is None else m.text()
 
 
 class Ladder:

@@ -16,6 +16,7 @@ from rich.style import Style
 from rich.text import Text
 
 from dissectors.dictionary import RegisterValue
+from sniffer.framing.pairing import latency_words
 from sniffer.framing.store import FrameView
 from sniffer.meaning.describe import FrameDetail
 from sniffer.text import plain
@@ -117,10 +118,12 @@ def ago_text(seconds: float) -> str:
     return f"{hours}h{minutes:02d}m"
 
 
-def latency_text(ms: float | None) -> str:
-    if ms is None:
+def latency_text(d: FrameDetail | None) -> str:
+    """A row's latency as every listing says it (`pairing.latency_words`): the value, the
+    bound (`<16ms`) where the timing only bounds it, or nothing where it cannot say."""
+    if d is None:
         return ""
-    return f"{ms:.1f}ms" if ms < 1000 else f"{ms / 1000:.2f}s"
+    return latency_words(d.latency_ms, d.latency_max_ms)
 
 
 @dataclass(frozen=True, slots=True)
@@ -248,12 +251,12 @@ def row_text(
         direction = (d.direction + " ") if answer is None else "M<>S"
     text.append(" " + direction + " ", styles.get("dim"))
     summary = d.summary
-    latency = d.latency_ms if v.kind != Kind.REQUEST or answer is not None else None
+    latency = d if v.kind != Kind.REQUEST or answer is not None else None
     if answer is not None:
         a = answer.view
         if a.exception or answer.registers:
             summary = answer.summary
-        latency = answer.latency_ms
+        latency = answer
     name = plain(d.name, 80)
     if v.kind == Kind.NOISE:
         name = "noise"

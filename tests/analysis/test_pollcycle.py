@@ -58,7 +58,7 @@ def test_period_jitter_and_gap() -> None:
         chunks += [Chunk(READ_3, t), Chunk(answer(3, 3, 2), t + 0.02)]
         if k % 5 == 0:  # unit 7 every 2.5 s
             chunks += [Chunk(READ_7, t + 0.1), Chunk(answer(7, 4, 1), t + 0.12)]
-    cycles = poll_cycles(frame_capture(chunks, LINE))
+    cycles = poll_cycles(unresolved(frame_capture(chunks, LINE)))
     (poll,) = cycles[3].polls
     assert poll.what == "read holding 10-11" and poll.count == 20
     assert poll.period == pytest.approx(0.5, abs=0.011)
@@ -95,6 +95,13 @@ def test_retries_are_counted_and_do_not_move_the_period() -> None:
 
 
 # -- the column-wise poll cycle against its definition ---------------------------------
+
+
+def unresolved(store: FrameStore) -> FrameStore:
+    """`store` with its stamps taken as exact: the definition below is of the waits as
+    the row times give them (how the stamps' resolution bounds them is tested apart)."""
+    store.resolution = 0.0
+    return store
 
 
 def cycles_row_by_row(store: FrameStore) -> dict[int, UnitCycle]:
@@ -135,7 +142,9 @@ def cycles_row_by_row(store: FrameStore) -> dict[int, UnitCycle]:
 @pytest.mark.parametrize("seed", range(16))
 def test_random_requests_make_the_cycle_of_the_definition(seed: int) -> None:
     rng = random.Random(seed)
-    store = random_store(rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1)
+    store = random_store(
+        rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1, resolution=0.0
+    )
     assert poll_cycles(store) == cycles_row_by_row(store)
 
 
@@ -144,15 +153,15 @@ def test_rows_looked_at_in_blocks_make_the_same_cycle(
     block: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     rng = random.Random(block)
-    store = random_store(rng, 1500, channels=1 + block % 3, odd_framing=True)
+    store = random_store(rng, 1500, channels=1 + block % 3, odd_framing=True, resolution=0.0)
     monkeypatch.setattr(pollcycle, "BLOCK", block)
     assert poll_cycles(store) == cycles_row_by_row(store)
-    demo = replay_file(DEMO_CAPTURE).store
+    demo = unresolved(replay_file(DEMO_CAPTURE).store)
     assert poll_cycles(demo) == cycles_row_by_row(demo)
 
 
 def test_repeated_and_differing_requests_on_the_demo() -> None:
-    store = replay_file(DEMO_CAPTURE).store
+    store = unresolved(replay_file(DEMO_CAPTURE).store)
     cycles = poll_cycles(store)
     assert cycles == cycles_row_by_row(store)
     assert sum(p.count for c in cycles.values() for p in c.polls) > 500
@@ -172,7 +181,7 @@ def test_the_same_write_with_other_values_and_damaged_ones() -> None:
         for n, body in enumerate(bodies):
             t = k * 10.0 + n * 0.5
             chunks += [Chunk(with_crc(body), t)]
-    store = frame_capture(chunks, LINE)
+    store = unresolved(frame_capture(chunks, LINE))
     cycles = poll_cycles(store)
     assert cycles == cycles_row_by_row(store)
     whats = {p.what: p.count for p in cycles[3].polls}
@@ -225,7 +234,9 @@ def test_requests_counted_in_parts_make_the_cycle_of_the_whole(seed: int) -> Non
     and so does the cycle of the parts before with the last one added on the side (a
     live summary, its window's rows still in memory)."""
     rng = random.Random(seed)
-    store = random_store(rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1)
+    store = random_store(
+        rng, 1500, channels=1 + seed % 3, odd_framing=seed % 2 == 1, resolution=0.0
+    )
     cuts = sorted(rng.sample(range(1, len(store)), rng.randrange(1, 40)))
     parts = [_part(store, a, b) for a, b in pairwise([0, *cuts, len(store)])]
     found = pollcycle.PollCycles()

@@ -9,7 +9,7 @@ from collections import Counter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sniffer.analysis.stats import RECENT, UnitStats
+from sniffer.analysis.stats import RECENT, UnitStats, latency_figure, latency_text
 from sniffer.model import LineSettings
 from sniffer.sources.synth import polling_frames
 from tests.support.live import FAST, Run, reads
@@ -17,11 +17,15 @@ from tests.support.live import FAST, Run, reads
 QS = (0, 0.5, 0.95, 1)
 
 # latencies in seconds: anywhere, or on (and a hair off) the 0.05 ms boundaries where
-# the printed tenth of a millisecond turns over
+# the printed tenth of a millisecond turns over (and the microseconds under 0.1 ms)
 _boundary = st.tuples(st.integers(1, 40_000), st.sampled_from((-1e-12, 0.0, 1e-12))).map(
     lambda kb: kb[0] / 20_000 + kb[1]
 )
-latency = st.one_of(st.floats(1e-6, 2.0), _boundary)
+# under 0.1 ms, the half microseconds where the printed thousandth turns over
+_fine = st.tuples(st.integers(1, 220), st.sampled_from((-1e-15, 0.0, 1e-15))).map(
+    lambda kb: kb[0] / 2_000_000 + kb[1]
+)
+latency = st.one_of(st.floats(1e-6, 2.0), _boundary, _fine)
 # gaps between requests: anywhere, or on the 0.5 ms boundaries of the printed period
 gap = st.one_of(
     st.floats(0.0, 5.0),
@@ -34,7 +38,7 @@ def printed(unit: UnitStats) -> tuple[list[str], str]:
     """The unit's latency columns and period as `Stats.table` prints them."""
     period = unit.polling_period()
     return (
-        ["-" if x is None else f"{x:.1f}" for x in unit.latencies_ms(*QS)],
+        ["-" if x is None else latency_text(x) for x in unit.latencies_ms(*QS)],
         "-" if period is None else f"{period * 1000:.0f}ms",
     )
 
@@ -97,7 +101,7 @@ def test_a_live_capture_over_many_segments_keeps_bounded_statistics() -> None:
         tallies = unit.tallies
         assert tallies is not None
         assert len(unit.latencies) == len(unit.request_times) == 0
-        assert tallies.latency_ms == Counter(round(x * 1000, 1) for x in full.latencies)
+        assert tallies.latency_ms == Counter(latency_figure(x * 1000) for x in full.latencies)
         assert len(tallies.recent_latencies) <= RECENT >= len(tallies.recent_requests)
         assert list(tallies.recent_latencies) == list(full.latencies[-RECENT:])
         assert tallies.requests == len(full.request_times)
@@ -112,4 +116,4 @@ def test_a_tui_capture_keeps_every_value() -> None:
     run = Run(FAST, [reads(frames, 0.001)], None)
     units = run.session.stats.units.values()
     assert all(u.tallies is None for u in units)
-    assert sum(len(u.latencies) for u in units) > 50
+    assert sum(len(u.request_times) for u in units) > 50  # every value kept, not tallied

@@ -82,13 +82,21 @@ class RowByRow:
                 if s.partner[i] == NO_PARTNER:
                     continue
                 lat = measure(s, i)
-                if lat is None:
-                    st.unmeasured += 1
-                elif lat.bound:
+                if lat is not None and not lat.bound:
+                    st.latencies.append(lat.raw)  # as the row times give it
+                elif lat is not None or resolved(s):
+                    # a bound; or stamps that resolve some time yet contradict here
+                    # (an answer before its request's end): below what they resolve
                     st.below_resolution += 1
                 else:
-                    st.latencies.append(lat.seconds)
+                    st.unmeasured += 1
         self.next = len(s)
+
+
+def resolved(s: FrameStore) -> bool:
+    """Whether the store's stamps resolve some time: not synthetic, not print times
+    (each bounded or not on its own), a resolution that bounds."""
+    return s.stamps not in (Stamp.NONE, Stamp.PRINT) and 0 < s.resolution < math.inf
 
 
 def same(stats: Stats, expected: RowByRow) -> None:

@@ -40,7 +40,8 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, 
 def test_replay_without_a_file_lists_the_demo(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run(["replay"], capsys)
     assert code == 0
-    lines = out.splitlines()
+    note, *lines = out.splitlines()
+    assert note.startswith("# timing: ")  # what the times are worth, said first
     assert len(lines) > 1500
     assert "Read Holding Registers" in lines[0]
     assert any("Under Voltage Trip = 300 V" in line for line in lines)
@@ -197,8 +198,9 @@ def test_flags_win_over_the_recorded_line_settings_with_a_warning(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     code, out, err = run(["replay", "--stats", "--baud", "9600", "--parity", "N"], capsys)
-    assert code == 1  # read with a warning: the stamps come sooner than 9600 baud allows
-    assert "sooner than 9600 baud" in err
+    # (the demo's reads carry their first byte's time, as modscope's recordings do: the
+    # framer takes those as they are, so 9600 baud is not found too slow for them)
+    assert code == 0
     assert "(9600 8N1" in out.splitlines()[0]  # the flags were used
     assert "recorded at 19200 8E1" in err and "--baud 9600, --parity N" in err
     code, out, err = run(["replay", "--stats", "--baud", "19200"], capsys)

@@ -410,12 +410,18 @@ def test_request_times_on_half_milliseconds_are_tallied_as_round_does(
 def test_the_compiled_tallies_round_ties_to_even_and_keep_the_first_zero() -> None:
     fast = _compiled()
     counted: Counter[float] = Counter()
-    # 0.00025 s * 1000 is 0.25 exactly in binary: half to even, 0.2; 0.00075: 0.8
-    assert fast.tally_latencies(counted, array("d", [0.00025, 0.00075, math.nan, -0.00001])) == 3
-    assert list(counted.items()) == [(0.2, 1), (0.8, 1), (-0.0, 1)]
+    # 0.00025 s * 1000 is 0.25 exactly in binary: half to even, 0.2; 0.00075: 0.8; under
+    # 0.1 ms to the microsecond (-0.00001 s: -0.01 ms), and -1e-9 s to a negative zero
+    values = [0.00025, 0.00075, math.nan, -0.00001, -1e-9, 0.00003]
+    assert fast.tally_latencies(counted, array("d", values)) == 5
+    assert list(counted.items()) == [(0.2, 1), (0.8, 1), (-0.01, 1), (-0.0, 1), (0.03, 1)]
     assert math.copysign(1.0, next(k for k in counted if k == 0)) == -1.0
     fast.tally_latencies(counted, array("d", [0.0]))
-    assert repr(list(counted)) == "[0.2, 0.8, -0.0]" and counted[0.0] == 2
+    assert repr(list(counted)) == "[0.2, 0.8, -0.01, -0.0, 0.03]" and counted[0.0] == 2
+    with running(None):  # the Python reference counts the same figures, signs and all
+        python = Tallies()
+        python.add_latencies(array("d", [*values, 0.0]))
+    assert repr(list(python.latency_ms.items())) == repr(list(counted.items()))
     gaps: Counter[int] = Counter()
     # from 0: 0.5, 1.5, 2.5 ms exactly, ties to the even one: 0, 2, 2
     assert fast.tally_gaps(gaps, array("d", [0.0005, 0.0, 0.0015, 0.0, 0.0025]), 0, 0.0) == 0.0025

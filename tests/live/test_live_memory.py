@@ -51,11 +51,12 @@ def replayed(
 
 
 def comparable(line: str) -> dict[str, Any]:
-    """A JSONL row without what docs/output.md says may differ live when one read held
-    several frames: the times' last microsecond, the latency's last 0.001 ms and the
-    bound set by the read interval."""
+    """A JSONL row without what docs/output.md says may differ live: when one read held
+    several frames, the times' last microsecond; and the latency pair and the first
+    row's `timing_note`, which follow the read interval measured so far."""
     rec: dict[str, Any] = json.loads(line)
     del rec["t"], rec["t_end"]
+    rec.pop("timing_note", None)  # (said on the first row once the resolution is known)
     if "transaction" in rec:
         rec["transaction"] = {
             k: v for k, v in rec["transaction"].items() if k not in ("latency_ms", "latency_max_ms")

@@ -236,11 +236,16 @@ def test_every_transaction_is_seen_live_and_from_the_recording(
     for a, b in zip(again, live, strict=True):
         for key in ("t", "t_end"):
             assert abs(a.pop(key) - b.pop(key)) <= 1.5e-6
+        a.pop("timing_note", None)
+        b.pop("timing_note", None)
         ta, tb = a.get("transaction"), b.get("transaction")
         if ta is not None and tb is not None:
             la, lb = ta.pop("latency_ms"), tb.pop("latency_ms")
-            # (one side may call a 1 us latency "one read" and give no value)
-            assert abs((la or 0) - (lb or 0)) <= 0.0015
+            # the pair follows the read interval known so far (live) or in the whole
+            # recording: where both give a value, it is the same but for the rounding
+            # to what each resolution holds (a millisecond at most, here)
+            if la is not None and lb is not None:
+                assert abs(la - lb) <= 0.5015, (la, lb)
             ta.pop("latency_max_ms")
             tb.pop("latency_max_ms")
     assert again == live  # every key of every frame, the updates applied (docs/output.md)

@@ -18,7 +18,7 @@ from dissectors.checks import with_crc
 from sniffer.meaning.annotate import load_bindings
 from sniffer.model import Chunk, LineSettings
 from sniffer.outputs.export import REGISTER_COLUMNS, register_records, write_table
-from sniffer.outputs.listing import Lister
+from sniffer.outputs.listing import CSV_COLUMNS, Lister
 from sniffer.session.session import Session
 from sniffer.text import FORMULA_START, csv_cell
 from tests.support.hostile import HOSTILE_TOML
@@ -91,7 +91,7 @@ def test_frame_listing_csv_escapes_event_text_from_a_capture(raw: bool) -> None:
     out = io.StringIO()
     Lister(out, "csv", s.describer, raw_csv=raw).write(range(len(s.store)))
     rows = cells(out.getvalue())
-    summary = rows[1][12]
+    summary = rows[1][CSV_COLUMNS.index("summary")]
     assert summary == ("=cmd|' /C calc'!A0: @x" if raw else "'=cmd|' /C calc'!A0: @x")
     if not raw:
         assert formula_cells(rows) == []

@@ -392,9 +392,14 @@ def test_an_interrupted_replay_leaves_no_half_written_sidecar(
     steps = ["read", "read2", "silent"] * 40
     path = recorded(tmp_path / "bus.pcapng", reads_of(scripted(steps, [0.02]), 0.004))
     calls = 0
+    settled = Session.settled
 
     def interrupted(self: Session) -> bool:
+        # Ctrl-C once a segment went to the sidecar (two settled moments: the one
+        # looked for, the one new_segment checks), at the next settled moment
         nonlocal calls
+        if not settled(self):
+            return False
         calls += 1
         if calls == 3:
             raise KeyboardInterrupt

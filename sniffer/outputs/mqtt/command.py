@@ -183,6 +183,8 @@ def mqtt_session(
         timeout=timeout if timeout is not None else reader.timeout,
         source=reader.target.describe(),
         merge_slack=LIVE_MERGE_SLACK if reader.merge_slack is None else reader.merge_slack,
+        stamps=reader.stamps,
+        resolution=reader.resolution,
     )
 
 

@@ -32,12 +32,13 @@ from typing import Any
 
 from dissectors.dictionary.model import Entry, RegisterValue, ValueSpec
 from sniffer import __version__
-from sniffer.analysis.stats import RECENT, UnitStats, median_gap, nearest_rank
+from sniffer.analysis.stats import RECENT, UnitStats, median_gap, nearest_rank, resolved_period
+from sniffer.framing.pairing import Latency
 from sniffer.framing.store import NO_PARTNER
 from sniffer.meaning.annotate import Binding
 from sniffer.meaning.describe import FrameDetail
 from sniffer.model import Chunk, SourceInfo
-from sniffer.outputs.listing import KIND_NAMES
+from sniffer.outputs.listing import KIND_NAMES, shown_latency_max_ms, shown_latency_ms
 from sniffer.outputs.mqtt.ha import (
     UnitDevice,
     bus_configs,
@@ -90,6 +91,11 @@ class UnitWindow:
     def polling_period(self) -> float | None:
         """The median gap between the window's requests, in seconds."""
         return median_gap(self.requests)
+
+    def period(self, resolution: float) -> Latency | None:
+        """The window's polling period as stamps of `resolution` vouch for it
+        (`sniffer.analysis.stats.resolved_period`: a value, a bound, or None)."""
+        return resolved_period(self.polling_period(), resolution)
 
 
 @dataclass
@@ -218,6 +224,9 @@ class BusPublisher:
             "timeout": pipeline.pairer.timeout,
             "merge_slack": pipeline.merge_slack,
             "stamps": self.info.stamps.value if self.info is not None else "read-end",
+            # what the stamps are worth as the source says (0: measured from the reads),
+            # so that a watcher shows latencies as this session does
+            "resolution": pipeline.clock.declared,
             "channels": channels,
             "units": {
                 str(u): {"label": b.label, "model": b.dictionary.model, "name": b.dictionary.name}
@@ -407,6 +416,9 @@ class BusPublisher:
             message["exception_code"] = body[2] if len(body) > 2 else None
         if v.partner != NO_PARTNER:
             message["partner"] = v.partner + self.session.base
+            if v.kind != Kind.REQUEST:  # an answer: its latency pair, as listings give it
+                message["latency_ms"] = shown_latency_ms(d)
+                message["latency_max_ms"] = shown_latency_max_ms(d)
         self._send(self.target.topic("events"), json.dumps(message, ensure_ascii=False))
         self.events += 1
 
@@ -418,9 +430,12 @@ class BusPublisher:
         for u, st in sorted(self.session.stats.units.items()):
             window = self._windows.setdefault(u, UnitWindow())
             window.update(st)
-            period = window.polling_period()
+            measured = window.period(self.session.store.resolution)
+            period = bound = None
+            if measured is not None:
+                period, bound = (None, measured.ms) if measured.bound else (measured.ms, None)
             answered = self._answered.get(u)
-            limit = max(SILENT_MIN, SILENT_AFTER * (period or 0.0))
+            limit = max(SILENT_MIN, SILENT_AFTER * (measured.seconds if measured else 0.0))
             online = answered is not None and now - answered <= limit
             median, p95 = window.latency_ms(0.5), window.latency_ms(0.95)
             binding = self.bindings.get(u)
@@ -435,7 +450,8 @@ class BusPublisher:
                 "check_errors": st.check_errors,
                 "latency_median_ms": None if median is None else round(median, 3),
                 "latency_p95_ms": None if p95 is None else round(p95, 3),
-                "poll_period_ms": None if period is None else round(period * 1000, 3),
+                "poll_period_ms": period,
+                "poll_period_max_ms": bound,
                 "last_answer": answered,
                 "t": now,
                 "time": iso_time(now),

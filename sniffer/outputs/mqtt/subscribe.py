@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from sniffer.live.port import DEFAULT_QUEUE, ChunkFeed, PortSpec, PortStats
-from sniffer.model import Chunk, LineSettings
+from sniffer.model import Chunk, LineSettings, Stamp
 from sniffer.outputs.mqtt import MqttError, require_paho
 from sniffer.outputs.mqtt.payload import PayloadError, RawMessage, read_raw
 from sniffer.outputs.mqtt.target import MqttTarget
@@ -197,6 +197,19 @@ class MqttReader:
     def timeout(self) -> float | None:
         found = self.interface.get("timeout")
         return float(found) if isinstance(found, int | float) else None
+
+    @property
+    def stamps(self) -> Stamp:
+        """What the published times mean (the publisher's source's stamps)."""
+        found = self.interface.get("stamps")
+        return next((s for s in Stamp if s.value == found), Stamp.READ_END)
+
+    @property
+    def resolution(self) -> float:
+        """What the published times are worth as the publisher's source declared it (0:
+        measured here from the reads, as the publisher did)."""
+        found = self.interface.get("resolution")
+        return float(found) if isinstance(found, int | float) and found >= 0 else 0.0
 
     @property
     def merge_slack(self) -> float | None:

@@ -144,8 +144,9 @@ class DetailPane(Vertical):
         text.append(f"  {len(v.raw)} bytes {mode}, {KIND_NAMES[v.kind]}")
         if v.status:
             text.append(f", {STATUS_NAMES[v.status]}")
-        if d.latency_ms is not None:
-            text.append(f", {latency_text(d.latency_ms)}")
+        latency = latency_text(d)
+        if latency:
+            text.append(f", {latency}")
         if partner is not None and "p:" not in self.where:
             role = "answer" if v.kind == Kind.REQUEST else "request"
             text.append(f"  (p: {role} #{partner.view.index})")

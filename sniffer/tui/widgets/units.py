@@ -17,7 +17,7 @@ from rich.text import Text
 from textual.widgets import DataTable
 
 from dissectors import mbap
-from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS
+from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS, resolved_cycle
 from sniffer.analysis.polls import FRAMED_APART, Identity, frame_body, poll_identity
 from sniffer.analysis.stats import UnitStats
 from sniffer.framing.columns import marking
@@ -80,6 +80,9 @@ class UnitRow:
     period: float | None = None  # seconds between sendings of the unit's main poll
     jitter: float | None = None  # p95 - p5 of those seconds
     gaps: int = 0  # waits of more than GAP_FACTOR periods, over all its polls
+    # stamps too coarse for them: the period or jitter is an upper bound (`<`)
+    period_bound: bool = False
+    jitter_bound: bool = False
 
 
 Cache = dict[tuple[int, str], tuple[int, float | None, float | None]]
@@ -198,6 +201,8 @@ class CycleSummary:
     period: float | None
     jitter: float | None
     gaps: int
+    period_bound: bool = False
+    jitter_bound: bool = False
 
 
 # rows a PollWatch takes in at a time, and request frames it remembers the poll of
@@ -300,7 +305,15 @@ class PollWatch:
         main = max(repeating, key=lambda p: (p.count, -(p.period or 0.0)))
         if main.measured_at != main.count:
             main.measure()  # up to date when shown, however seldom it is re-measured
-        return CycleSummary(main.period, main.jitter, sum(p.gaps for p in repeating))
+        gaps = sum(p.gaps for p in repeating)
+        resolution = self.store.resolution if self.store is not None else 0.0
+        if main.period is None or main.jitter is None:
+            return CycleSummary(main.period, main.jitter, gaps)
+        # no finer than the stamps hold, as the --stats poll cycle says it
+        period, period_bound, jitter, jitter_bound = resolved_cycle(
+            main.period, main.jitter, resolution
+        )
+        return CycleSummary(period, jitter, gaps, period_bound, jitter_bound)
 
     def summaries(self) -> dict[int, CycleSummary]:
         return {unit: self.summary(unit) for unit in self.polls}
@@ -311,7 +324,18 @@ def with_cycles(rows: list[UnitRow], cycles: Mapping[int, CycleSummary]) -> list
     out = []
     for r in rows:
         c = cycles.get(r.unit)
-        out.append(r if c is None else replace(r, period=c.period, jitter=c.jitter, gaps=c.gaps))
+        out.append(
+            r
+            if c is None
+            else replace(
+                r,
+                period=c.period,
+                jitter=c.jitter,
+                gaps=c.gaps,
+                period_bound=c.period_bound,
+                jitter_bound=c.jitter_bound,
+            )
+        )
     return out
 
 
@@ -319,10 +343,15 @@ def _ms(v: float | None) -> str:
     return "-" if v is None else f"{v:.1f}"
 
 
-def _span(seconds: float | None) -> str:
-    """A period or jitter in at most 6 cells: 250ms, 2501ms, 11.3s, 1.2h."""
+def _span(seconds: float | None, bound: bool = False) -> str:
+    """A period or jitter in at most 6 cells: 250ms, 2501ms, 11.3s, 1.2h; `<250ms` where
+    the stamps only bound it, `?` where they cannot tell."""
     if seconds is None:
         return "-"
+    if not seconds < float("inf"):
+        return "?"
+    if bound:
+        return "<" + _span(seconds)
     if seconds < 10:
         return f"{seconds * 1000:.0f}ms"
     if seconds < 3600:
@@ -420,8 +449,8 @@ class UnitsPanel(DataTable[Text]):
             cell(str(r.check_errors), bad if r.check_errors else None),
             cell(_ms(r.median_ms)),
             cell(_ms(r.p95_ms)),
-            cell(_span(r.period)),
-            cell(_span(r.jitter)),
+            cell(_span(r.period, r.period_bound)),
+            cell(_span(r.jitter, r.jitter_bound)),
             cell(str(r.gaps) if r.gaps else "-", bad if r.gaps else None),
             cell(seen),
         ]
