@@ -77,7 +77,8 @@ def report(diagnosis: Diagnosis, title: str, labels: Mapping[int, str] | None = 
         head = f"{title}: no findings: nothing wrong seen on this bus"
     else:
         parts = [f"{counts[s]} {s}{'s' if counts[s] > 1 else ''}" for s in _TAG if counts[s]]
-        head = f"{title}: {len(findings)} findings ({', '.join(parts)})"
+        many = "s" if len(findings) > 1 else ""
+        head = f"{title}: {len(findings)} finding{many} ({', '.join(parts)})"
     lines = [head]
     lines += [f"  note: {plain(n)}" for n in diagnosis.notes]
     for n, f in enumerate(findings, 1):
