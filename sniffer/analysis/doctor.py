@@ -22,12 +22,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from statistics import median
 
+from dissectors.dictionary.model import Timing
 from dissectors.pdu.exceptions import exception_name
 from sniffer.analysis.linescore import Sample, score
 from sniffer.analysis.polls import frame_body, poll_identity
 from sniffer.framing.pairing import measure
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Chunk, LineSettings, Stamp
+from sniffer.text import json_line, plain
 from sniffer.vocab import BAD_CHECK, ERROR, INFO, WARNING, Flag, Kind, Status
 
 # the kinds, in the order a finding of one severity is fixed first: a cause that makes
@@ -147,6 +149,7 @@ class _Look:
     line: LineSettings
     timeout: float
     origin: float
+    n: int  # the rows looked at
     txs: list[_Tx]
     by_unit: dict[int, list[_Tx]]
     answers_of: Counter[int]  # check-valid answers seen per unit (paired or not)
@@ -162,11 +165,18 @@ def diagnose(
     line: LineSettings,
     timeout: float,
     response_bounds: Mapping[int, float] | None = None,
+    rows: int | None = None,
 ) -> Diagnosis:
     """The findings on a paired store, ranked: what to fix first comes first.
-    `response_bounds`: unit -> the response time (s) its dictionary documents."""
-    store.sync()
-    look = _look(store, line, timeout)
+    `response_bounds`: unit -> the response time (s) its dictionary documents.
+    `rows`: look at the first `rows` rows only, and leave the store as it is (a store
+    another thread fills: the TUI's health pane); by default every row."""
+    if rows is None:
+        store.sync()
+        rows = len(store)
+    # (a store being filled: only the rows every column already holds)
+    n = min(rows, len(store.t), len(store.flags), len(store.status), len(store.partner))
+    look = _look(store, line, timeout, n)
     notes = _notes(store)
     settings = wrong_settings(look)
     if settings is not None:  # every other finding would be read from misframed bytes
@@ -193,6 +203,15 @@ def diagnose(
     return Diagnosis(tuple(ranked), notes)
 
 
+def response_bounds(timings: Mapping[int, Timing | None]) -> dict[int, float]:
+    """unit -> the response time (s) its dictionary documents, where it documents one."""
+    return {
+        unit: t.response_ms / 1000
+        for unit, t in timings.items()
+        if t is not None and t.response_ms is not None
+    }
+
+
 def _notes(store: FrameStore) -> tuple[str, ...]:
     if store.stamps is Stamp.NONE:
         return ("no timestamps: latencies, line load and timing were not judged",)
@@ -203,8 +222,7 @@ def _notes(store: FrameStore) -> tuple[str, ...]:
     return ()
 
 
-def _look(store: FrameStore, line: LineSettings, timeout: float) -> _Look:
-    n = len(store)
+def _look(store: FrameStore, line: LineSettings, timeout: float, n: int) -> _Look:
     kind, status, partner, flags = store.kind, store.status, store.partner, store.flags
     txs: list[_Tx] = []
     by_unit: dict[int, list[_Tx]] = defaultdict(list)
@@ -237,7 +255,7 @@ def _look(store: FrameStore, line: LineSettings, timeout: float) -> _Look:
         txs.append(tx)
         by_unit[tx.unit].append(tx)
     origin = store.t[0] if n else 0.0
-    return _Look(store, line, timeout, origin, txs, by_unit, answers_of, frames, network)
+    return _Look(store, line, timeout, origin, n, txs, by_unit, answers_of, frames, network)
 
 
 # -- helpers for evidence -------------------------------------------------------------
@@ -279,7 +297,7 @@ def wrong_settings(look: _Look) -> Finding | None:
     s = look.store
     total = valid = noise = 0
     noise_rows: list[int] = []
-    for i in range(len(s)):
+    for i in range(look.n):
         k = s.kind[i]
         if k == _EVENT:
             continue
@@ -675,7 +693,7 @@ def _data_splits(look: _Look, txs: Sequence[_Tx], cut: float) -> bool:
 
 def _next_request(look: _Look, i: int) -> int:
     s = look.store
-    for j in range(i + 1, len(s)):
+    for j in range(i + 1, look.n):
         if s.kind[j] == _REQUEST:
             return j
     return -1
@@ -684,7 +702,7 @@ def _next_request(look: _Look, i: int) -> int:
 def _error_rows(look: _Look) -> list[int]:
     s = look.store
     out = []
-    for i in range(len(s)):
+    for i in range(look.n):
         k = s.kind[i]
         if k == _EVENT:
             continue
@@ -1098,3 +1116,49 @@ def _words(look: _Look, i: int) -> list[int]:
     body = frame_body(look.store.raw(i), look.store.flags[i])
     data = body[3 : 3 + body[2]] if len(body) > 3 else b""
     return [int.from_bytes(data[k : k + 2], "big") for k in range(0, len(data) - 1, 2)]
+
+
+# -- the findings as text ---------------------------------------------------------------
+
+_TAG = {ERROR: "ERROR", WARNING: "WARNING", INFO: "info"}
+
+
+def report(diagnosis: Diagnosis, title: str, labels: Mapping[int, str] | None = None) -> str:
+    """The findings as text: a head line, then each finding ranked, with its meaning on
+    site, its evidence and what to check next."""
+    findings = diagnosis.findings
+    counts = diagnosis.counts()
+    title = plain(title, 400)
+    if not findings:
+        head = f"{title}: no findings: nothing wrong seen on this bus"
+    else:
+        parts = [f"{counts[s]} {s}{'s' if counts[s] > 1 else ''}" for s in _TAG if counts[s]]
+        many = "s" if len(findings) > 1 else ""
+        head = f"{title}: {len(findings)} finding{many} ({', '.join(parts)})"
+    lines = [head]
+    lines += [f"  note: {plain(n)}" for n in diagnosis.notes]
+    for n, f in enumerate(findings, 1):
+        lines.append("")
+        lines += finding_lines(f, n, labels or {})
+    return "\n".join(lines) + "\n"
+
+
+def finding_lines(f: Finding, n: int, labels: Mapping[int, str]) -> list[str]:
+    who = ", ".join(f"{u} ({plain(labels[u], 60)})" if u in labels else str(u) for u in f.units)
+    target = f" [unit{'s' if len(f.units) > 1 else ''} {who}]" if f.units else ""
+    lines = [f"{n}. {_TAG[f.severity]} {f.kind}{target}: {plain(f.summary, 400)}"]
+    lines.append(f"   on site: {plain(f.meaning, 400)}")
+    facts = [f"{k}={_fact(v)}" for k, v in f.evidence.items() if v is not None and v != []]
+    if facts:
+        lines.append(f"   evidence: {plain(', '.join(facts), 800)}")
+    if f.rows:
+        lines.append(f"   rows: {', '.join(str(r) for r in f.rows)}")
+    lines += [f"     {plain(x, 200)}" for x in f.excerpt]
+    lines.append(f"   check next: {plain(f.advice, 400)}")
+    return lines
+
+
+def _fact(value: object) -> str:
+    if isinstance(value, (list, dict)):
+        return json_line(value)
+    return str(value)

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Mapping
 from pathlib import Path
 from typing import TextIO
 
-from sniffer.analysis.doctor import Diagnosis, Finding, diagnose
+from sniffer.analysis.doctor import diagnose, report, response_bounds
 from sniffer.cli.options import (
     SubParsers,
     add_device_options,
@@ -21,10 +20,8 @@ from sniffer.cli.options import (
 )
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
-from sniffer.meaning.annotate import Binding
 from sniffer.session.session import open_session
-from sniffer.text import json_line, plain
-from sniffer.vocab import ERROR, INFO, WARNING
+from sniffer.text import plain
 
 
 def cmd_doctor(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -43,69 +40,15 @@ def cmd_doctor(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write(f"modscope: warning: {plain(w)}\n")
     if capture.empty:
         return finish_read(capture, session, err)  # (2: nothing could be read)
-    diagnosis = diagnose(
-        session.store, session.line, session.pipeline.pairer.timeout, response_bounds(bindings)
-    )
+    bounds = response_bounds({u: b.dictionary.timing for u, b in bindings.items()})
+    diagnosis = diagnose(session.store, session.line, session.pipeline.pairer.timeout, bounds)
     if args.format == "json":
         out.write(json.dumps([f.record() for f in diagnosis.findings], indent=2) + "\n")
     else:
-        labels = {u: plain(b.label, 60) for u, b in bindings.items()}
+        labels = {u: b.label for u, b in bindings.items()}
         what = f"{session.line.describe()}, mode {session.mode}"
         out.write(report(diagnosis, f"{plain(str(path))} ({plain(what)})", labels))
     return diagnosis.status
-
-
-def response_bounds(bindings: Mapping[int, Binding]) -> dict[int, float]:
-    """unit -> the response time (s) its dictionary documents, where it documents one."""
-    out: dict[int, float] = {}
-    for unit, b in bindings.items():
-        timing = b.dictionary.timing
-        if timing is not None and timing.response_ms is not None:
-            out[unit] = timing.response_ms / 1000
-    return out
-
-
-_TAG = {ERROR: "ERROR", WARNING: "WARNING", INFO: "info"}
-
-
-def report(diagnosis: Diagnosis, title: str, labels: Mapping[int, str] | None = None) -> str:
-    """The findings as text: a head line, then each finding ranked, with its meaning on
-    site, its evidence and what to check next."""
-    findings = diagnosis.findings
-    counts = diagnosis.counts()
-    if not findings:
-        head = f"{title}: no findings: nothing wrong seen on this bus"
-    else:
-        parts = [f"{counts[s]} {s}{'s' if counts[s] > 1 else ''}" for s in _TAG if counts[s]]
-        many = "s" if len(findings) > 1 else ""
-        head = f"{title}: {len(findings)} finding{many} ({', '.join(parts)})"
-    lines = [head]
-    lines += [f"  note: {plain(n)}" for n in diagnosis.notes]
-    for n, f in enumerate(findings, 1):
-        lines.append("")
-        lines += finding_lines(f, n, labels or {})
-    return "\n".join(lines) + "\n"
-
-
-def finding_lines(f: Finding, n: int, labels: Mapping[int, str]) -> list[str]:
-    who = ", ".join(f"{u} ({labels[u]})" if u in labels else str(u) for u in f.units)
-    target = f" [unit{'s' if len(f.units) > 1 else ''} {who}]" if f.units else ""
-    lines = [f"{n}. {_TAG[f.severity]} {f.kind}{target}: {plain(f.summary, 400)}"]
-    lines.append(f"   on site: {plain(f.meaning, 400)}")
-    facts = [f"{k}={_fact(v)}" for k, v in f.evidence.items() if v is not None and v != []]
-    if facts:
-        lines.append(f"   evidence: {plain(', '.join(facts), 800)}")
-    if f.rows:
-        lines.append(f"   rows: {', '.join(str(r) for r in f.rows)}")
-    lines += [f"     {plain(x, 200)}" for x in f.excerpt]
-    lines.append(f"   check next: {plain(f.advice, 400)}")
-    return lines
-
-
-def _fact(value: object) -> str:
-    if isinstance(value, (list, dict)):
-        return json_line(value)
-    return str(value)
 
 
 def register(sub: SubParsers) -> None:
