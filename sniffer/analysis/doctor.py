@@ -505,13 +505,21 @@ def _clustering(look: _Look, txs: Sequence[_Tx], missed: Sequence[int], run: int
     return "spread over the whole capture, never more than two in a row"
 
 
-def _orphans_after(look: _Look) -> dict[int, list[int]]:
-    """Per unit: orphan answers (check-valid, no request) of it, in order."""
+def _second_answers(look: _Look) -> dict[int, list[int]]:
+    """Per unit: check-valid orphan answers from it that come after its paired answer
+    and before the next request (a second answer to one request), in one pass."""
     out: dict[int, list[int]] = defaultdict(list)
     s = look.store
+    answered = -1  # the unit whose paired answer came last, until the next request
     for i in look.frames:
-        if s.kind[i] in _ANSWERS and s.status[i] == Status.ORPHAN and not s.flags[i] & BAD_CHECK:
-            out[s.unit[i]].append(i)
+        k = s.kind[i]
+        if k == _REQUEST:
+            answered = -1
+        elif k in _ANSWERS and not s.flags[i] & BAD_CHECK:
+            if s.partner[i] != NO_PARTNER:
+                answered = s.unit[i]
+            elif s.status[i] == Status.ORPHAN and s.unit[i] == answered:
+                out[answered].append(i)
     return out
 
 
@@ -606,20 +614,11 @@ def address_conflicts(look: _Look) -> list[Finding]:
     if look.network:
         return []
     s = look.store
-    orphans = _orphans_after(look)
+    seconds = _second_answers(look)
     slots = _answer_slot_errors(look)
     out = []
     for unit, txs in sorted(look.by_unit.items()):
-        doubles = []
-        for tx in txs:
-            if tx.answer == NO_PARTNER:
-                continue
-            for i in orphans.get(unit, ()):
-                if i > tx.answer:
-                    nxt = _next_request(look, tx.answer)
-                    if nxt < 0 or i < nxt:
-                        doubles.append(i)
-                    break
+        doubles = seconds.get(unit, [])
         groups: list[tuple[str, float, float, int, int]] = []
         by_key: dict[object, list[_Tx]] = defaultdict(list)
         for tx in txs:
@@ -689,14 +688,6 @@ def _data_splits(look: _Look, txs: Sequence[_Tx], cut: float) -> bool:
         data = frame_body(s.raw(tx.answer), s.flags[tx.answer])[2:]
         (fast if (tx.latency or 0.0) < cut else slow).add(data)
     return bool(fast) and bool(slow) and not fast & slow
-
-
-def _next_request(look: _Look, i: int) -> int:
-    s = look.store
-    for j in range(i + 1, look.n):
-        if s.kind[j] == _REQUEST:
-            return j
-    return -1
 
 
 def _error_rows(look: _Look) -> list[int]:
@@ -1040,25 +1031,25 @@ def timing_violations(look: _Look, explained: set[int]) -> list[Finding]:
 
 def write_effects(look: _Look) -> list[Finding]:
     """What changed in the polled registers of a unit after each write to it (raw
-    register words: the last answer before the write against the first after it)."""
+    register words: the reads before the write against the first read after it)."""
     s = look.store
     out = []
     for unit, txs in sorted(look.by_unit.items()):
-        reads = [t for t in txs if t.fc in _READ_REGISTERS and t.status == Status.OK]
         writes = [t for t in txs if t.fc in _WRITE_REGISTERS and t.status == Status.OK]
-        if not writes or not reads:
+        if not writes or not any(t.fc in _READ_REGISTERS for t in txs):
             continue
+        changes = _changes_after_writes(look, txs)
         said: list[str] = []
         effects: list[dict[str, object]] = []
-        for w in writes:
-            changes = _changes_around(look, reads, w)
+        for w in writes[:ROWS]:
+            changed = changes.get(w.row, [])
             body = frame_body(s.raw(w.row), s.flags[w.row])
             line = f"{w.what} at {look.when(w.row):.3f} s: " + (
-                ", ".join(changes[:6]) if changes else "no polled register changed"
+                ", ".join(changed[:6]) if changed else "no polled register changed"
             )
             said.append(line)
             effects.append({"write": w.what, "at_s": round(look.when(w.row), 3),
-                            "request": _hex(body), "changed": changes[:20]})  # fmt: skip
+                            "request": _hex(body), "changed": changed[:20]})  # fmt: skip
         rows = [w.row for w in writes]
         out.append(
             Finding(
@@ -1073,7 +1064,7 @@ def write_effects(look: _Look) -> list[Finding]:
                 "check that each write had the effect the master intends; if nothing "
                 "changed, the register may be read-only in this mode or need a save "
                 "command",
-                {"writes": effects[:ROWS]},
+                {"writes": effects},
                 _rows(rows),
                 _excerpt(look, rows),
             )
@@ -1081,34 +1072,42 @@ def write_effects(look: _Look) -> list[Finding]:
     return out
 
 
-def _changes_around(look: _Look, reads: Sequence[_Tx], write: _Tx) -> list[str]:
-    """`holding 13: 300 -> 700` for each register word a poll read differently after
-    the write than before it."""
-    after_row = write.answer if write.answer != NO_PARTNER else write.row
-    before: dict[object, list[_Tx]] = defaultdict(list)
-    after: dict[object, _Tx] = {}
-    for r in reads:
-        if r.row < write.row:
-            before[r.key] = [*before[r.key][-1:], r]
-        elif r.row > after_row and r.key not in after:
-            after[r.key] = r
+def _changes_after_writes(look: _Look, txs: Sequence[_Tx]) -> dict[int, list[str]]:
+    """Per write row: `holding 13: 300 -> 700` for each register word that held one
+    value over the last two reads of its poll before the write and reads differently in
+    the first read after it. One pass over the unit's transactions."""
+    last: dict[object, list[_Tx]] = {}  # poll -> its last two good reads
+    waiting: dict[object, list[tuple[_Tx, list[_Tx]]]] = defaultdict(list)
+    out: dict[int, list[str]] = defaultdict(list)
+    for tx in txs:
+        if tx.status != Status.OK:
+            continue
+        if tx.fc in _WRITE_REGISTERS:
+            for key, olds in last.items():
+                waiting[key].append((tx, olds))
+            continue
+        if tx.fc not in _READ_REGISTERS:
+            continue
+        for write, olds in waiting.pop(tx.key, ()):
+            out[write.row] += _changed(look, tx, olds)
+        last[tx.key] = [*last.get(tx.key, [])[-1:], tx]
+    return out
+
+
+def _changed(look: _Look, new: _Tx, olds: Sequence[_Tx]) -> list[str]:
+    key = new.key
+    if not isinstance(key, tuple) or len(key) < 2 or not isinstance(key[1], int):
+        return []
+    start = key[1]
+    # a register counts only where it held still over the last two reads before the
+    # write: a measurement that drifts anyway says nothing about the write
+    held = [_words(look, r.answer) for r in olds]
+    table = _READ_REGISTERS[new.fc]
     out = []
-    for key, olds in before.items():
-        new = after.get(key)
-        if new is None or not isinstance(key, tuple) or len(key) < 2:
-            continue
-        start = key[1]
-        if not isinstance(start, int):
-            continue
-        # a register counts only where it held still over the last two reads before the
-        # write: a measurement that drifts anyway says nothing about the write
-        held = [_words(look, r.answer) for r in olds]
-        b = _words(look, new.answer)
-        table = _READ_REGISTERS[new.fc]
-        for n, y in enumerate(b):
-            seen = {w[n] for w in held if n < len(w)}
-            if len(seen) == 1 and y not in seen:
-                out.append(f"{table} {start + n}: {seen.pop()} -> {y}")
+    for n, y in enumerate(_words(look, new.answer)):
+        seen = {w[n] for w in held if n < len(w)}
+        if len(seen) == 1 and y not in seen:
+            out.append(f"{table} {start + n}: {seen.pop()} -> {y}")
     return out
 
 
