@@ -912,7 +912,8 @@ def line_overload(look: _Look) -> list[Finding]:
     utilisation = wire / span
     t35 = look.line.t35
     busy = 0.0
-    for tx in look.txs:
+    txs = look.txs
+    for n, tx in enumerate(txs):
         start = s.t[tx.row]
         if tx.answer != NO_PARTNER:
             end = s.t_end[tx.answer]
@@ -920,7 +921,12 @@ def line_overload(look: _Look) -> list[Finding]:
             end = s.t_end[tx.row] + look.timeout
         else:
             end = s.t_end[tx.row]
-        busy += end - start + t35
+        # a transaction holds the line until its answer (or the timeout) and t3.5 after
+        # it, but no longer than the next request (a master that gave up sooner)
+        end += t35
+        if n + 1 < len(txs):
+            end = min(end, s.t[txs[n + 1].row])
+        busy += max(0.0, end - start)
     occupancy = busy / span
     periods = _poll_periods(look)
     period = min(periods) if periods else None
