@@ -21,6 +21,14 @@ from tests.analysis.test_doctor_bus import LINE, read_ans, read_req
 DOCTOR = Path(__file__).resolve().parents[2] / "tests" / "captures" / "doctor"
 
 
+async def _looked(pilot: Pilot[Any], screen: HealthScreen, rows: int) -> None:
+    """Wait for the screen's worker to have looked at `rows` rows."""
+    deadline = time.monotonic() + 30
+    while screen.busy or screen.looked != rows or screen.diagnosis is None:
+        assert time.monotonic() < deadline
+        await pilot.pause(0.05)
+
+
 async def _all_shown(pilot: Pilot[Any]) -> None:
     app = pilot.app
     assert isinstance(app, ModscopeApp)
@@ -39,9 +47,10 @@ async def test_h_shows_the_findings_the_command_gives() -> None:
     async with app.run_test(size=(120, 36)) as pilot:
         await _all_shown(pilot)
         await pilot.press("H")
-        await pilot.pause(0.2)
+        await pilot.pause()
         screen = app.screen
         assert isinstance(screen, HealthScreen)
+        await _looked(pilot, screen, app.model.published)
         assert screen.diagnosis is not None
         kinds = [(f.kind, f.units) for f in screen.diagnosis.findings]
         assert kinds == [("silent-unit", (7,))]
@@ -82,16 +91,56 @@ async def test_the_screen_follows_new_rows() -> None:
         session.refresh()
         app.model.published = len(session.store)
         await pilot.press("H")
-        await pilot.pause(0.2)
+        await pilot.pause()
         screen = app.screen
         assert isinstance(screen, HealthScreen)
+        await _looked(pilot, screen, app.model.published)
         assert screen.diagnosis is not None and screen.diagnosis.findings == ()
         for _ in range(5):
             feed(9, False)
             feed(1, True)
         session.refresh()
         app.model.published = len(session.store)
-        await pilot.pause(1.5)  # (the screen looks again once a second)
+        await _looked(pilot, screen, app.model.published)  # (it looks again each second)
         later = screen.diagnosis
         assert later is not None
         assert [(f.kind, f.units) for f in later.findings] == [("silent-unit", (9,))]
+
+
+@pytest.mark.asyncio
+async def test_a_paged_capture_is_diagnosed_whole(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A capture big enough for a sidecar is paged (the session's store then holds only
+    its newest segment): the screen reads every row where the list does."""
+    from sniffer.session import index
+    from tests.analysis.test_doctor_bus import CYCLES, silent_unit
+
+    monkeypatch.setattr(index, "BLOCK", 1024)  # segments of 960 rows, not 61,440
+
+    text = silent_unit().csv()
+    header, rows = text.split("\n", 1)
+    copies = index.MIN_SIZE // len(rows) + 1
+    span = 0.1 + CYCLES * 0.5  # each copy goes on where the one before ended
+    lines = [header]
+    for k in range(copies):
+        for row in rows.splitlines():
+            t, rest = row.split(",", 1)
+            lines.append(f"{float(t) + k * span:.9f},{rest}")
+    big = tmp_path / "big.csv"
+    big.write_text("\n".join(lines) + "\n")
+    session, capture = open_session(big, ReadOptions(baud=19200))
+    app = ModscopeApp(session, capture, blink=False)
+    async with app.run_test(size=(120, 36)) as pilot:
+        await _all_shown(pilot)
+        assert app.model.paged is not None
+        assert len(session.store) < app.model.published  # the rest is in the sidecar
+        await pilot.press("H")
+        await pilot.pause()
+        screen = app.screen
+        assert isinstance(screen, HealthScreen)
+        await _looked(pilot, screen, app.model.published)
+        assert screen.diagnosis is not None
+        (silent,) = screen.diagnosis.findings
+        assert (silent.kind, silent.units) == ("silent-unit", (7,))
+        assert silent.evidence["requests"] == copies * CYCLES

@@ -3,12 +3,14 @@ the rows shown so far, ranked, with evidence and advice, kept up to date while a
 is read or a line is listened to.
 
 The findings are worked out again from the published rows at most every REFRESH seconds,
-and only when rows were added since; the text is the same `modscope doctor` prints, shown
-as plain text (never markup: summaries quote bytes and dictionary labels).
+only when rows were added since, in a worker thread, and never sooner after a look than
+ten times what it took (a capture of millions of rows). The text is the one `modscope
+doctor` prints, shown as plain text (never markup: summaries quote bytes and labels).
 """
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, ClassVar
 
 from rich.text import Text
@@ -25,6 +27,7 @@ if TYPE_CHECKING:
     from sniffer.tui.app import ModscopeApp
 
 REFRESH = 1.0  # seconds between looks at new rows
+LOOK_SPACING = 10.0  # a look that took t seconds is not followed by another for 10 t
 
 
 class HealthScreen(Screen[None]):
@@ -49,6 +52,8 @@ class HealthScreen(Screen[None]):
         self.looked = -1  # published rows the findings were worked out from
         self.diagnosis: Diagnosis | None = None
         self.text = ""
+        self.busy = False  # a look is being worked out
+        self.next_look = 0.0  # (monotonic) no look before this
 
     def compose(self) -> ComposeResult:
         yield self.title_bar
@@ -62,27 +67,43 @@ class HealthScreen(Screen[None]):
         self.set_interval(REFRESH, self.look)
 
     def look(self) -> None:
-        """Work the findings out again if rows were published since the last look."""
+        """Work the findings out again, in a worker thread, if rows were published since
+        the last look and the last look is not too recent for what it cost."""
         app = self.owner
         published = app.model.published
-        if published == self.looked:
+        if published == self.looked or self.busy or time.monotonic() < self.next_look:
             return
         self.looked = published
+        self.busy = True
+        self.run_worker(lambda: self._work(published), thread=True, exclusive=True)
+
+    def _work(self, published: int) -> None:
+        app = self.owner
         session = app.session
+        # a big capture's rows are paged from its sidecar (the session's store then holds
+        # only the newest segment): the doctor reads them where the list does
+        store = app.model.paged if app.model.paged is not None else session.store
         bindings = session.annotator.bindings
         bounds = response_bounds({u: b.dictionary.timing for u, b in bindings.items()})
-        self.diagnosis = diagnose(
-            session.store,
-            session.line,
-            session.pipeline.pairer.timeout,
-            bounds,
-            rows=published,
+        started = time.monotonic()
+        diagnosis = diagnose(
+            store, session.line, session.pipeline.pairer.timeout, bounds, rows=published
         )
         labels = {u: b.label for u, b in bindings.items()}
         title = f"{published:,} rows, {session.line.describe()}"
-        self.text = report(self.diagnosis, title, labels)
-        self.body.update(Text(self.text))  # plain text: nothing in it is markup
-        counts = self.diagnosis.counts()
+        text = report(diagnosis, title, labels)
+        took = time.monotonic() - started
+        app.call_from_thread(self._show, diagnosis, text, took)
+
+    def _show(self, diagnosis: Diagnosis, text: str, took: float) -> None:
+        self.busy = False
+        # a look that took long is not repeated at once: the screen stays responsive on
+        # a capture of millions of rows
+        self.next_look = time.monotonic() + LOOK_SPACING * took
+        self.diagnosis = diagnosis
+        self.text = text
+        self.body.update(Text(text))  # plain text: nothing in it is markup
+        counts = diagnosis.counts()
         self.title_bar.update(
             Text(
                 f"bus health: {counts['error']} errors, {counts['warning']} warnings, "
