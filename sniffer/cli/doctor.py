@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -71,10 +72,10 @@ def cmd_doctor(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def _is_port(name: str) -> bool:
-    """A serial port (a character device, or a pyserial URL such as socket://host:4001)
-    rather than a capture file."""
-    if "://" in name:
-        return True
+    """A serial port (a character device, a path under /dev, COM3, or a pyserial URL
+    such as socket://host:4001) rather than a capture file."""
+    if "://" in name or name.startswith("/dev/") or re.fullmatch(r"COM\d+", name):
+        return True  # (a port that is missing is told as a port, not as a file)
     try:
         return Path(name).is_char_device()
     except OSError:

@@ -76,3 +76,12 @@ def test_dictionary_bound_makes_slow_answers_on_the_demo() -> None:
     assert slow and slow[0]["unit"] == 3 and slow[0]["evidence"]["documented_ms"] == 40.0
     # the demo's healthy units give no warning or error with their dictionaries either
     assert not [f for f in bound if f["severity"] != "info" and f.get("unit") in (1, 2)]
+
+
+def test_a_missing_port_is_named_as_a_port_and_duration_needs_one() -> None:
+    done = run("/dev/ttyMODSCOPE-NONE", "--duration", "1s")
+    assert done.returncode == 2
+    assert "/dev/ttyMODSCOPE-NONE: no such serial port" in done.stderr
+    assert done.stderr.count("\n") == 1
+    done = run(str(DOCTOR / "clean.csv"), "--duration", "1s")
+    assert done.returncode == 2 and "--duration is for listening to a port" in done.stderr
