@@ -38,6 +38,7 @@ class Bus:
     rng: random.Random = field(default_factory=lambda: random.Random(5))
     bytes_at: list[tuple[float, int]] = field(default_factory=list)
     t: float = 0.1
+    text: str = ""  # the export as a decoder wrote it, when not one row per byte sent
 
     def send(self, data: bytes, gap_after: int = -1, pause: float = 0.0) -> None:
         """Put `data` on the wire from now; `pause` seconds of silence after byte
@@ -63,6 +64,8 @@ class Bus:
         self.wait(0.004)
 
     def csv(self) -> str:
+        if self.text:
+            return self.text
         lines = ["Time [s],Value,Parity Error,Framing Error"]
         lines += [f"{t:.9f},0x{b:02X},," for t, b in self.bytes_at]
         return "\n".join(lines) + "\n"
@@ -226,6 +229,63 @@ def wrong_line_settings() -> Bus:
     return bus
 
 
+def _uart_bits(data: bytes) -> list[int]:
+    """8E1 characters as line levels, one per bit: start 0, data LSB first, even parity,
+    stop 1."""
+    bits: list[int] = []
+    for b in data:
+        word = [(b >> k) & 1 for k in range(8)]
+        bits += [0, *word, sum(word) & 1, 1]
+    return bits
+
+
+def wrong_baud() -> Bus:
+    """The clean bus's traffic sent at 9600 8E1 and recorded by an analyser set to 19200
+    8E1: a UART sampling at twice the speed, bit by bit (bytes, parity and framing errors
+    as such an analyser reports them)."""
+    sent = 9600
+    levels: list[tuple[float, int]] = []  # (time, level) at each bit boundary
+    bus = clean()
+    # regroup the clean bus's bytes into frames by their start times, re-timed at 9600
+    t_prev = None
+    for t, b in bus.bytes_at[:1200]:
+        start = t * (19200 / sent) if t_prev is None else max(t * 2, levels[-1][0] + 1 / sent)
+        t_prev = t
+        for k, level in enumerate(_uart_bits(bytes([b]))):
+            levels.append((start + k / sent, level))
+    out = Bus()
+    bit = 1 / 19200
+    rows: list[tuple[float, int, bool, bool]] = []
+    k = 0
+    n = len(levels)
+
+    def level_at(when: float) -> int:
+        nonlocal k
+        while k + 1 < n and levels[k + 1][0] <= when:
+            k += 1
+        return levels[k][1] if levels[k][0] <= when else 1
+
+    t = levels[0][0]
+    end = levels[-1][0] + 1 / sent
+    while t < end:
+        if level_at(t) == 1:
+            t += bit / 8  # idle: look for the next start bit
+            continue
+        samples = [level_at(t + (j + 0.5) * bit) for j in range(11)]
+        word = samples[1:9]
+        value = sum(v << j for j, v in enumerate(word))
+        parity_bad = (sum(word) & 1) != samples[9]
+        framing_bad = samples[10] != 1
+        rows.append((t, value, parity_bad, framing_bad))
+        t += 10.5 * bit
+    lines = ["Time [s],Value,Parity Error,Framing Error"]
+    for when, value, parity_bad, framing_bad in rows:
+        p, f = ("Error" if parity_bad else ""), ("Error" if framing_bad else "")
+        lines.append(f"{when:.9f},0x{value:02X},{p},{f}")
+    out.text = "\n".join(lines) + "\n"
+    return out
+
+
 def timing_violation() -> Bus:
     """The master's converter pauses 2 ms inside every request (t1.5 at 19200 baud is
     0.86 ms), and unit 3 answers 0.5 ms after its request (t3.5 is 2 ms)."""
@@ -273,6 +333,7 @@ BUSES: dict[str, tuple[Callable[[], Bus], tuple[str, ...]]] = {
     "errors-follow-station": (errors_follow_station, ()),
     "exception-poll": (exception_poll, ()),
     "wrong-line-settings": (wrong_line_settings, ("--parity", "N")),
+    "wrong-baud": (wrong_baud, ()),
     "timing-violation": (timing_violation, ()),
     "write-effect": (write_effect, ()),
 }

@@ -40,6 +40,7 @@ from sniffer.analysis.doctor.rows import (
 )
 from sniffer.analysis.linescore import Sample, score
 from sniffer.analysis.polls import frame_body
+from sniffer.framing.pipeline import BYTE_ERRORS
 from sniffer.framing.store import NO_PARTNER
 from sniffer.model import Chunk, LineSettings, Stamp
 from sniffer.vocab import BAD_CHECK, ERROR, INFO, WARNING, Flag, Status
@@ -48,12 +49,15 @@ from sniffer.vocab import BAD_CHECK, ERROR, INFO, WARNING, Flag, Status
 def wrong_settings(look: Look) -> Finding | None:
     """Many bytes and almost no check-valid frame: the line settings do not fit."""
     s = look.store
-    total = valid = noise = 0
+    total = valid = noise = line_errors = 0
     noise_rows: list[int] = []
     for i in range(look.n):
         k = s.kind[i]
         if k == EVENT:
+            # framing and parity errors the source reported (a UART at the wrong speed)
+            line_errors += s.notes.get(i, "").startswith(BYTE_ERRORS)
             continue
+        line_errors += bool(s.flags[i] & Flag.LINE_ERROR)
         total += s.length[i]
         if k == NOISE:
             noise += s.length[i]
@@ -76,7 +80,8 @@ def wrong_settings(look: Look) -> Finding | None:
         ERROR,
         (),
         f"{total:,} bytes and only {share(valid, total)} of them in check-valid frames "
-        f"at {look.line.describe()}, mode {look.line.mode}",
+        f"at {look.line.describe()}"
+        + (f", and {line_errors:,} framing or parity errors" if line_errors else ""),
         "the analyser is not reading this line with the settings it runs at: every "
         "frame shown is noise, so nothing else about the bus can be judged",
         advice,
@@ -84,7 +89,8 @@ def wrong_settings(look: Look) -> Finding | None:
             "bytes": total,
             "valid_frame_bytes": valid,
             "noise_bytes": noise,
-            "settings": f"{look.line.describe()} {look.line.mode}",
+            "settings": look.line.describe(),
+            "line_errors": line_errors,
             "guess": guess or None,
             "guess_basis": why or None,
         },

@@ -120,7 +120,8 @@ def look_at(store: FrameStore, line: LineSettings, timeout: float, n: int) -> Lo
         tx = Tx(i, store.unit[i], store.fc[i], status[i], j, ident[0], ident[1], value)
         txs.append(tx)
         by_unit[tx.unit].append(tx)
-    origin = store.t[0] if n else 0.0
+    # the earliest row's time (a source's event may be stamped after the bytes before it)
+    origin = min(store.t[:n]) if n else 0.0
     return Look(store, line, timeout, origin, n, txs, by_unit, answers_of, frames, network)
 
 
