@@ -74,6 +74,7 @@ def test_dictionary_bound_makes_slow_answers_on_the_demo() -> None:
     assert alarms == {("silent-unit", 4), ("exception-poll", 3)}
     slow = [f for f in bound if f["kind"] == "slow-answers"]
     assert slow and slow[0]["unit"] == 3 and slow[0]["evidence"]["documented_ms"] == 40.0
+    assert "slower than the 40 ms its dictionary documents" in slow[0]["summary"]
     # the demo's healthy units give no warning or error with their dictionaries either
     assert not [f for f in bound if f["severity"] != "info" and f.get("unit") in (1, 2)]
 

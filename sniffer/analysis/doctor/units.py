@@ -163,10 +163,16 @@ def slow_answers(look: Look, bounds: Mapping[int, float], skip: set[int]) -> lis
         portion = len(picked) / len(timed)
         severity = WARNING if portion >= SLOW_SHARE or len(over) >= MIN_POLLS else INFO
         worst = max(t.latency or 0.0 for t in picked)
+        documented = (
+            f"{len(over)} slower than the {ms(bound):g} ms its dictionary documents"
+            if over and bound is not None
+            else ""
+        )
         said = (
-            f"{len(over)} answers slower than the {ms(bound):g} ms its dictionary documents"
-            if picked is over and bound is not None
-            else f"{len(slow)} answers over {ms(limit):g} ms"
+            f"{len(slow)} answers over {ms(limit):g} ms" + (f", {documented}" if documented else "")
+            if slow
+            else f"{len(over)} answers slower than the {ms(bound or 0.0):g} ms its "
+            "dictionary documents"
         )
         rows = [r for t in picked for r in (t.row, t.answer)]
         out.append(
