@@ -14,6 +14,7 @@ import argparse
 # naming the package here (`from sniffer.cli import ...`) would read as a cycle
 import sniffer.cli.dictcmd as dictcmd
 import sniffer.cli.diff as diff
+import sniffer.cli.doctor as doctor
 import sniffer.cli.export as export
 import sniffer.cli.live as live
 import sniffer.cli.manual as manual
@@ -26,7 +27,7 @@ import sniffer.cli.tui as tui
 from sniffer import __version__, core
 
 # in the order `modscope --help` lists them (then `manual`: see build_parser)
-COMMANDS = (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve)
+COMMANDS = (replay, live, scan, record, ports, export, diff, doctor, dictcmd, tui, serve)
 
 EPILOG = """\
 examples:

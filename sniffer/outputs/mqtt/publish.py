@@ -12,6 +12,7 @@ Topics under the base (see docs/mqtt.md for an example of each message):
   violations, each a JSON object naming its frame;
 - `unit/<N>/status` (retained): counts, latency, polling period, online or silent;
 - `status` (retained, and the connection's last will): `online` or `offline`;
+- `findings` (retained): the bus doctor's findings on the rows so far (docs/doctor.md);
 - with Home Assistant discovery, `<prefix>/.../config` (retained): the bus, each unit
   polled, each named register (see `sniffer.outputs.mqtt.ha`); a unit's configs are
   published again when the bus shows its software or hardware version.
@@ -39,6 +40,7 @@ from sniffer.meaning.annotate import Binding
 from sniffer.meaning.describe import FrameDetail
 from sniffer.model import Chunk, SourceInfo
 from sniffer.outputs.listing import KIND_NAMES, shown_latency_max_ms, shown_latency_ms
+from sniffer.outputs.mqtt.findings import FindingsClock, findings_payload
 from sniffer.outputs.mqtt.ha import (
     UnitDevice,
     bus_configs,
@@ -167,6 +169,7 @@ class BusPublisher:
         self._windows: dict[int, UnitWindow] = {}
         self._last_t = 0.0
         self._resend = threading.Event()
+        self.findings = FindingsClock()
         link._on_connect_hook = self._on_connect
 
     # -- the link's connection ----------------------------------------------------------------
@@ -273,6 +276,9 @@ class BusPublisher:
         ):
             self._status_t = self._last_t
             self.unit_status()
+        if self.findings.due(final):  # (the bus doctor's findings: outputs/mqtt/findings.py)
+            payload = findings_payload(self.session, self.bindings)
+            self._send(self.target.topic("findings"), payload, retain=True)
 
     def _row(self, i: int) -> None:
         store = self.session.store
