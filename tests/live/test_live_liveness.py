@@ -1,10 +1,13 @@
 """Liveness on a live virtual line: the master polls, then stops. With no new frame,
 only the clock moving, `live --stats` goes from a live line and an answering unit to an
-idle line and a silent unit; a `LiveCapture`'s clock is the one its stamps come from."""
+idle line and a silent unit, and so does the unit status `live --mqtt` publishes (read
+from a real Mosquitto broker); a `LiveCapture`'s clock is the one its stamps come from."""
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
 import signal
 import subprocess
 import threading
@@ -19,6 +22,8 @@ from sniffer.live.engine import LiveCapture
 from sniffer.live.port import LiveReader, PortSpec
 from sniffer.session.session import Session
 from tests.live.test_live import LINE, LINE_ARGS, MODSCOPE, answer, pump_until, req
+from tests.outputs.test_mqtt_live import Reader, broker
+from tests.support.broker import Broker
 from tests.support.virtual_bus import VirtualBus, wait_ready
 
 PERIOD = 0.1  # seconds between the master's polls
@@ -124,3 +129,61 @@ def test_a_capture_measures_ages_to_its_ports_clock(bus: VirtualBus) -> None:
     assert later.state is LineState.IDLE and later.units[0].state is UnitState.SILENT
     assert later.since_frame is not None and later.idle_after is not None
     assert later.since_frame > later.idle_after
+
+
+__all__ = ["broker"]  # the Mosquitto fixture of the MQTT tests
+
+
+@pytest.mark.slow
+@pytest.mark.peer
+@pytest.mark.skipif(shutil.which("mosquitto") is None, reason="apt-get install mosquitto")
+def test_the_published_unit_status_falls_silent_from_the_clock(
+    bus: VirtualBus, broker: Broker
+) -> None:
+    tap = bus.attach("tap")
+    bus.attach("master")
+    topic = "modscope/tap/unit/1/status"
+    reader = Reader(broker.port, topic)
+    url = f"mqtt://127.0.0.1:{broker.port}"
+    # subscribed before modscope starts: its first status comes with the first answer
+    ready = time.monotonic() + 10
+    while not reader.client.is_connected() and time.monotonic() < ready:
+        time.sleep(0.05)
+    time.sleep(0.5)  # (the subscription is acknowledged after the connection)
+    proc = subprocess.Popen(
+        [MODSCOPE, "live", str(tap), *LINE_ARGS, "--format", "jsonl", "--mqtt", url],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stderr is not None
+        wait_ready(proc.stderr)
+        poll(bus)
+
+        def silent() -> bool:
+            return any(json.loads(p)["state"] == "silent" for p in reader.on(topic))
+
+        deadline = time.monotonic() + 30  # a status every 5 s of the capture's clock
+        while not silent() and time.monotonic() < deadline:
+            time.sleep(0.2)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        reader.close()
+    assert proc.returncode == 0, err
+    statuses = [json.loads(p) for p in reader.on(topic)]
+    online = [s for s in statuses if s["state"] == "online"]
+    gone = [s for s in statuses if s["state"] == "silent"]
+    assert online and gone, statuses
+    last = gone[0]
+    # nothing new on the line: the counts stand, only the ages grew
+    assert (last["requests"], last["answers"]) == (POLLS, POLLS)
+    assert last["since_answer_s"] > last["silent_after_s"] == 2.0
+    assert last["since_frame_s"] >= last["since_answer_s"] - 0.05
+    assert last["t"] - last["last_answer"] == pytest.approx(last["since_answer_s"], abs=0.01)
+    # the first status comes with the first answer: no period yet (one request), so no
+    # threshold of its own; online, as it answered within SILENT_MIN
+    first = statuses[0]
+    assert (first["state"], first["requests"], first["silent_after_s"]) == ("online", 1, None)
+    assert first["since_answer_s"] <= 2.0

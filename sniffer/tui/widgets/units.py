@@ -59,10 +59,10 @@ PRIORITY = (
     "median",
     "p95",
     "period",
-    "frame",
     "ans",
     "req",
     "device",
+    "frame",
     "gaps",
     "jitter",
 )
