@@ -54,7 +54,7 @@ class UnitState(StrEnum):
     OK = "ok"  # answered within its threshold
     SILENT = "silent"  # asked and not answering, or past SILENT_AFTER of its periods
     UNKNOWN = "unknown"  # quiet for SILENT_MIN, but its period is not known to judge by
-    NOT_ASKED = "-"  # only heard answering or talking, never asked: nothing to judge
+    NOT_ASKED = "not asked"  # only heard answering, never asked: nothing to judge
 
 
 @dataclass(frozen=True, slots=True)

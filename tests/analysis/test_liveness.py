@@ -132,3 +132,10 @@ def test_heard_follows_the_newest_answer_of_each_unit_across_stores() -> None:
         {1: "Pump\x1b[2J"},
     )
     assert lines[1].startswith("  unit 1 Pump\\x1b[2J: silent, last answer 15.0s ago")
+
+
+def test_a_unit_never_asked_is_not_judged() -> None:
+    heard = unit_liveness(
+        7, 100.0, asked=False, last_frame=40.0, last_answer=40.0, last_request=None, period=None
+    )
+    assert heard.state is UnitState.NOT_ASKED and heard.since_answer == 60.0

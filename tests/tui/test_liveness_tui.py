@@ -10,6 +10,7 @@ from dissectors.checks import with_crc
 from sniffer.model import Chunk
 from sniffer.session.session import Session
 from sniffer.tui.app import ModscopeApp
+from sniffer.tui.widgets.status import StatusInfo, status_text
 from sniffer.tui.widgets.units import UnitsPanel
 from tests.support.live import T0
 from tests.support.tui import LINE, FakeLive, screen_text, wait_rows
@@ -117,3 +118,37 @@ async def test_follow_mark_only_at_the_newest_row() -> None:
         app.status_line.show()
         await pilot.pause()
         assert "LIVE ▼" in screen_text(app)
+
+
+def bar(**kw: object) -> str:
+    base: dict[str, object] = {
+        "source": "/dev/ttyUSB0",
+        "line": "19200 8E1 rtu",
+        "rows": 1_562_000,
+        "bytes": 24_800_000,
+        "errors": 3,
+        "rate": 26.1,
+        "indexing": False,
+        "paused": False,
+        "following": True,
+        "live": True,
+        "liveness": "live",
+        "since_frame": 0.2,
+    }
+    base.update(kw)
+    return status_text(StatusInfo(**base), 78).plain  # type: ignore[arg-type]
+
+
+def test_at_80_columns_the_bar_keeps_state_age_port_rate_frames_and_losses() -> None:
+    rec = {"recording": "modscope-20240615-021733.pcapng", "recorded_bytes": 1_234_567}
+    assert (
+        bar(**rec) == "LIVE ▼ │ last 200ms │ ● rec │ lost 0B │ 1.56M fr │ 26.1 fr/s │ /dev/ttyUSB0"
+    )
+    assert bar(liveness="idle", since_frame=42.0, following=False, rate=0.0, rows=1500) == (
+        "IDLE │ last 42.0s │ lost 0B │ 3 err │ 1,500 fr │ 0.0 fr/s │ /dev/ttyUSB0"
+    )
+    assert bar(liveness="quiet", since_frame=None, rows=0, rate=None).startswith(
+        "QUIET ▼ │ no frame yet │ lost 0B"
+    )
+    # without a clock to judge by (a capture file), no age and never IDLE
+    assert bar(live=False, liveness="", following=False).startswith("REPLAY │ 3 err")
