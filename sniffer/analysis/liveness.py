@@ -31,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
+from itertools import compress
 
 from sniffer.analysis.stats import UnitStats
 from sniffer.framing.store import FrameStore
@@ -66,6 +67,9 @@ class UnitLiveness:
     period_bound: bool  # the period is an upper bound (`<`)
     silent_after: float | None  # seconds without an answer that make it silent
     state: UnitState
+    # the stamps' resolution: a frame ended up to this long before its stamp, so an age
+    # is at least what is measured and at most this much more (`age_text`)
+    resolution: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,6 +79,7 @@ class LineLiveness:
     period: float | None  # the line's period (its units' shortest), None: unknown
     idle_after: float | None  # seconds without a frame that make it idle (None: unknown)
     units: tuple[UnitLiveness, ...]
+    resolution: float = 0.0  # as UnitLiveness.resolution
 
 
 def _age(now: float, t: float | None) -> float | None:
@@ -92,6 +97,7 @@ def unit_liveness(
     last_request: float | None,
     period: float | None,
     period_bound: bool = False,
+    resolution: float = 0.0,
 ) -> UnitLiveness:
     """One unit's ages and state at `now` (see the module's rule). `asked`: requests to it
     were seen; `last_request`: when the newest was sent (None: not known)."""
@@ -123,11 +129,17 @@ def unit_liveness(
         period_bound and known,
         limit,
         state,
+        resolution,
     )
 
 
 def line_liveness(
-    now: float, last_frame: float | None, units: Iterable[UnitLiveness], *, ended: bool = False
+    now: float,
+    last_frame: float | None,
+    units: Iterable[UnitLiveness],
+    *,
+    ended: bool = False,
+    resolution: float = 0.0,
 ) -> LineLiveness:
     """The line's state at `now` from its last frame and its units' periods."""
     units = tuple(units)
@@ -144,7 +156,7 @@ def line_liveness(
         state = LineState.IDLE if since > limit else LineState.LIVE
     else:
         state = LineState.QUIET if since > IDLE_MIN else LineState.LIVE
-    return LineLiveness(state, since, period, limit, units)
+    return LineLiveness(state, since, period, limit, units, resolution)
 
 
 def liveness(
@@ -176,11 +188,12 @@ def liveness(
                 last_request=requests[-1] if requests else None,
                 period=measured.seconds if measured is not None else None,
                 period_bound=measured.bound if measured is not None else False,
+                resolution=resolution,
             )
         )
     if last_frame is None and newest > 0:
         last_frame = newest
-    return line_liveness(now, last_frame, out, ended=ended)
+    return line_liveness(now, last_frame, out, ended=ended, resolution=resolution)
 
 
 _ANSWERS = bytes(1 if k in (Kind.RESPONSE, Kind.EXCEPTION) else 0 for k in range(256))
@@ -216,19 +229,23 @@ class Heard:
         answers = kinds.translate(_ANSWERS)
         if 1 in answers:
             flags, units, ends = store.flags, store.unit, store.t_end
-            for i in range(lo, n):
-                if answers[i - lo] and not flags[i] & BAD_CHECK:
-                    u = units[i]
-                    t = ends[i]
-                    if t > self.last_answer.get(u, 0.0):
-                        self.last_answer[u] = t
+            last = self.last_answer
+            for i in compress(range(lo, n), answers):
+                if not flags[i] & BAD_CHECK:
+                    u, t = units[i], ends[i]
+                    if t > last.get(u, 0.0):
+                        last[u] = t
         self.next = n
 
 
-def age_text(seconds: float | None) -> str:
-    """A compact age: `95ms`, `3.0s`, `2m03s`, `1h02m`; `?` for none."""
+def age_text(seconds: float | None, resolution: float = 0.0) -> str:
+    """A compact age: `95ms`, `3.0s`, `2m03s`, `1h02m`; `?` for none. Under the stamps'
+    `resolution` it is a bound, `<180ms`: the frame ended up to that long before its
+    stamp, so its age is under the measured one plus the resolution."""
     if seconds is None:
         return "?"
+    if 0 < resolution < float("inf") and seconds < resolution:
+        return "<" + age_text(seconds + resolution)
     if seconds < 1:
         return f"{max(0.0, seconds) * 1000:.0f}ms"
     if seconds < 60:
@@ -247,7 +264,7 @@ def liveness_lines(line: LineLiveness, labels: Mapping[int, str] | None = None) 
     if line.state is LineState.ENDED:
         head = "line: end of capture"
     else:
-        head += f", last frame {_ago(line.since_frame)}"
+        head += f", last frame {_ago(line.since_frame, line.resolution)}"
         if line.idle_after is not None:
             head += f" (idle after {age_text(line.idle_after)}: {IDLE_AFTER:g} x its period)"
         else:
@@ -263,11 +280,11 @@ def liveness_lines(line: LineLiveness, labels: Mapping[int, str] | None = None) 
         )
         limit = "" if u.silent_after is None else f", silent after {age_text(u.silent_after)}"
         out.append(
-            f"  {name}: {u.state.value}, last answer {_ago(u.since_answer)}, "
-            f"last frame {_ago(u.since_frame)}, {period}{limit}"
+            f"  {name}: {u.state.value}, last answer {_ago(u.since_answer, u.resolution)}, "
+            f"last frame {_ago(u.since_frame, u.resolution)}, {period}{limit}"
         )
     return out
 
 
-def _ago(seconds: float | None) -> str:
-    return "never" if seconds is None else age_text(seconds) + " ago"
+def _ago(seconds: float | None, resolution: float = 0.0) -> str:
+    return "never" if seconds is None else age_text(seconds, resolution) + " ago"

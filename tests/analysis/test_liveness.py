@@ -11,6 +11,7 @@ from sniffer.analysis.liveness import (
     Heard,
     LineState,
     UnitState,
+    age_text,
     line_liveness,
     liveness,
     liveness_lines,
@@ -139,3 +140,27 @@ def test_a_unit_never_asked_is_not_judged() -> None:
         7, 100.0, asked=False, last_frame=40.0, last_answer=40.0, last_request=None, period=None
     )
     assert heard.state is UnitState.NOT_ASKED and heard.since_answer == 60.0
+
+
+def test_an_age_under_the_stamps_resolution_is_a_bound() -> None:
+    # a frame stamped at the end of a host read ended up to one resolution earlier
+    assert age_text(0.011, 0.169) == "<180ms"
+    assert age_text(0.011, 0.0) == "11ms"
+    assert age_text(2.5, 0.169) == "2.5s"
+    assert age_text(None) == "?"
+    now = 100.0
+    alive = unit_liveness(
+        1,
+        now,
+        asked=True,
+        last_frame=now - 0.011,
+        last_answer=now - 0.011,
+        last_request=now - 0.02,
+        period=0.1,
+        resolution=0.169,
+    )
+    assert liveness_lines(line_liveness(now, now - 0.011, [alive], resolution=0.169)) == [
+        "line: live, last frame <180ms ago (idle after 2.0s: 3 x its period)",
+        "  unit 1: ok, last answer <180ms ago, last frame <180ms ago, period 100ms, "
+        "silent after 2.0s",
+    ]

@@ -96,6 +96,7 @@ class StatusLine(Room):
             progress=app.feeding.index_progress(),
             liveness=alive.state.value if alive is not None else "",
             since_frame=alive.since_frame if alive is not None else None,
+            resolution=alive.resolution if alive is not None else 0.0,
         )
         self.main.status.show(info)
         screen = app.screen

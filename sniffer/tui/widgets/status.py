@@ -19,8 +19,8 @@ from rich.cells import cell_len
 from rich.text import Text
 from textual.widgets import Static
 
+from sniffer.analysis.liveness import age_text
 from sniffer.text import plain
-from sniffer.tui.render import ago_text
 
 SEP = " │ "
 STATES = ("live", "idle", "quiet", "replay", "paused", "indexing", "reconnecting", "stopped")
@@ -49,6 +49,7 @@ class StatusInfo:
     # "idle" or "quiet"; "" when there is no clock to judge it by (a capture file)
     liveness: str = ""
     since_frame: float | None = None  # seconds since the last frame, by that clock
+    resolution: float = 0.0  # the stamps': an age under it is a bound (`<180ms`)
 
 
 def size_text(n: int) -> str:
@@ -110,7 +111,7 @@ def age_words(s: StatusInfo, short: bool = False) -> str:
         return ""
     if s.since_frame is None:
         return "no frame yet"
-    age = ago_text(s.since_frame)
+    age = age_text(s.since_frame, s.resolution)
     return f"last {age}" if short else f"last frame {age} ago"
 
 

@@ -19,7 +19,7 @@ from rich.text import Text
 from textual.widgets import DataTable
 
 from dissectors import mbap
-from sniffer.analysis.liveness import UnitState, unit_liveness
+from sniffer.analysis.liveness import UnitState, age_text, unit_liveness
 from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS, resolved_cycle
 from sniffer.analysis.polls import FRAMED_APART, Identity, frame_body, poll_identity
 from sniffer.analysis.stats import UnitStats
@@ -27,7 +27,7 @@ from sniffer.framing.columns import marking
 from sniffer.framing.pairing import Latency
 from sniffer.framing.store import FrameStore
 from sniffer.text import plain
-from sniffer.tui.render import ago_text, fit_columns
+from sniffer.tui.render import fit_columns
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 # fixed widths: columns that grew with whatever was shown first would jump about
@@ -91,6 +91,7 @@ class UnitRow:
     state: UnitState = UnitState.OK
     since_answer: float | None = None  # seconds from the clock's now (None: never)
     since_frame: float | None = None
+    resolution: float = 0.0  # the stamps': an age under it is a bound (`age_text`)
     period: float | None = None  # seconds between sendings of the unit's main poll
     jitter: float | None = None  # p95 - p5 of those seconds
     gaps: int = 0  # waits of more than GAP_FACTOR periods, over all its polls
@@ -179,6 +180,7 @@ def unit_rows(
                 state=alive.state,
                 since_answer=alive.since_answer,
                 since_frame=alive.since_frame,
+                resolution=resolution,
             )
         )
     return out
@@ -469,8 +471,9 @@ class UnitsPanel(DataTable[Text]):
             return Text(value, style=style or "", justify="right" if right else "left")
 
         row_style = silent if r.silent else None
-        answer = "never" if r.since_answer is None else ago_text(r.since_answer) + " ago"
-        frame = "-" if r.since_frame is None else ago_text(r.since_frame) + " ago"
+        res = r.resolution
+        answer = "never" if r.since_answer is None else age_text(r.since_answer, res) + " ago"
+        frame = "-" if r.since_frame is None else age_text(r.since_frame, res) + " ago"
         return [
             cell(str(r.unit), row_style),
             cell(plain(r.label, 16), row_style, right=False),
