@@ -14,7 +14,8 @@ still answering?") and gets its answer here, from one rule:
   A unit asked but that never answered is silent too. Where its period is not known
   yet (one request so far), nothing is invented: it is `unknown` once SILENT_MIN
   has passed, unless it was asked after its last answer and has not answered for
-  SILENT_MIN (that is silence the bytes show, period or not).
+  SILENT_MIN (that is silence the bytes show, period or not). Unit 0, the broadcast
+  address that no device answers, is `broadcast`, never silent.
 - The line is `idle` when the time since its last frame passes IDLE_AFTER of its own
   period (the shortest of its units' poll periods: the line carries a frame at least
   that often while the master polls), never fewer than IDLE_MIN seconds; `quiet` when
@@ -42,6 +43,7 @@ SILENT_AFTER = 3.0  # poll periods without an answer after which a unit is silen
 SILENT_MIN = 2.0  # ... but never fewer seconds than this
 IDLE_AFTER = 3.0  # line periods without a frame after which the line is idle
 IDLE_MIN = 2.0  # ... but never fewer seconds than this
+BROADCAST_UNIT = 0  # Modbus: every device takes it and none answers
 
 
 class LineState(StrEnum):
@@ -56,6 +58,7 @@ class UnitState(StrEnum):
     SILENT = "silent"  # asked and not answering, or past SILENT_AFTER of its periods
     UNKNOWN = "unknown"  # quiet for SILENT_MIN, but its period is not known to judge by
     NOT_ASKED = "not asked"  # only heard answering, never asked: nothing to judge
+    BROADCAST = "broadcast"  # unit 0: no device answers a broadcast
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,7 +108,9 @@ def unit_liveness(
     since_answer = _age(now, last_answer)
     known = period is not None and period == period and period < float("inf")
     limit = max(SILENT_MIN, SILENT_AFTER * period) if known and period is not None else None
-    if not asked:
+    if unit == BROADCAST_UNIT:
+        state = UnitState.BROADCAST
+    elif not asked:
         state = UnitState.NOT_ASKED
     elif since_answer is None:
         state = UnitState.SILENT

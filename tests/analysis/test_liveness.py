@@ -164,3 +164,10 @@ def test_an_age_under_the_stamps_resolution_is_a_bound() -> None:
         "  unit 1: ok, last answer <180ms ago, last frame <180ms ago, period 100ms, "
         "silent after 2.0s",
     ]
+
+
+def test_the_broadcast_address_is_never_silent() -> None:
+    sent = unit_liveness(
+        0, 100.0, asked=True, last_frame=40.0, last_answer=None, last_request=40.0, period=1.0
+    )
+    assert sent.state is UnitState.BROADCAST and sent.since_answer is None

@@ -71,6 +71,7 @@ STATE_WORDS = {
     UnitState.SILENT: "SILENT",
     UnitState.UNKNOWN: "?",  # quiet a while, its period unknown: not judged
     UnitState.NOT_ASKED: "-",
+    UnitState.BROADCAST: "bcast",  # unit 0: nobody answers it
 }
 
 
