@@ -92,9 +92,12 @@ def test_live_stats_turn_idle_and_silent_from_the_clock(bus: VirtualBus) -> None
     # the period is the master's own (100 ms): idle after its 2 s floor, here
     assert "(idle after 2.0s: 3 x its period)" in idle[0][0]
     assert idle[0][1].startswith("  unit 1: silent, last answer ")
-    period = re.search(r", period (\d+)ms, silent after 2\.0s$", idle[0][1])
+    period = re.search(r", period (<?)(\d+)ms, silent after 2\.0s$", idle[0][1])
     assert period is not None, idle[0][1]
-    assert PERIOD * 1000 <= int(period.group(1)) < 2 * PERIOD * 1000  # its sleeps, measured
+    if period.group(1):  # a loaded machine's late reads leave only a bound: one that holds
+        assert PERIOD * 1000 <= int(period.group(2)), idle[0][1]
+    else:  # its sleeps, measured
+        assert PERIOD * 1000 <= int(period.group(2)) < 2 * PERIOD * 1000, idle[0][1]
     # the frames listed: requests and answers, nothing after the master stopped
     assert out.count('"kind": "request"') == POLLS
 
