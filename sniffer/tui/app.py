@@ -12,6 +12,7 @@ and every message to the App, which hands it to the room that owns it.
 
 from __future__ import annotations
 
+import sys
 from collections import deque
 from collections.abc import Callable
 
@@ -119,10 +120,17 @@ class ModscopeApp(App[int]):
         if self.model.job is not None:
             self.filtering.info()
 
-    def say(self, text: str, *, title: str = "", severity: SeverityLevel = "information") -> None:
+    def say(
+        self,
+        text: str,
+        *,
+        title: str = "",
+        severity: SeverityLevel = "information",
+        timeout: float | None = None,
+    ) -> None:
         """Tell the user something (never as markup); kept in `said` for a while."""
         self.said.append(text)
-        self.notify(text, title=title, severity=severity, markup=False)
+        self.notify(text, title=title, severity=severity, markup=False, timeout=timeout)
 
     # -- messages, each to its room --------------------------------------------------------
 
@@ -262,6 +270,9 @@ class ModscopeApp(App[int]):
     # -- leaving ---------------------------------------------------------------------------
 
     async def action_quit(self) -> None:
+        self.recording.quit()  # asks first while a recording runs
+
+    def leave(self) -> None:
         self.feeding.stop()
         self.exit(0)
 
@@ -280,4 +291,12 @@ def run_tui(
     """Run the TUI on a session: a capture being opened, a live source, or an ingested one."""
     app = ModscopeApp(session, capture, live, reopen=reopen, speed=speed)
     result = app.run()
+    if app.recording.made:
+        # the recordings are complete once the capture has stopped (the caller's stop()
+        # after this one does nothing more); then say where each one is
+        stop = getattr(live, "stop", None)
+        if callable(stop):
+            stop()
+        for line in app.recording.report():
+            print(line, file=sys.stderr)
     return result if isinstance(result, int) else 0

@@ -69,6 +69,10 @@ class Keyboard(Room):
                 await app.on_event(typed)
             return True
         if isinstance(event, events.Key) and not event.is_forwarded and app.screen is self.main:
+            if self.main.prompt.confirming:  # a one-key question: this key answers it
+                event.stop()
+                self.main.prompt.settle(event.key)
+                return True
             field = self.main.focused
             if isinstance(field, LineInput) and event.key == "ctrl+j":
                 # a newline: Enter typed before the terminal was switched to raw mode
