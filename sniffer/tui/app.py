@@ -210,6 +210,9 @@ class ModscopeApp(App[int]):
     def action_zoom(self) -> None:
         self.panes.zoom()
 
+    def action_detail_full(self) -> None:
+        self.panes.detail_full()
+
     def action_ladder(self) -> None:
         self.panes.ladder()
 

@@ -60,6 +60,7 @@ KEYS: tuple[Key, ...] = (
     Key("w", "pane('watch')", "w", "watch", bar=False),
     Key("l", "ladder", "l", "ladder", bar=False),
     Key("z", "zoom", "z", "zoom"),
+    Key("D", "detail_full", "D", "whole details", bar=False),
     Key("space", "pause", "␣", "pause"),
     Key("s", "speed", "s", "speed"),
     Key("f", "follow", "f", "follow"),

@@ -145,6 +145,7 @@ class Keyboard(Room):
         self.main.focus_next()
 
     def to_list(self) -> None:
+        self.main.remove_class("-detail-full")
         focus_now(self.frames)
 
     def help(self) -> None:

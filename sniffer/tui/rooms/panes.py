@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from sniffer.framing.store import FrameStore
 from sniffer.tui.rooms.base import Room, focus_now
 from sniffer.tui.screens.ladder import LadderScreen
+from sniffer.tui.screens.main import DETAIL_TITLE
 from sniffer.tui.widgets.units import Cache, unit_rows
 
 if TYPE_CHECKING:
@@ -35,8 +36,10 @@ class Panes(Room):
             return
         switcher = self.main.lower
         self.main.remove_class("-zoom")
+        if name != "detail":
+            self.main.remove_class("-detail-full")
         switcher.current = name
-        switcher.border_title = {"detail": "details", "units": "units"}.get(name, "")
+        switcher.border_title = {"detail": DETAIL_TITLE, "units": "units"}.get(name, "")
         if name == "detail":
             self.show_detail(self.frames.cursor_row)
         elif name == "units":
@@ -79,7 +82,22 @@ class Panes(Room):
             focus_now(self.main.detail.query_one("#fields"))
 
     def zoom(self) -> None:
+        self.main.remove_class("-detail-full")
         self.main.toggle_class("-zoom")
+
+    def detail_full(self) -> None:
+        """The details on the whole screen, their head focused (the arrows scroll it, Tab
+        goes to the fields); again, or Esc, back to the list."""
+        main = self.main
+        if main.has_class("-detail-full"):
+            main.remove_class("-detail-full")
+            focus_now(self.frames)
+            return
+        if main.lower.current != "detail":
+            self.pane("detail")
+        main.remove_class("-zoom")
+        main.add_class("-detail-full")
+        focus_now(main.detail.query_one("#detail-head"))
 
     def ladder(self) -> None:
         frames = self.frames

@@ -34,10 +34,13 @@ modscope: keys
   l                    ladder: master and slaves as columns, arrows with latencies
   x  R                 register watch: pick registers / their table, a row a poll
   z                    hide the lower pane (more frames on screen)
+  D                    the details on the whole screen (again or Esc: back)
   e                    export the rows shown (.jsonl, .csv, else text)
-  r                    live: start recording the line to a file, or stop it
+  r                    live: record the line to a file; while one runs, ask:
+                       r stops it, n goes on in a new file, other keys keep it
   T                    dark / light theme
-  ?                    this help        q  quit
+  ?                    this help
+  q                    quit (while recording: q again, other keys keep going)
 
 filter language (terms separated by spaces, all must hold)
 
