@@ -112,6 +112,7 @@ class ModscopeApp(App[int]):
             return
         self.status_line.measure_rate()
         self.status_line.show()
+        self.feeding.run_waiting()
         current = self.main.lower.current
         if current == "units":
             self.panes.units()

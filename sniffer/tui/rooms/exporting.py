@@ -28,6 +28,8 @@ class Exporting(Room):
     def _export(self, answer: str | None) -> None:
         if not answer:
             return
+        if self._later(answer):
+            return
         view = self.model.view
         rows: Iterable[int] = (
             range(view.count) if view.rows is None else array("Q", view.rows[: view.count])
@@ -38,6 +40,16 @@ class Exporting(Room):
         describer = Describer(model.reader, self.app.session.annotator, size=256)
         write = partial(self._write, Path(answer).expanduser(), rows, describer, model.absolute)
         self.app.run_worker(write, name="export", group="export", thread=True)
+
+    def _later(self, answer: str) -> bool:
+        """Typed while the capture is still being read (or filtered): the rows shown are
+        not all there yet, so the file is written once they are. True if put off."""
+        feeding = self.app.feeding
+        if feeding.read_all():
+            return False
+        self.app.say(f"the export to {answer} is written once the capture is read")
+        feeding.when("export", feeding.read_all, lambda: self._export(answer))
+        return True
 
     def _write(self, path: Path, rows: Iterable[int], describer: Describer, absolute: bool) -> None:
         """The export's worker (a thread)."""
