@@ -124,6 +124,25 @@ class Panes(Room):
         app = self.app
         app.theme = "modscope-light" if app.theme == "modscope-dark" else "modscope-dark"
         self.frames.reset()
+        # what was drawn with the old colours (the key bar, the field tree, the panes)
+        # is drawn again once the new stylesheet applies
+        app.call_after_refresh(self._restyle)
+
+    def _restyle(self) -> None:
+        main = self.main
+        if not main.alive:
+            return
+        main.keybar.show(self.app.keyboard.context())
+        current = main.lower.current
+        if current == "detail":
+            self.show_detail(self.frames.cursor_row)
+        elif current == "units":
+            self.units_cache.clear()
+            self.units()
+        elif current == "watch":
+            main.watch_panel.version = -1  # drawn again even if no value changed
+            self.app.watching.show()
+        self.app.status_line.show()
 
 
 def where_text(store: FrameStore, row: int) -> str:
