@@ -413,7 +413,7 @@ async def test_help_and_zoom() -> None:
         assert app.frames.page_height == height
         await pilot.press("question_mark")
         assert isinstance(app.screen, HelpScreen)
-        assert "F  n N" in screen_text(app)
+        assert "F n N" in screen_text(app)
         await pilot.press("end")
         await pilot.pause()
         assert 'reg:"Under Voltage"' in screen_text(app)

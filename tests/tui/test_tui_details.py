@@ -74,3 +74,21 @@ def test_fit_words_never_cuts_a_token() -> None:
         fitted = fit_words(text, width)
         assert len(fitted) <= width
         assert fitted == text or fitted.endswith("…")
+
+
+@pytest.mark.asyncio
+async def test_the_help_shows_every_key_on_one_line_in_two_columns_at_80() -> None:
+    from sniffer.tui.screens.dialogs import FILTER_HELP, KEY_HELP, HelpScreen
+    from tests.support.tui import hostile_session
+
+    app = ModscopeApp(hostile_session(), blink=False)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await pilot.press("question_mark")
+        await pilot.pause()
+        assert isinstance(app.screen, HelpScreen)
+        lines = [line.strip() for line in screen_text(app).splitlines()]
+        half = (len(KEY_HELP) + 1) // 2
+        for k, (_, text) in enumerate(KEY_HELP[:half]):  # two entries side by side
+            other = KEY_HELP[half + k][1] if half + k < len(KEY_HELP) else ""
+            assert any(text in line and other in line for line in lines), (text, other)
+        assert all(len(line) <= 76 for line in FILTER_HELP.splitlines())
