@@ -11,6 +11,7 @@ from pathlib import Path
 
 from sniffer.meaning.describe import Describer
 from sniffer.outputs.listing import FORMATS, Lister
+from sniffer.tui.clipboard import clipboard_note
 from sniffer.tui.rooms.base import Room
 
 EXPORT_DEFAULT = "modscope-export.jsonl"
@@ -79,4 +80,11 @@ class Exporting(Room):
             Lister(out, "jsonl", model.describer, absolute=model.absolute).write([row], flush=False)
             text = out.getvalue().strip()
         self.app.copy_to_clipboard(text)
-        self.app.say(f"copied #{row} as {what} ({len(text):,} characters, OSC 52)")
+        note = clipboard_note()
+        if note is not None:  # sent, but it cannot arrive: say so, and how to fix it
+            self.app.say(f"#{row} not copied: {note}", severity="warning", timeout=20)
+            return
+        self.app.say(
+            f"copied #{row} as {what} ({len(text):,} characters) by OSC 52, if the terminal "
+            "allows it"
+        )
