@@ -82,7 +82,16 @@ def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             "pass --public-url http://THIS-ADDRESS:PORT\n"
         )
     out.flush()
-    server = Server(command, host=args.host, port=args.port, title="modscope", public_url=url)
+    from sniffer.tui.page import offline_templates  # the page without its web font
+
+    server = Server(
+        command,
+        host=args.host,
+        port=args.port,
+        title="modscope",
+        public_url=url,
+        templates_path=offline_templates(),
+    )
     server.serve()
     return 0
 
