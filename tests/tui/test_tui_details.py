@@ -92,3 +92,23 @@ async def test_the_help_shows_every_key_on_one_line_in_two_columns_at_80() -> No
             other = KEY_HELP[half + k][1] if half + k < len(KEY_HELP) else ""
             assert any(text in line and other in line for line in lines), (text, other)
         assert all(len(line) <= 76 for line in FILTER_HELP.splitlines())
+
+
+@needs_demo
+@pytest.mark.asyncio
+@pytest.mark.parametrize("size", [(80, 24), (200, 50)])
+async def test_the_register_watch_uses_the_width(size: tuple[int, int]) -> None:
+    from sniffer.tui.widgets.watch import WatchPanel
+
+    app = ModscopeApp(demo(), blink=False)
+    async with app.run_test(size=size) as pilot:
+        await ready(pilot, app)
+        await pilot.press("w")
+        await pilot.pause(0.6)
+        panel = app.main.query_one(WatchPanel)
+        used = sum(column.get_render_width(panel) for column in panel.columns.values())
+        assert panel.size.width - 2 - 8 <= used <= panel.size.width  # no wasted half
+        text = screen_text(app)
+        assert "1 Exciter G1" in text  # the device label whole, at 80 columns too
+        if size[0] >= 200:
+            assert "Weekly average power factor" in text and "history" in text
