@@ -131,7 +131,7 @@ async def test_r_and_q_ask_first_and_a_new_file_begins_before_the_old_one_ends(
     report = app.recording.report()
     assert len(report) == 2
     for line, path in zip(report, (first, second), strict=True):
-        assert f"recorded {path}: {size_text(os.stat(path).st_size)}" in line
+        assert f"recorded {path.absolute()}: {size_text(os.stat(path).st_size)}" in line
         assert " frames (" in line and " reads)" in line
 
 

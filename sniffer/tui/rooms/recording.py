@@ -81,11 +81,14 @@ class Recording(Room):
     def _rows(self) -> int:
         return len(self.app.session.store)
 
-    def describe(self, made: Made, recorder: Recorder | None = None) -> str:
-        """Where a recording is, its size, frames and reads ('rec.pcapng, 24.8 kB, ...')."""
+    def describe(self, made: Made, recorder: Recorder | None = None, *, whole: bool = False) -> str:
+        """Where a recording is, its size, frames and reads ('rec.pcapng, 24.8 kB, ...');
+        `whole`: the files' absolute paths (said on leaving, when the folder may be
+        forgotten)."""
         last = made.last_row if made.last_row is not None else self._rows()
         reads = recorder.packets if recorder is not None else made.reads
-        names = ", ".join(str(f) for f in made.files) or "no file on disk"
+        files = [f.absolute() for f in made.files] if whole else made.files
+        names = ", ".join(str(f) for f in files) or "no file on disk"
         sizes = " + ".join(file_size(f) for f in made.files) or "0 B"
         frames = max(0, last - made.first_row)
         return f"{names}: {sizes}, {frames:,} frames ({reads:,} reads)"
@@ -233,5 +236,5 @@ class Recording(Room):
             if not made.ended and recorder is not None:
                 made.files = recorder.files
                 self._close(made, recorder.packets)
-            lines.append(f"recorded {self.describe(made)}")
+            lines.append(f"recorded {self.describe(made, whole=True)}")
         return lines
