@@ -30,10 +30,14 @@ def offline_page(html: str) -> str:
 
 def offline_templates() -> Path:
     """A templates folder for textual-serve's `Server` whose page loads nothing from the
-    internet (the installed page, without its web font link)."""
+    internet (the installed page, without its web font link); where the installed page
+    is not found, textual-serve's own folder (`templates`, relative to its module)."""
     import textual_serve  # here: the optional [serve] extra, present when this is called
 
-    source = Path(textual_serve.__file__).parent / "templates" / PAGE
+    installed = getattr(textual_serve, "__file__", None)
+    source = Path(installed or ".").parent / "templates" / PAGE
+    if not source.is_file():  # a textual-serve laid out otherwise: its own page, as is
+        return Path("templates")
     folder = Path(tempfile.mkdtemp(prefix="modscope-serve-"))
     atexit.register(shutil.rmtree, folder, True)
     (folder / PAGE).write_text(offline_page(source.read_text(encoding="utf-8")), encoding="utf-8")
