@@ -414,7 +414,10 @@ class Lister:
         absolute: bool = False,
         raw_csv: bool = False,
         header: bool = True,
+        updates: bool = False,
     ) -> None:
+        """`updates`: this listing writes updates later (`write_updates`, live), so its
+        text lines number the rows those may cite."""
         if fmt not in FORMATS:
             raise ValueError(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
         self.out = out
@@ -432,6 +435,7 @@ class Lister:
         # text: rows listed while their transaction was open; an update cites them (and
         # their answers) by number, so their lines end with it (`  #40`)
         self._cited: set[int] = set()
+        self.updates = updates
         if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
@@ -471,7 +475,7 @@ class Lister:
                 )
             if line is None:
                 line = self._line(describer.detail(i), peer)
-            if text and line is not None:
+            if text and self.updates and line is not None:
                 line = self._numbered(i, line)
             if note and line is not None and self.fmt == "jsonl":
                 line = line[:-1] + ", " + _json_item("timing_note", note) + "}"
