@@ -150,3 +150,26 @@ async def test_quitting_without_a_recording_asks_nothing(tmp_path: Path) -> None
         finally:
             live.stop()
     assert app.recording.report() == []
+
+
+async def test_ctrl_q_over_the_ladder_asks_on_the_main_screen(tmp_path: Path) -> None:
+    with VirtualBus(tmp_path) as bus:
+        tap = bus.attach("tap")
+        spec = PortSpec(str(tap), LINE)
+        session = Session(LINE, source=str(tap))
+        live = LiveCapture(
+            LiveReader([spec]), session, recorder=Recorder(tmp_path / "r.pcapng", [spec])
+        )
+        live.start()
+        app = ModscopeApp(session, live=live)
+        try:
+            async with app.run_test(size=SIZE) as pilot:
+                await pilot.press("l")
+                assert app.screen is not app.main
+                await pilot.press("ctrl+q")
+                await wait_until(pilot, lambda: app.screen is app.main)
+                assert app.main.prompt.confirming and app.is_running
+                await pilot.press("ctrl+q")
+                await wait_until(pilot, lambda: not app.is_running)
+        finally:
+            live.stop()

@@ -212,6 +212,11 @@ class Recording(Room):
         if running is None or recorder is None:
             self.app.leave()
             return
+        app = self.app
+        for _ in range(len(app.screen_stack) - 1):  # ctrl+q over the ladder, a plot, a
+            if app.screen is self.main:  # table: the question is asked on the main screen
+                break
+            app.pop_screen()
         self.main.prompt.confirm(
             f"q again quits and ends the recording to {self.describe(running, recorder)}; "
             "any other key keeps going",
