@@ -183,6 +183,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 GlobalRows(session),
                 absolute=args.time == "abs",
                 raw_csv=args.raw_csv,
+                updates=True,  # text: the rows its updates cite are numbered
             )
         backlog = None if lister is None else Backlog(out, args.backlog)
         selection = Selection(session, query_of(args), args.count)

@@ -4,9 +4,13 @@ optional textual-serve package (`pip install 'modscope[serve]'`)."""
 from __future__ import annotations
 
 import argparse
+import atexit
+import re
 import shlex
+import shutil
 import socket
 import sys
+import tempfile
 from pathlib import Path
 from typing import TextIO
 from urllib.parse import urlsplit
@@ -82,7 +86,14 @@ def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             "pass --public-url http://THIS-ADDRESS:PORT\n"
         )
     out.flush()
-    server = Server(command, host=args.host, port=args.port, title="modscope", public_url=url)
+    server = Server(
+        command,
+        host=args.host,
+        port=args.port,
+        title="modscope",
+        public_url=url,
+        templates_path=offline_templates(),
+    )
     server.serve()
     return 0
 
@@ -118,3 +129,37 @@ def register(sub: SubParsers) -> None:
     add_line_options(p)
     add_device_options(p)
     p.set_defaults(func=cmd_serve)
+
+
+# -- the page, offline ---------------------------------------------------------------------
+# textual-serve's page links a stylesheet on fonts.googleapis.com for its terminal font
+# (Roboto Mono). A site PC or a plant network often has no internet: the browser then
+# waits for that request, and each visit is told to a third party. The page's own font
+# list goes on to the browser's monospace fonts (Roboto Mono is still used where it is
+# installed), so the link is left out: the installed page is read at start-up and
+# written, changed only there, to a temporary folder removed on exit.
+
+PAGE = "app_index.html"
+# a <link> element whose href leaves the server (the web font's stylesheet)
+OUTSIDE_LINK = re.compile(r"<link\b[^>]*\bhref=\"https?://[^\"]*\"[^>]*>\s*", re.S)
+
+
+def offline_page(html: str) -> str:
+    """The page with every stylesheet link to another host left out."""
+    return OUTSIDE_LINK.sub("", html)
+
+
+def offline_templates() -> Path:
+    """A templates folder for textual-serve's `Server` whose page loads nothing from the
+    internet; where the installed page is not found, textual-serve's own (`templates`,
+    relative to its module)."""
+    import textual_serve  # the optional [serve] extra, present when this is called
+
+    installed = getattr(textual_serve, "__file__", None)
+    source = Path(installed or ".").parent / "templates" / PAGE
+    if not source.is_file():  # a textual-serve laid out otherwise: its own page, as is
+        return Path("templates")
+    folder = Path(tempfile.mkdtemp(prefix="modscope-serve-"))
+    atexit.register(shutil.rmtree, folder, True)
+    (folder / PAGE).write_text(offline_page(source.read_text(encoding="utf-8")), encoding="utf-8")
+    return folder

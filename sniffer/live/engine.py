@@ -227,6 +227,27 @@ class LiveCapture:
         while no frame comes (`sniffer.analysis.liveness`)."""
         return self.reader.clock.now()
 
+    def switch_recording(self, path: str | Path) -> tuple[Recorder, list[Path]]:
+        """Go on recording into `path` without a gap: the new file is fed from before the
+        running one stops, so the reads at the switch are in both. The new recorder and
+        the files of the one that ended (nothing ends if none was running)."""
+        with self._lock:
+            old, old_feed, old_thread = self.recorder, self._rec_feed, self._rec_thread
+            recorder = Recorder(path, self.reader.specs)  # RecordError: the old one goes on
+            self.recorder = recorder
+            self._rec_feed = self.reader.attach(self.queue_size)
+            self._rec_thread = threading.Thread(
+                target=self._record, name="modscope-recorder", daemon=True
+            )
+            self._rec_thread.start()
+        if old is None or old_feed is None:
+            return recorder, []
+        self.reader.detach(old_feed)
+        if old_thread is not None:
+            old_thread.join(30)
+        old.close(self.reader.clock.now())
+        return recorder, list(old.files)
+
     @property
     def lost_bytes(self) -> int:
         """Bytes the display and the recording could not keep up with, together."""

@@ -16,7 +16,7 @@ from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.meaning.describe import Describer, FrameDetail, Shared
 from sniffer.model import Stamp
 from sniffer.text import csv_row, json_line
-from sniffer.vocab import STATUS_NAMES, Flag, Kind
+from sniffer.vocab import STATUS_NAMES, Flag, Kind, Status
 
 FORMATS = ("text", "jsonl", "csv")
 KIND_NAMES = {
@@ -396,6 +396,7 @@ def _transaction_json(
 
 _DEVICE_SLOW = int(Flag.DEVICE_SLOW)
 _REQUEST = int(Kind.REQUEST)
+_OPEN = int(Status.OPEN)
 
 
 class Lister:
@@ -413,7 +414,10 @@ class Lister:
         absolute: bool = False,
         raw_csv: bool = False,
         header: bool = True,
+        updates: bool = False,
     ) -> None:
+        """`updates`: this listing writes updates later (`write_updates`, live), so its
+        text lines number the rows those may cite."""
         if fmt not in FORMATS:
             raise ValueError(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
         self.out = out
@@ -428,6 +432,10 @@ class Lister:
         # what the times are worth is said once, before the first row (a parallel worker's
         # range goes without, as without the CSV header)
         self._noted = not header
+        # text: rows listed while their transaction was open; an update cites them (and
+        # their answers) by number, so their lines end with it (`  #40`)
+        self._cited: set[int] = set()
+        self.updates = updates
         if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
@@ -467,6 +475,8 @@ class Lister:
                 )
             if line is None:
                 line = self._line(describer.detail(i), peer)
+            if text and self.updates and line is not None:
+                line = self._numbered(i, line)
             if note and line is not None and self.fmt == "jsonl":
                 line = line[:-1] + ", " + _json_item("timing_note", note) + "}"
             n += 1
@@ -495,6 +505,20 @@ class Lister:
         if store.stamps != Stamp.NONE and not coarse(store.stamps, store.resolution):
             return ""
         return timing_note(store.stamps, store.resolution)
+
+    def _numbered(self, i: int, line: str) -> str:
+        """A text line with its row number where a later update may cite it: a request
+        still open when listed (`update #40: ...`), and the answer of one
+        (`..., answer #41`). Other lines have no number: nothing cites them."""
+        store = self.describer.store
+        if store.status[i] == _OPEN:
+            self._cited.add(i)
+            return f"{line}  #{i}"
+        partner = store.partner[i]
+        if partner != NO_PARTNER and partner in self._cited:
+            self._cited.discard(partner)
+            return f"{line}  #{i}"
+        return line
 
     def _text_line(self, i: int, shared: Shared, peer: str) -> str:
         """Row `i`'s text line from what rows with its content share (see

@@ -12,6 +12,7 @@ and every message to the App, which hands it to the room that owns it.
 
 from __future__ import annotations
 
+import sys
 from collections import deque
 from collections.abc import Callable
 
@@ -112,6 +113,7 @@ class ModscopeApp(App[int]):
             return
         self.status_line.measure_rate()
         self.status_line.show()
+        self.feeding.run_waiting()
         current = self.main.lower.current
         if current == "units":
             self.panes.units()
@@ -120,10 +122,17 @@ class ModscopeApp(App[int]):
         if self.model.job is not None:
             self.filtering.info()
 
-    def say(self, text: str, *, title: str = "", severity: SeverityLevel = "information") -> None:
+    def say(
+        self,
+        text: str,
+        *,
+        title: str = "",
+        severity: SeverityLevel = "information",
+        timeout: float | None = None,
+    ) -> None:
         """Tell the user something (never as markup); kept in `said` for a while."""
         self.said.append(text)
-        self.notify(text, title=title, severity=severity, markup=False)
+        self.notify(text, title=title, severity=severity, markup=False, timeout=timeout)
 
     # -- messages, each to its room --------------------------------------------------------
 
@@ -203,6 +212,9 @@ class ModscopeApp(App[int]):
     def action_zoom(self) -> None:
         self.panes.zoom()
 
+    def action_detail_full(self) -> None:
+        self.panes.detail_full()
+
     def action_ladder(self) -> None:
         self.panes.ladder()
 
@@ -266,6 +278,9 @@ class ModscopeApp(App[int]):
     # -- leaving ---------------------------------------------------------------------------
 
     async def action_quit(self) -> None:
+        self.recording.quit()  # asks first while a recording runs
+
+    def leave(self) -> None:
         self.feeding.stop()
         self.exit(0)
 
@@ -284,4 +299,12 @@ def run_tui(
     """Run the TUI on a session: a capture being opened, a live source, or an ingested one."""
     app = ModscopeApp(session, capture, live, reopen=reopen, speed=speed)
     result = app.run()
+    if app.recording.made:
+        # the recordings are complete once the capture has stopped (the caller's stop()
+        # after this one does nothing more); then say where each one is
+        stop = getattr(live, "stop", None)
+        if callable(stop):
+            stop()
+        for line in app.recording.report():
+            print(line, file=sys.stderr)
     return result if isinstance(result, int) else 0

@@ -23,6 +23,7 @@ from sniffer.session.index import DamagedError
 from sniffer.session.paged import PagedStore
 from sniffer.session.session import Session
 from sniffer.sources.procio import bytes_read
+from sniffer.sources.reads import Reads
 
 
 class LiveSource(Protocol):
@@ -123,27 +124,43 @@ class Pacing:
         return self.stop.is_set()
 
     def pace(self, chunks: Iterable[Chunk]) -> Iterator[Chunk]:
-        """The chunks, held back while paused and timed to the speed."""
+        """The chunks, held back while paused and timed to the speed.
+
+        At a speed, a batch of reads (`Reads`, seconds of a capture as one chunk) is
+        given read by read, each when it is due: the rows then arrive at the capture's
+        own pace, not a batch's worth at a time."""
         for chunk in chunks:
-            if self.paused:
-                while self.paused and not self.stop.is_set():
-                    time.sleep(0.05)
-                self._anchor = None
-            if self.stop.is_set():
+            if self._speed and isinstance(chunk, Reads):
+                for read in chunk.split():
+                    if not self._wait(read):
+                        return
+                    yield read
+                continue
+            if not self._wait(chunk):
                 return
-            speed = self._speed
-            if speed:
-                now = time.monotonic()
-                if self._anchor is None:
-                    self._anchor = (now, chunk.t_end)
-                wall, t0 = self._anchor
-                due = wall + (chunk.t_end - t0) / speed
-                while due - now > 0 and not self.stop.is_set() and not self.paused:
-                    time.sleep(min(0.05, due - now))
-                    now = time.monotonic()
-                    if self._anchor is None:  # speed changed while waiting
-                        break
             yield chunk
+
+    def _wait(self, chunk: Chunk) -> bool:
+        """Wait until `chunk` is due (paused: until resumed); False if the feed stops."""
+        if self.paused:
+            while self.paused and not self.stop.is_set():
+                time.sleep(0.05)
+            self._anchor = None
+        if self.stop.is_set():
+            return False
+        speed = self._speed
+        if speed:
+            now = time.monotonic()
+            if self._anchor is None:
+                self._anchor = (now, chunk.t_end)
+            wall, t0 = self._anchor
+            due = wall + (chunk.t_end - t0) / speed
+            while due - now > 0 and not self.stop.is_set() and not self.paused:
+                time.sleep(min(0.05, due - now))
+                now = time.monotonic()
+                if self._anchor is None:  # speed changed while waiting
+                    break
+        return True
 
 
 def feed_capture(

@@ -61,6 +61,7 @@ KEYS: tuple[Key, ...] = (
     Key("l", "ladder", "l", "ladder", bar=False),
     Key("H", "health", "H", "bus health", bar=False),
     Key("z", "zoom", "z", "zoom"),
+    Key("D", "detail_full", "D", "whole details", bar=False),
     Key("space", "pause", "␣", "pause"),
     Key("s", "speed", "s", "speed"),
     Key("f", "follow", "f", "follow"),

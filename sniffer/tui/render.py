@@ -347,6 +347,19 @@ def register_label(r: RegisterValue, width: int) -> str:
     return value
 
 
+def fit_words(text: str, width: int) -> str:
+    """`text` in `width` cells: whole, or cut after the last whole word that fits and
+    marked `…` (never `0x000` for `0x000D`); a first word too long is cut at the edge."""
+    if len(text) <= width:
+        return text
+    if width <= 1:
+        return "…"[:width]
+    cut = text.rfind(" ", 0, width - 1)  # the word, a space and `…` fit
+    if cut <= 0:
+        return text[: width - 1] + "…"
+    return text[:cut].rstrip(" :,;") + " …"
+
+
 def sparkline(values: Sequence[float], width: int) -> str:
     """The last `width` values as block characters, scaled to their own range."""
     tail = list(values[-width:])

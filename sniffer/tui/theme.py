@@ -30,6 +30,7 @@ PALETTES: dict[str, dict[str, str]] = {
         "background": "#101418",
         "cursor": "#243b55",
         "cursor-blur": "#1c2630",
+        "on-state": "#ffffff",  # the status bars' text, on their state's dark colour
     },
     "modscope-light": {
         "exception": "#b3261e",
@@ -44,6 +45,7 @@ PALETTES: dict[str, dict[str, str]] = {
         "background": "#ffffff",
         "cursor": "#cfe2ff",
         "cursor-blur": "#e6edf5",
+        "on-state": "#ffffff",
     },
 }
 
@@ -66,10 +68,29 @@ def themes() -> list[Theme]:
                 surface="#161c22" if dark else "#f6f8fa",
                 panel="#1f2933" if dark else "#eaeef2",
                 dark=dark,
-                variables={f"row-{k}": v for k, v in p.items()},
+                variables={f"row-{k}": v for k, v in p.items()} | widget_colours(p),
             )
         )
     return out
+
+
+def widget_colours(p: dict[str, str]) -> dict[str, str]:
+    """Textual's own widget variables (the cursor of a table or tree, an input's cursor
+    and selection, hover) set from the palette: left to Textual, some are the terminal's
+    default colour or a contrast of 3.6:1 (white on the primary blue)."""
+    return {
+        "block-cursor-background": p["cursor"],
+        "block-cursor-foreground": p["text"],
+        "block-cursor-text-style": "bold",
+        "block-cursor-blurred-background": p["cursor-blur"],
+        "block-cursor-blurred-foreground": p["text"],
+        "block-cursor-blurred-text-style": "none",
+        "block-hover-background": p["cursor-blur"],
+        "input-cursor-background": p["text"],
+        "input-cursor-foreground": p["background"],
+        "input-selection-background": p["cursor"],
+        "foreground-muted": p["muted"],
+    }
 
 
 def contrast(fg: str, bg: str) -> float:

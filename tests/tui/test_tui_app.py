@@ -413,7 +413,7 @@ async def test_help_and_zoom() -> None:
         assert app.frames.page_height == height
         await pilot.press("question_mark")
         assert isinstance(app.screen, HelpScreen)
-        assert "F  n N" in screen_text(app)
+        assert "F n N" in screen_text(app)
         await pilot.press("end")
         await pilot.pause()
         assert 'reg:"Under Voltage"' in screen_text(app)
@@ -521,6 +521,9 @@ async def test_r_starts_and_stops_a_recording_of_the_live_line(tmp_path: Path) -
         await wait_said(pilot, app, f"recording to {target}")
         assert live.recorder is not None and target.exists()
         assert "from-the-tui.pcapng" in screen_text(app)  # the status bar names it
+        await pilot.press("r")  # asks first: r again stops
+        await pilot.pause()
+        assert live.recorder is not None and app.main.prompt.confirming
         await pilot.press("r")
         await wait_said(pilot, app, f"recording stopped: {target}")
         assert live.recorder is None

@@ -63,6 +63,8 @@ def test_serve_runs_the_tui_command_for_each_visitor(
     capture.write_bytes(DEMO_CAPTURE.read_bytes() if DEMO_CAPTURE.exists() else b"\x01\x03")
     argv = ["serve", str(capture), "--port", "9001", "--baud", "9600", "--unit", "3=rvs-dn"]
     assert main(argv) == 0
+    # a textual_serve without its page on disk (this stand-in): its own page is used
+    assert made["options"].pop("templates_path") == Path("templates")
     assert made["served"] and made["options"] == {
         "host": "localhost",
         "port": 9001,

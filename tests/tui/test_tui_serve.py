@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
 import sys
 import time
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -158,3 +160,44 @@ def test_a_browser_on_another_machine_sees_the_app(link: str) -> None:
             out, _ = server.communicate()
     assert f"browsers open {url}" in out
     assert "GET /ws" in out and THERE in out  # the visitor came from the other namespace
+
+
+@pytest.mark.slow
+def test_the_served_page_loads_nothing_from_the_internet() -> None:
+    """The page textual-serve gives links a web font on fonts.googleapis.com; served by
+    modscope it refers to nothing outside the server (a plant network has no internet)."""
+    pytest.importorskip("textual_serve", reason="the [serve] extra is not installed")
+    port = _free_port("127.0.0.1")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    server = subprocess.Popen(
+        [sys.executable, "-m", "sniffer.cli", "serve", "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+        cwd=ROOT,
+    )
+    try:
+        deadline = time.monotonic() + 20
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=5) as reply:
+                    page = reply.read().decode()
+                break
+            except OSError:
+                assert server.poll() is None, "serve stopped before it listened"
+                assert time.monotonic() < deadline, "serve never listened"
+                time.sleep(0.2)
+    finally:
+        server.terminate()
+        try:
+            server.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.communicate()
+    assert "xterm.css" in page and "textual.js" in page  # the page itself, whole
+    assert "fonts.googleapis.com" not in page
+    here = (f"http://127.0.0.1:{port}/", f"http://localhost:{port}/")
+    found = re.findall(r"(?:href|src)=\"(https?://[^\"]+)", page)
+    outside = [u for u in found if not u.startswith(here)]
+    assert outside == []

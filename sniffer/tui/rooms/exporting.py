@@ -11,6 +11,7 @@ from pathlib import Path
 
 from sniffer.meaning.describe import Describer
 from sniffer.outputs.listing import FORMATS, Lister
+from sniffer.tui.clipboard import clipboard_note
 from sniffer.tui.rooms.base import Room
 
 EXPORT_DEFAULT = "modscope-export.jsonl"
@@ -28,6 +29,8 @@ class Exporting(Room):
     def _export(self, answer: str | None) -> None:
         if not answer:
             return
+        if self._later(answer):
+            return
         view = self.model.view
         rows: Iterable[int] = (
             range(view.count) if view.rows is None else array("Q", view.rows[: view.count])
@@ -38,6 +41,16 @@ class Exporting(Room):
         describer = Describer(model.reader, self.app.session.annotator, size=256)
         write = partial(self._write, Path(answer).expanduser(), rows, describer, model.absolute)
         self.app.run_worker(write, name="export", group="export", thread=True)
+
+    def _later(self, answer: str) -> bool:
+        """Typed while the capture is still being read (or filtered): the rows shown are
+        not all there yet, so the file is written once they are. True if put off."""
+        feeding = self.app.feeding
+        if feeding.read_all():
+            return False
+        self.app.say(f"the export to {answer} is written once the capture is read")
+        feeding.when("export", feeding.read_all, lambda: self._export(answer))
+        return True
 
     def _write(self, path: Path, rows: Iterable[int], describer: Describer, absolute: bool) -> None:
         """The export's worker (a thread)."""
@@ -67,4 +80,11 @@ class Exporting(Room):
             Lister(out, "jsonl", model.describer, absolute=model.absolute).write([row], flush=False)
             text = out.getvalue().strip()
         self.app.copy_to_clipboard(text)
-        self.app.say(f"copied #{row} as {what} ({len(text):,} characters, OSC 52)")
+        note = clipboard_note()
+        if note is not None:  # sent, but it cannot arrive: say so, and how to fix it
+            self.app.say(f"#{row} not copied: {note}", severity="warning", timeout=20)
+            return
+        self.app.say(
+            f"copied #{row} as {what} ({len(text):,} characters) by OSC 52, if the terminal "
+            "allows it"
+        )

@@ -3,7 +3,7 @@ what it publishes (rows, the end, errors, how far indexing got)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -64,6 +64,38 @@ class Feeding(Room):
         self._bytes_done = 0
         self._share: float | None = None  # how far the feed said it is
         self._chunks_done = [0]
+        # what waits for rows not read yet (a jump, an export typed at start-up): each
+        # runs once its condition holds, checked as rows and filter results arrive
+        self._waiting: dict[str, tuple[Callable[[], bool], Callable[[], None]]] = {}
+
+    def when(self, name: str, ready: Callable[[], bool], then: Callable[[], None]) -> None:
+        """Run `then` once `ready()` holds (now if it does); a newer wait of the same
+        `name` replaces an older one (a second `g` replaces the first)."""
+        if ready():
+            self._waiting.pop(name, None)
+            then()
+            return
+        self._waiting[name] = (ready, then)
+
+    def forget(self, name: str) -> None:
+        self._waiting.pop(name, None)
+
+    def run_waiting(self) -> None:
+        for name, (ready, then) in list(self._waiting.items()):
+            if self._waiting.get(name) == (ready, then) and ready():
+                del self._waiting[name]
+                then()
+
+    def read_all(self) -> bool:
+        """Whether the rows shown are all there will be for now: the capture is read and
+        the filter has caught up with it, or the rows come at their own pace (a live
+        line, a replay at the original speed), which nothing should wait for."""
+        app, model = self.app, self.model
+        if app.live is not None or app.pacing.speed is not None:
+            return True
+        job = model.job
+        caught_up = job is None or (job.caught_up and job.upto >= model.shown)
+        return model.done and caught_up
 
     def start(self) -> None:
         app = self.app
@@ -143,6 +175,7 @@ class Feeding(Room):
         # a digit and the header stayed as it was)
         self.main.header.show(self.frames.columns())
         app.status_line.show()
+        self.run_waiting()
 
     def index_progress(self) -> float | None:
         """How far indexing got: as the feed says (`FeedProgress.share`), else estimated

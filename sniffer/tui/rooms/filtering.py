@@ -108,6 +108,7 @@ class Filtering(Room):
         self.frames.rows_changed()
         self.info()
         self.app.panes.refresh_ladder()
+        self.app.feeding.run_waiting()
 
     def info(self) -> None:
         model = self.model

@@ -41,17 +41,24 @@ class Jumps(Room):
     def _go_to(self, answer: str | None) -> None:
         if not answer:
             return
-        model, frames, say = self.model, self.frames, self.app.say
+        model, say = self.model, self.app.say
+        feeding = self.app.feeding
+        feeding.forget("go to")
+        reading = self.app.live is None and not model.done  # a capture still being read
         if answer.startswith("#"):
             try:
                 row = int(answer[1:])
             except ValueError:
                 say(f"{answer!r} is not a row number", severity="error")
                 return
-            if row >= model.published:
-                more = "" if model.done else " yet"
-                say(f"there is no #{row}{more} ({model.published:,} rows): the last is shown")
-            frames.go_to_row(row)
+            if row >= model.published and reading:
+                # typed at start-up: the cursor goes there once the row is read
+                say(f"#{row} is not read yet: the cursor goes there once it is")
+                feeding.when(
+                    "go to", lambda: model.published > row or model.done, lambda: self._row(row)
+                )
+                return
+            self._row(row)
             return
         try:
             point = parse_time_point(answer)
@@ -59,7 +66,27 @@ class Jumps(Room):
             say(str(exc), severity="error")
             return
         t = resolve_time(point, model.origin)
-        frames.go_to(model.view.at_time(model.reader, t))
+        if reading and (model.published == 0 or t > model.latest):
+            say(f"{answer} is not read yet: the cursor goes there once it is")
+            feeding.when(
+                "go to",
+                lambda: model.done or (model.published > 0 and model.latest >= t),
+                lambda: self._time(answer),
+            )
+            return
+        self.frames.go_to(model.view.at_time(model.reader, t))
+
+    def _row(self, row: int) -> None:
+        model = self.model
+        if row >= model.published:
+            more = "" if model.done else " yet"
+            self.app.say(f"there is no #{row}{more} ({model.published:,} rows): the last is shown")
+        self.frames.go_to_row(row)
+
+    def _time(self, answer: str) -> None:
+        model = self.model
+        t = resolve_time(parse_time_point(answer), model.origin)
+        self.frames.go_to(model.view.at_time(model.reader, t))
 
     def find(self) -> None:
         ask = self.app.keyboard.ask

@@ -4,6 +4,7 @@ filter or the prompt in order, Enter and Esc in an input, the list's moving keys
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from textual import events
 from textual.widgets import DataTable, Input
@@ -13,9 +14,19 @@ from sniffer.tui.rooms.base import Room, focus_now
 from sniffer.tui.screens.dialogs import HelpScreen
 from sniffer.tui.widgets.prompt import LineInput
 
+if TYPE_CHECKING:
+    from sniffer.tui.app import ModscopeApp
+
 
 class Keyboard(Room):
     """Routes the main screen's keys by focus (see `sniffer.tui.keys`)."""
+
+    def __init__(self, app: ModscopeApp) -> None:
+        super().__init__(app)
+        # keys typed into a register watch that has no row yet (`w Tab x ↓ x R` at once:
+        # its scan has only begun), and every key after them, in order: they are
+        # handed on once it shows rows or has read everything (`release`)
+        self.held: list[events.Key] = []
 
     def context(self) -> Context:
         main, focused = self.main, self.main.focused
@@ -69,6 +80,14 @@ class Keyboard(Room):
                 await app.on_event(typed)
             return True
         if isinstance(event, events.Key) and not event.is_forwarded and app.screen is self.main:
+            if self.held or (self.main.focused is self.main.watch_panel and self._watch_empty()):
+                event.stop()
+                self.held.append(event)
+                return True
+            if self.main.prompt.confirming:  # a one-key question: this key answers it
+                event.stop()
+                self.main.prompt.settle(event.key)
+                return True
             field = self.main.focused
             if isinstance(field, LineInput) and event.key == "ctrl+j":
                 # a newline: Enter typed before the terminal was switched to raw mode
@@ -81,8 +100,32 @@ class Keyboard(Room):
                 return True
         return False
 
+    def _watch_empty(self) -> bool:
+        """The register watch has no row yet but its scan has more to read."""
+        watching = self.app.watching
+        return not self.main.watch_panel.row_count and watching.progress() is not None
+
+    def release(self) -> None:
+        """Hand on the keys held for the register watch, once it shows rows (or has read
+        everything there is: then the keys find what is there, perhaps nothing)."""
+        if not self.held or self._watch_empty():
+            return
+        keys, self.held = self.held, []
+        self.app.call_later(self._replay, keys)
+
+    async def _replay(self, keys: list[events.Key]) -> None:
+        app = self.app
+        for i, key in enumerate(keys):
+            if self.held:  # the watch emptied again (a restart): keep the rest, in order
+                self.held[:0] = keys[i:]
+                return
+            typed = events.Key(key.key, key.character)
+            typed.set_sender(app)
+            await app.on_event(typed)
+
     def move(self, name: str, step: int) -> None:
         """The list's moving keys, in the frame list or the focused units or watch table."""
+        self.app.feeding.forget("go to")  # a move of one's own outranks a jump still waiting
         table = self.main.focused
         if isinstance(table, DataTable):  # units or watch: moved here, in key order
             if name == "cursor":
@@ -141,6 +184,7 @@ class Keyboard(Room):
         self.main.focus_next()
 
     def to_list(self) -> None:
+        self.main.remove_class("-detail-full")
         focus_now(self.frames)
 
     def help(self) -> None:

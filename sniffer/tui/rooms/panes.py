@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from sniffer.framing.store import FrameStore
 from sniffer.tui.rooms.base import Room, focus_now
 from sniffer.tui.screens.ladder import LadderScreen
+from sniffer.tui.screens.main import DETAIL_TITLE
 from sniffer.tui.widgets.units import Cache, unit_rows
 
 if TYPE_CHECKING:
@@ -34,8 +35,10 @@ class Panes(Room):
             return
         switcher = self.main.lower
         self.main.remove_class("-zoom")
+        if name != "detail":
+            self.main.remove_class("-detail-full")
         switcher.current = name
-        switcher.border_title = {"detail": "details", "units": "units"}.get(name, "")
+        switcher.border_title = {"detail": DETAIL_TITLE, "units": "units"}.get(name, "")
         if name == "detail":
             self.show_detail(self.frames.cursor_row)
         elif name == "units":
@@ -80,7 +83,22 @@ class Panes(Room):
             focus_now(self.main.detail.query_one("#fields"))
 
     def zoom(self) -> None:
+        self.main.remove_class("-detail-full")
         self.main.toggle_class("-zoom")
+
+    def detail_full(self) -> None:
+        """The details on the whole screen, their head focused (the arrows scroll it, Tab
+        goes to the fields); again, or Esc, back to the list."""
+        main = self.main
+        if main.has_class("-detail-full"):
+            main.remove_class("-detail-full")
+            focus_now(self.frames)
+            return
+        if main.lower.current != "detail":
+            self.pane("detail")
+        main.remove_class("-zoom")
+        main.add_class("-detail-full")
+        focus_now(main.detail.query_one("#detail-head"))
 
     def ladder(self) -> None:
         frames = self.frames
@@ -107,6 +125,25 @@ class Panes(Room):
         app = self.app
         app.theme = "modscope-light" if app.theme == "modscope-dark" else "modscope-dark"
         self.frames.reset()
+        # what was drawn with the old colours (the key bar, the field tree, the panes)
+        # is drawn again once the new stylesheet applies
+        app.call_after_refresh(self._restyle)
+
+    def _restyle(self) -> None:
+        main = self.main
+        if not main.alive:
+            return
+        main.keybar.show(self.app.keyboard.context())
+        current = main.lower.current
+        if current == "detail":
+            self.show_detail(self.frames.cursor_row)
+        elif current == "units":
+            self.units_cache.clear()
+            self.units()
+        elif current == "watch":
+            main.watch_panel.version = -1  # drawn again even if no value changed
+            self.app.watching.show()
+        self.app.status_line.show()
 
 
 def where_text(store: FrameStore, row: int) -> str:

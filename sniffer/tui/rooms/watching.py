@@ -81,6 +81,7 @@ class Watching(Room):
         )
         panel = self.main.watch_panel
         panel.show(watch.snapshot(), self.model.latest, watch.version)
+        self.app.keyboard.release()
 
     def open(self, key: SeriesKey) -> None:
         """A register's plot over time (Enter on it in the watch)."""

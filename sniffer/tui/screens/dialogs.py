@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from rich.table import Table
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
@@ -11,48 +12,68 @@ from textual.containers import VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Static
 
-HELP = """\
-modscope: keys
+# the keys, as (key, what it does); shown in two columns side by side
+KEY_HELP: tuple[tuple[str, str], ...] = (
+    ("↑↓ PgUp/Dn", "move (up stops following)"),
+    ("Home", "the first row"),
+    ("End f", "follow the newest row"),
+    ("Enter", "the fields; units: filter"),
+    ("Tab", "next pane"),
+    ("p", "the paired request/answer"),
+    ("/", "filter (Esc: the applied)"),
+    ("!", "only problems"),
+    ("] [", "next / previous problem"),
+    ("F n N", "find; next / previous"),
+    ("m '", "mark / jump to next mark"),
+    ("c C", "copy hex / JSON (OSC 52)"),
+    ("t", "frames / transactions"),
+    ("a", "relative / wall clock time"),
+    ("g", "go to 12.5, 2m, 14:03, #12"),
+    ("space", "pause (recording goes on)"),
+    ("s", "original speed / fastest"),
+    ("d u w", "details / units / watch"),
+    ("D", "details on the whole screen"),
+    ("l", "ladder, with latencies"),
+    ("x R", "watch: pick / their table"),
+    ("z", "hide the lower pane"),
+    ("e", "export (.jsonl .csv text)"),
+    ("r", "record; running: r stop,"),
+    ("", "n new file, else keep on"),
+    ("T", "dark / light theme"),
+    ("?", "this help"),
+    ("q", "quit (recording: q again)"),
+)
 
-  ↑ ↓ PgUp PgDn Home   move in the frame list (moving up stops following)
-  End  f               follow the newest frame again
-  Enter                show the frame's fields (Tab moves between panes);
-                       on a unit in the units pane: filter to it
-  p                    jump to the paired request or answer
-  /                    edit the filter (Enter applies, Esc puts back the applied one)
-  !                    only problems (exceptions, timeouts, bad checks, noise)
-  ] [                  next / previous problem, without filtering
-  F  n N               find (filter terms), next / previous match, without filtering
-  m  '                 mark the row / jump to the next mark
-  c  C                 copy the frame as hex / as JSON (OSC 52)
-  t                    one row per frame / one row per transaction
-  a                    relative / absolute (wall clock) time
-  g                    go to a time (12.5, 2m, 1:02:03, 14:03:07) or a row (#1234)
-  space                pause / resume (a live capture keeps recording)
-  s                    replay as fast as possible / at the original speed
-  d u w                lower pane: details / units / register watch
-  l                    ladder: master and slaves as columns, arrows with latencies
-  x  R                 register watch: pick registers / their table, a row a poll
-  z                    hide the lower pane (more frames on screen)
-  e                    export the rows shown (.jsonl, .csv, else text)
-  r                    live: start recording the line to a file, or stop it
-  T                    dark / light theme
-  ?                    this help        q  quit
-
-filter language (terms separated by spaces, all must hold)
+FILTER_HELP = """\
+filter language (side by side: all hold; or, and, not, parentheses)
 
   unit:3  unit:1,2  unit:1-5     slave address
   fc:3  fc:3,16                  function code (exceptions included)
   kind:request|response|exception|noise|event|unknown
   status:ok|exception|timeout|orphan|broadcast|open|check|noise|problem
-  reg:"Under Voltage"            a named register (bound units; dissects rows)
-  t:10-20  t:10-  t:-20          seconds from the start (500ms, 2m also work)
+  reg:"Under Voltage"            a named register (units with a dictionary)
+  t:10-20  t:10-  t:-20          seconds from the start (500ms, 2m work)
   t:14:03-14:05                  clock time of the capture
   -fc:3  -unit:0                 leave out (unit, fc, kind and status)
-  words  "two words"             text in the row: name, summary, device, problems
+  words  "two words"             text in the row (name, summary, device...)
 
-  e.g.  unit:3 fc:3 status:timeout    reg:"Under Voltage" t:10-20    exception -unit:4
+  e.g.  unit:3 fc:3 status:timeout     reg:"Under Voltage" t:10-20
+        exception -unit:4              (unit:3 or unit:5) status:timeout
 """
+
+
+def help_table() -> Table:
+    """The keys in two columns of (key, text), the text wrapped in its column."""
+    table = Table.grid(padding=(0, 1), expand=True)
+    for _ in range(2):
+        table.add_column(no_wrap=True, style="bold")
+        table.add_column(ratio=1, no_wrap=True, overflow="ellipsis")
+    half = (len(KEY_HELP) + 1) // 2
+    left, right = KEY_HELP[:half], KEY_HELP[half:]
+    for k, (key, text) in enumerate(left):
+        other = right[k] if k < len(right) else ("", "")
+        table.add_row(key, text, *other)
+    return table
 
 
 class HelpScreen(ModalScreen[None]):
@@ -62,7 +83,9 @@ class HelpScreen(ModalScreen[None]):
 
     def compose(self) -> ComposeResult:
         with VerticalScroll(id="help-box"):
-            yield Static(Text(HELP), id="help-text")
+            yield Static(Text("modscope: keys", style="bold"), id="help-title")
+            yield Static(help_table(), id="help-keys")
+            yield Static(Text(FILTER_HELP), id="help-text")
 
     def action_close(self) -> None:
         self.dismiss(None)

@@ -21,6 +21,7 @@ from sniffer.tui.widgets.status import StatusBar
 from sniffer.tui.widgets.units import UnitsPanel
 from sniffer.tui.widgets.watch import WatchPanel
 
+DETAIL_TITLE = "details (D: whole screen)"
 FILTER_HINT = "none: / to filter, e.g. unit:3 fc:3 status:timeout"
 
 
@@ -74,4 +75,4 @@ class MainScreen(Screen[None]):
         self.filter_input.cursor_blink = self.blink
         self.prompt.input.cursor_blink = self.blink
         self.prompt.display = False
-        self.lower.border_title = "details"
+        self.lower.border_title = DETAIL_TITLE

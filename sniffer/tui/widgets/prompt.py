@@ -14,6 +14,7 @@ from textual.widgets import Input, Static
 from textual.widgets.input import Selection
 
 Answer = Callable[[str | None], None]
+Decide = Callable[[str], None]  # gets the key that answered a one-key question
 
 
 class LineInput(Input):
@@ -58,6 +59,7 @@ class PromptBar(Horizontal):
         self.label = Static(Text(""), id="prompt-label")
         self.input = LineInput(id="prompt-input")
         self.answer: Answer | None = None
+        self.decide: Decide | None = None  # a one-key question is open (see `confirm`)
         self.default = ""
 
     def compose(self) -> ComposeResult:
@@ -68,11 +70,38 @@ class PromptBar(Horizontal):
     def open(self) -> bool:
         return self.answer is not None
 
+    @property
+    def confirming(self) -> bool:
+        return self.decide is not None
+
+    def confirm(self, prompt: str, decide: Decide) -> None:
+        """Show `prompt` with no input: the next key answers it (the app hands it to
+        `settle`), whatever it is, so a stray key never does anything else meanwhile."""
+        if self.answer is not None:
+            self.close(False)
+        self.decide = decide
+        self.label.update(Text(prompt))
+        self.input.display = False
+        self.set_class(True, "-confirm")  # the question wraps: it names a file in full
+        self.display = True
+
+    def settle(self, key: str) -> None:
+        """The key typed after a one-key question: the question closes, `decide` gets it."""
+        decide, self.decide = self.decide, None
+        self.display = False
+        self.set_class(False, "-confirm")
+        self.input.display = True
+        if decide is not None:
+            decide(key)
+
     def ask(self, prompt: str, answer: Answer, *, default: str = "", value: str = "") -> None:
         """Show `prompt` and focus the input now. `answer` gets the text (the `default`
         when the input is left empty) or None (Esc)."""
         if self.answer is not None:
             self.answer(None)  # a question still open is cancelled
+        self.decide = None
+        self.set_class(False, "-confirm")
+        self.input.display = True
         self.answer = answer
         self.default = default
         self.label.update(Text(prompt))

@@ -26,6 +26,22 @@ COLUMNS = (
 # seen (`seen` is an age everywhere: when a unit was last heard)
 PRIORITY = ("register", "value", "changed", "unit", "history", "values")
 SPARK_WIDTH = 16
+# what a wide pane gives the columns beyond their widths above, in this order: the
+# device label, the register's name and the value whole first, then a longer history
+GROW = (("unit", 24), ("register", 50), ("value", 30), ("history", 80))
+
+
+def grown(names: list[str], width: int, pad: int = 2) -> dict[str, int]:
+    """The widths of the columns `names` in a pane `width` cells wide: each its width in
+    COLUMNS, and the room left given out as GROW says (up to each one's most)."""
+    widths = {n: w for n, w in COLUMNS if n in names}
+    room = width - sum(w + pad for w in widths.values())
+    for name, most in GROW:
+        if name in widths and room > 0:
+            more = min(room, most - widths[name])
+            widths[name] += more
+            room -= more
+    return widths
 
 
 class WatchPanel(DataTable[Text]):
@@ -41,6 +57,7 @@ class WatchPanel(DataTable[Text]):
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)
         self.keys: list[SeriesKey] = []
+        self.widths: dict[str, int] = dict(COLUMNS)
         self.version = -1
         self.picked: dict[SeriesKey, None] = {}  # picked with x, in the order picked
 
@@ -63,11 +80,11 @@ class WatchPanel(DataTable[Text]):
         self.last: tuple[list[Series], float] = ([], 0.0)
         self._columns(fit_columns(COLUMNS, PRIORITY, 200))
 
-    def _columns(self, names: list[str]) -> None:
+    def _columns(self, names: list[str], width: int = 0) -> None:
         self.clear(columns=True)
         self.keys = []
         self.shown = names
-        widths = dict(COLUMNS)
+        widths = self.widths = {**dict(COLUMNS), **grown(names, width)}
         for name in names:
             right = name in ("changed", "values")
             self.add_column(
@@ -75,9 +92,10 @@ class WatchPanel(DataTable[Text]):
             )
 
     def on_resize(self) -> None:
-        names = fit_columns(COLUMNS, PRIORITY, self.size.width - 1)
-        if names != self.shown:
-            self._columns(names)
+        width = self.size.width - 1
+        names = fit_columns(COLUMNS, PRIORITY, width)
+        if names != self.shown or grown(names, width) != {n: self.widths[n] for n in names}:
+            self._columns(names, width)
             self.version = -1
             self.show(*self.last, version=0)
 
@@ -114,12 +132,13 @@ class WatchPanel(DataTable[Text]):
             changed = ago_text(ago) + " ago"
             fresh = ago < 5.0
         numbers = [v for _, v in s.numbers()]
+        w = self.widths
         return [
-            Text(f"{s.key[0]} " + plain(s.label, 9), no_wrap=True),
-            Text(("✓ " if s.key in self.picked else "") + plain(s.name, 30), no_wrap=True),
-            Text(value_fit(value, 18), style=recent if fresh else "", no_wrap=True),
+            Text(label_fit(f"{s.key[0]} " + plain(s.label), w["unit"]), no_wrap=True),
+            Text(("✓ " if s.key in self.picked else "") + plain(s.name, 60), no_wrap=True),
+            Text(value_fit(value, w["value"]), style=recent if fresh else "", no_wrap=True),
             Text(changed, justify="right"),
-            Text(sparkline(numbers, SPARK_WIDTH), style=spark),
+            Text(sparkline(numbers, w["history"]), style=spark),
             Text(str(s.seen), justify="right"),
         ]
 
@@ -138,6 +157,11 @@ def value_fit(value: str, width: int) -> str:
         return text
     number = text.split(" ")[0]
     return number if len(number) <= width else "…"
+
+
+def label_fit(text: str, width: int) -> str:
+    """A unit and its device label in `width` cells, the label shortened with `…`."""
+    return text if len(text) <= width else text[: max(1, width - 1)] + "…"
 
 
 def _key_text(key: SeriesKey) -> str:
