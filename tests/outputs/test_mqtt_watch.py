@@ -342,3 +342,37 @@ def test_reads_reach_the_broker_in_order_across_restarts(broker: Broker) -> None
         reader.disconnect()
     first = list(dict.fromkeys(seen))  # QoS 1 may deliver a read twice: its first place
     assert first == list(range(1, len(chunks) + 1))
+
+
+def test_one_read_stamped_far_ahead_does_not_shut_out_the_reads_after_it(
+    broker: Broker, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A read stamped a day ahead (capture-relative times have no clock to compare with)
+    gets through; the reads after it look 'older' and are refused, but only
+    BACK_STREAK - 1 of them: then the watcher follows the stream again."""
+    monkeypatch.setattr(subscribe, "REORDER_WAIT", 0.3)
+    base = "site/ahead"
+    pub = _client(broker)
+    _put(pub, f"{base}/interface", _interface("a"), retain=True)
+    notes: list[str] = []
+    reader = MqttReader(parse_target(f"mqtt://127.0.0.1:{broker.port}/{base}"), notify=notes.append)
+    reader.open(wait=5, forever=False)
+    feed = reader.subscribe(1000)
+    reader.start()
+    try:
+        stamps = [100.0, 86_500.0, 101.0, 102.0, 103.0, 104.0]
+        for n, t in enumerate(stamps, 1):
+            _put(pub, f"{base}/raw", raw_payload(Chunk(bytes([n]), t), n))
+        got: list[Chunk] = []
+        end = time.monotonic() + 10
+        while sum(1 for c in got if not c.event) < 4 and time.monotonic() < end:
+            got += feed.get(0.1)
+    finally:
+        reader.stop()
+        pub.loop_stop()
+    assert [c.data[0] for c in got if not c.event] == [1, 2, 5, 6]
+    assert reader.bad_kinds == {"time": subscribe.BACK_STREAK - 1}
+    assert any("went back" in n and "following them from here" in n for n in notes), notes
+    # the two refused reads' numbers never came as good reads: also counted lost (a
+    # foreign message must not take a number a real read may still bring)
+    assert reader.lost_messages == 2

@@ -63,6 +63,7 @@ MAX_GAP = 10_000_000  # reads a sequence may skip; more is a broken counter, not
 MAX_BACK = 60.0  # seconds a read may be older than the newest (merged ports)
 MAX_AHEAD = 86400.0  # seconds a Unix time may be ahead of this machine's clock
 MAX_SPAN = 86400.0  # seconds from a read's start to its end
+BACK_STREAK = 3  # reads in a row older than MAX_BACK after which the stream is followed
 MAX_BAUD = 100_000_000
 MAX_SECONDS = 86400.0  # the interface's timeout, merge slack and resolution
 MAX_DEPTH = 16  # nesting of an interface message's JSON
@@ -220,6 +221,7 @@ class MqttReader:
         self._progress = 0.0  # monotonic time the held reads last moved
         self._timer: threading.Timer | None = None
         self._newest: float | None = None  # the newest read's time (bounds)
+        self._back = 0  # reads in a row refused as older than the newest
         self._got_interface = threading.Event()
         self._first = FirstConnection()
         self._connected = threading.Event()
@@ -514,9 +516,19 @@ class MqttReader:
             )
         newest = self._newest
         if newest is not None and t < newest - MAX_BACK:
-            raise BadMessageError(
-                "time", f"raw message {newest - t:.6g} s older than the newest read"
+            self._back += 1
+            if self._back < BACK_STREAK:
+                raise BadMessageError(
+                    "time", f"raw message {newest - t:.6g} s older than the newest read"
+                )
+            # reads keep coming from before the newest: that one was the odd one (a bad
+            # stamp that came through, or the publisher's clock set back): go on from here
+            self._tell(
+                f"mqtt: the reads of {self.target.base} went back {newest - t:.6g} s in "
+                "time; following them from here"
             )
+            self._newest = None
+        self._back = 0
 
     # -- order and loss (under self._lock) -------------------------------------------------
 
