@@ -169,3 +169,18 @@ def test_password_sources_in_order(tmp_path: Path) -> None:
         parse_target("mqtt://a@h/x", password_file=str(tmp_path / "missing"), environ={})
     with pytest.raises(MqttError, match="a password without a user name"):
         parse_target("mqtt://h/x", environ={"MODSCOPE_MQTT_PASSWORD": "p"})
+
+
+def test_a_crash_report_never_shows_the_password() -> None:
+    import io
+
+    from sniffer.cli import report_bug
+
+    err = io.StringIO()
+    try:
+        raise RuntimeError(f"broke while talking to mqtt://bob:{SECRET}@broker/x")
+    except RuntimeError:
+        assert report_bug(err, ["live", f"mqtts://bob:{SECRET}@broker/x"]) == 70
+    text = err.getvalue()
+    assert SECRET not in text and "bob" not in text
+    assert "mqtts://***@broker/x" in text and "mqtt://***@broker/x" in text
