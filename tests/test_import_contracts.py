@@ -57,7 +57,6 @@ LAZY = {
     ("sniffer.live.port", "serial"): "pyserial's port enumeration, for `ports` alone",
     ("sniffer.outputs.mqtt.link", "paho"): "the optional MQTT extra, when publishing",
     ("sniffer.outputs.mqtt.subscribe", "paho"): "the optional MQTT extra, when watching",
-    ("sniffer.outputs.mqtt.subscribe", "ssl"): "TLS only for an mqtts:// broker",
     ("sniffer.outputs.parquet", "pyarrow"): "the optional analytics extra, for Parquet",
     ("sniffer.outputs.metrics", "prometheus_client"): "the optional metrics extra, for --metrics",
     ("dissectors.checks", "fastcrc"): "the fast CRC where installed, else pure Python",

@@ -22,6 +22,7 @@ from sniffer.cli import heap
 from sniffer.cli.options import Command
 from sniffer.cli.parser import build_parser
 from sniffer.errors import USER_ERRORS
+from sniffer.outputs.mqtt.target import redact
 from sniffer.text import plain
 
 __all__ = ["EX_SOFTWARE", "EX_USAGE", "build_parser", "main", "report_bug"]
@@ -61,7 +62,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def report_bug(err: TextIO, argv: list[str]) -> int:
     """Print the traceback of the exception being handled and ask for a report."""
-    traceback.print_exc(file=err)
-    err.write(REPORT.format(version=__version__, argv=shlex.join(["modscope", *argv])))
+    # a broker URL's password never reaches the report (sniffer.outputs.mqtt.target)
+    err.write(redact(traceback.format_exc()))
+    command = redact(shlex.join(["modscope", *argv]))
+    err.write(REPORT.format(version=__version__, argv=command))
     err.flush()
     return EX_SOFTWARE

@@ -410,6 +410,8 @@ def stream(
     check_reader(capture)
     if capture.failure is not None:
         raise UsageError(capture.failure)
+    if getattr(capture.reader, "trouble", False):  # a watcher: reads lost, bad messages
+        return 1
     return 0
 
 

@@ -19,11 +19,13 @@ from sniffer.errors import UsageError
 from sniffer.live.engine import LiveCapture
 from sniffer.outputs.mqtt.command import (
     MQTT_QUIET,
+    add_broker_options,
     mqtt_session,
     open_mqtt_source,
     published_bindings,
 )
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
+from sniffer.text import plain
 
 
 def capture_path(args: argparse.Namespace) -> Path:
@@ -40,7 +42,7 @@ def capture_path(args: argparse.Namespace) -> Path:
 
 def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.file and args.file.lower().startswith(("mqtt://", "mqtts://")):
-        return _watch(args)
+        return _watch(args, err)
     path = capture_path(args)
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
     options = read_options(args)
@@ -50,10 +52,16 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)
 
 
-def _watch(args: argparse.Namespace) -> int:
+def _watch(args: argparse.Namespace, err: TextIO) -> int:
     """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
     messages: list[str] = []
-    reader = open_mqtt_source(args.file, args, messages.append)
+
+    def tell(text: str) -> None:  # before the TUI is up (waiting for the publisher): stderr too
+        messages.append(text)
+        err.write(f"modscope: {plain(text)}\n")
+        err.flush()
+
+    reader = open_mqtt_source(args.file, args, tell)
     bindings = published_bindings(bindings_for(args), reader, messages.append)
     session = mqtt_session(reader, bindings, args.timeout)
     capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
@@ -80,7 +88,7 @@ def register(sub: SubParsers) -> None:
         help="capture file (default: the bundled demo), or mqtt://host/base to watch a bus "
         "another modscope publishes",
     )
-    p.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate for mqtts://")
+    add_broker_options(p)  # --mqtt-ca, --mqtt-password-file
     add_line_options(p)
     add_network_options(p)
     add_device_options(p)

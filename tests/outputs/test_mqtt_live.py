@@ -372,7 +372,9 @@ def test_a_watcher_reports_reads_the_broker_dropped(tmp_path: Path) -> None:
             assert "dropped" not in pub.close()
             got: list[Chunk] = []
             end = time.monotonic() + 20
-            while time.monotonic() < end and (reader.last_sequence or 0) < len(chunks):
+            # the reads after the gap are held until the missing ones have not come for
+            # REORDER_WAIT seconds: then the gap counts as lost, where it was
+            while time.monotonic() < end and (reader.fed_sequence or 0) < len(chunks):
                 got += feed.get(0.2)
             got += feed.get(0.2)
         finally:
@@ -397,17 +399,8 @@ def _demo_reads() -> list[Any]:
 
 @pytest.mark.peer
 @pytest.mark.skipif(shutil.which("mosquitto") is None, reason="apt-get install mosquitto")
-def test_watching_what_is_not_there_is_one_plain_error(broker: Broker) -> None:
+def test_a_published_bus_is_watched_alone(broker: Broker) -> None:
     url = f"mqtt://127.0.0.1:{broker.port}/nothing/here"
-    for command in ("live", "tui"):
-        done = subprocess.run(
-            [MODSCOPE, command, url], capture_output=True, text=True, timeout=30, check=False
-        )
-        assert done.returncode == 2
-        assert done.stderr == (
-            f"modscope: error: {url}: no modscope publishes under 'nothing/here' (no "
-            "retained nothing/here/interface message); check the base topic\n"
-        )
     done = subprocess.run(
         [MODSCOPE, "live", url, "/dev/ttyUSB0"],
         capture_output=True,
@@ -431,4 +424,7 @@ def test_watching_where_no_broker_answers_says_so(broker: Broker) -> None:
         check=False,
     )
     assert done.returncode == 2
-    assert "no broker answers there; check the host and port" in done.stderr
+    assert done.stderr == (
+        f"modscope: error: mqtt://127.0.0.1:{port}/modscope/demo: connection refused: "
+        f"nothing listens on port {port}; check the port\n"
+    )

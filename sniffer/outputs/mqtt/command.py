@@ -32,10 +32,11 @@ def add_mqtt_options(p: argparse.ArgumentParser, *, replay: bool = False) -> Non
     g.add_argument(
         "--mqtt",
         metavar="URL",
-        help="publish the bus to a broker: mqtt://[user:pass@]host[:port]/base/topic "
-        "(mqtts:// for TLS; MODSCOPE_MQTT_USER/_PASSWORD keep credentials out of history)",
+        help="publish the bus to a broker: mqtt://[user@]host[:port]/base/topic "
+        "(mqtts:// for TLS; the password from --mqtt-password-file or MODSCOPE_MQTT_PASSWORD "
+        "stays out of history and the process list)",
     )
-    g.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate for mqtts://")
+    add_broker_options(g)
     g.add_argument("--bus-name", metavar="NAME", help="bus name (default: the file or port name)")
     g.add_argument(
         "--mqtt-every",
@@ -60,6 +61,16 @@ def add_mqtt_options(p: argparse.ArgumentParser, *, replay: bool = False) -> Non
         )
 
 
+def add_broker_options(g: argparse._ArgumentGroup | argparse.ArgumentParser) -> None:
+    """The options of a broker connection, for publishing or watching."""
+    g.add_argument("--mqtt-ca", metavar="FILE", help="CA certificate for mqtts://")
+    g.add_argument(
+        "--mqtt-password-file",
+        metavar="FILE",
+        help="the broker password: the first line of FILE (not shown, not in `ps`)",
+    )
+
+
 def cmd_replay_mqtt(
     args: argparse.Namespace,
     session: Session,
@@ -76,7 +87,9 @@ def cmd_replay_mqtt(
         err.flush()
 
     try:
-        target = parse_target(args.mqtt, bus=bus, ca=args.mqtt_ca)
+        target = parse_target(
+            args.mqtt, bus=bus, ca=args.mqtt_ca, password_file=args.mqtt_password_file
+        )
         options = PublisherOptions(bus=bus, every=args.mqtt_every, ha_prefix=args.ha_discovery)
         publisher = open_publisher(
             target, session, bindings, options, info=capture.info, notify=notify
@@ -122,7 +135,9 @@ def live_publisher(
         return None
     bus = args.bus_name or bus_slug(specs[0].name)
     try:
-        target = parse_target(args.mqtt, bus=bus, ca=args.mqtt_ca)
+        target = parse_target(
+            args.mqtt, bus=bus, ca=args.mqtt_ca, password_file=args.mqtt_password_file
+        )
         options = PublisherOptions(
             bus=bus,
             every=args.mqtt_every,
@@ -155,16 +170,22 @@ def open_mqtt_source(
     url: str, args: argparse.Namespace, notify: Callable[[str], None]
 ) -> MqttReader:
     """`modscope live mqtt://host/base`: the reader of a bus another modscope publishes,
-    with the publisher's line settings (UsageError when there is no such bus)."""
+    with the publisher's line settings (UsageError when the broker cannot be used; no
+    publisher yet is waited for)."""
     for name in ("directions",):
         if getattr(args, name, None):
             raise UsageError(
                 f"--{name} is for serial ports; a published bus keeps the publisher's channels"
             )
     try:
-        target = parse_target(url, bus="bus", ca=getattr(args, "mqtt_ca", None))
+        target = parse_target(
+            url,
+            bus="bus",
+            ca=getattr(args, "mqtt_ca", None),
+            password_file=getattr(args, "mqtt_password_file", None),
+        )
         reader = MqttReader(target, notify=notify)
-        reader.open(wait=5.0)
+        reader.open()  # waits for the publisher (saying so) until there is one
     except MqttError as exc:
         raise UsageError(str(exc)) from None
     return reader
@@ -173,9 +194,10 @@ def open_mqtt_source(
 def mqtt_session(
     reader: MqttReader, bindings: Mapping[int, Binding], timeout: float | None
 ) -> Session:
-    """A session that frames the published chunks as the publisher did: its line
-    settings, timing, response timeout and merge slack (from its `interface` message),
-    unless --timeout says otherwise."""
+    """A session that frames the published chunks as the publisher did: its carrier (a
+    network capture's connections by their labels), line settings, timing, response
+    timeout and merge slack (from its `interface` message), unless --timeout says
+    otherwise."""
     return Session(
         reader.specs[0].line,
         bindings=bindings,
@@ -185,6 +207,8 @@ def mqtt_session(
         merge_slack=LIVE_MERGE_SLACK if reader.merge_slack is None else reader.merge_slack,
         stamps=reader.stamps,
         resolution=reader.resolution,
+        # the reader's own dict: connections the publisher names later are added to it
+        network=reader.channel_labels if reader.network else None,
     )
 
 

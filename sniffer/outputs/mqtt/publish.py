@@ -20,6 +20,15 @@ Topics under the base (see docs/mqtt.md for an example of each message):
 
 Retained messages are published again after a reconnection, so a broker restarted
 without persistence gets them back.
+
+Each run has a `session` (in the `interface` message) and numbers the reads it hands to
+the broker from 1, so a watcher tells reads the broker lost (a gap) from reads that only
+came late. Reads the publisher itself drops (its buffer full while the broker is away)
+take no number: they become one `data lost` read where they were dropped, published as
+soon as there is room, so each loss is counted where it happened. A network capture's
+connections (carrier and peers, `SourceInfo.channels`) are learnt as it is read: the
+`interface` message is published again when a read comes on a channel it does not name
+yet, before that read.
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -156,8 +166,12 @@ class BusPublisher:
         self.next = 0  # the next store row to look at
         self.values = 0
         self.events = 0
-        self.raw = 0
-        self.raw_dropped = 0
+        self.raw = 0  # reads handed to the broker: the last sequence number
+        self.raw_dropped = 0  # reads dropped by this publisher (buffer full)
+        self.session_id = uuid.uuid4().hex[:16]
+        self._unsaid: list[Chunk] = []  # the first and last read dropped since the last said
+        self._unsaid_count = 0
+        self._named: set[int] = set()  # channels the published interface names
         self._slugs = Slugs()
         self._entries: dict[int, dict[tuple[str, int, str], Entry]] = {}
         self._params: dict[int, dict[str, ValueSpec]] = {}
@@ -189,7 +203,8 @@ class BusPublisher:
     # -- the link's connection ----------------------------------------------------------------
 
     def _on_connect(self) -> None:
-        # paho's thread: say online at once, leave the retained state to the main thread
+        # paho's thread: say online at once (the link hands it to paho ahead of the rest),
+        # leave the retained state to the main thread, after what the link held
         self.link.publish(self.target.topic("status"), "online", retain=True)
         if self.link.counts.connects > 1:
             self._resend.set()
@@ -225,8 +240,14 @@ class BusPublisher:
         channels: dict[str, Any] = {}
         if self.info is not None:
             channels = {str(k): {"name": v} for k, v in sorted(self.info.channels.items())}
+            self._named = set(self.info.channels)
+        network = self.info is not None and self.info.network
         return {
             "bus": self.options.bus,
+            "session": self.session_id,
+            # a network capture: channels are connections whose names say the carrier
+            # (modbus-tcp, rtu-over-tcp, ...) and peers; frame them as connections
+            "network": network,
             "source": self.session.source,
             "format": self.info.format if self.info is not None else "",
             "description": describe_interface(line),
@@ -255,13 +276,50 @@ class BusPublisher:
         }
 
     def chunk(self, chunk: Chunk) -> None:
-        """Publish one read (or source event) as it was recorded."""
+        """Publish one read (or source event) as it was recorded (module doc)."""
         self._resend_retained()
-        self.raw += 1
-        if not self.link.publish(
-            self.target.topic("raw"), raw_payload(chunk, self.raw), block=self.options.block
-        ):
-            self.raw_dropped += 1
+        info = self.info
+        if (
+            info is not None
+            and info.network
+            and chunk.channel not in self._named
+            and chunk.channel in info.channels
+        ):  # a new connection: say what it carries, before its first read
+            self._send(self.target.topic("interface"), json.dumps(self.interface()), retain=True)
+        if self._unsaid_count and not self._say_dropped():
+            self._drop(chunk)
+            return
+        if not self._publish_raw(chunk):
+            self._drop(chunk)
+
+    def _publish_raw(self, chunk: Chunk) -> bool:
+        sequence = self.raw + 1
+        payload = raw_payload(chunk, sequence)
+        if self.link.publish(self.target.topic("raw"), payload, block=self.options.block):
+            self.raw = sequence
+            return True
+        return False
+
+    def _drop(self, chunk: Chunk) -> None:
+        self.raw_dropped += 1
+        self._unsaid_count += 1
+        self._unsaid = [self._unsaid[0] if self._unsaid else chunk, chunk]
+
+    def _say_dropped(self) -> bool:
+        """Publish the reads dropped since the last time as one `data lost` read at the
+        last one's time. True once published."""
+        first, last = self._unsaid
+        n = self._unsaid_count
+        span = f" from t={first.t_end:.6f} to t={last.t_end:.6f}" if n > 1 else ""
+        note = (
+            f"{n:,} reads{span} dropped by the publisher: its buffer was full while the "
+            "broker was away or slow"
+        )
+        lost = Chunk(b"", last.t_end, channel=last.channel, event="data lost", note=note)
+        if not self._publish_raw(lost):
+            return False
+        self._unsaid, self._unsaid_count = [], 0
+        return True
 
     def rows(self, final: bool = False) -> None:
         """Publish what the session's new rows say. Call after `session.refresh()`."""
@@ -553,6 +611,9 @@ class BusPublisher:
 
     def close(self, drain: float = 10.0) -> str:
         """Final statuses, `status` offline, wait for delivery; the link's report."""
+        if self._unsaid_count:
+            self.link.drain(drain / 2)
+            self._say_dropped()
         self.rows(final=True)
         self.link.close(drain, last=(self.target.topic("status"), "offline"))
         return self.link.report()
@@ -574,11 +635,7 @@ def open_publisher(
     kwargs: dict[str, Any] = {} if limit is None else {"limit": limit}
     link = MqttLink(target, will=(target.topic("status"), "offline"), notify=notify, **kwargs)
     publisher = BusPublisher(link, session, bindings, options, info=info, clock=clock)
-    if not link.start(wait) and notify is not None:
-        notify(
-            f"mqtt: {target.describe()} does not answer yet; buffering and retrying "
-            "in the background"
-        )
+    link.start(wait)  # MqttError (one line: the broker, the cause) unless it accepts us
     publisher.announce()
     return publisher
 
