@@ -79,7 +79,7 @@ def _replay_active(args: argparse.Namespace, terminal: bool) -> set[str]:
     if not on - {"one", "several"}:
         # what replay does with no output asked for: the TUI on a terminal, else a listing
         # (a filter or a count asks for the listing too; so does standard input)
-        listing = not terminal or args.filter or args.count is not None or "-" in files or args.jobs
+        listing = not terminal or args.filter or args.count is not None or "-" in files
         on.add("listing" if listing else "tui")
     return on
 
@@ -107,7 +107,8 @@ REPLAY = Table(
                 *METRICS,
             ),
             facet("stats", "the statistics (--stats)", "--stats", *METRICS),
-            facet("mqtt", "publishing to a broker (--mqtt)", *PUBLISH, "--speed"),
+            # (--metrics with --mqtt alone: the figures are taken when publishing ends)
+            facet("mqtt", "publishing to a broker (--mqtt)", *PUBLISH, "--speed", *METRICS),
         ),
     ),
     exclusive=(
