@@ -81,7 +81,20 @@ def _replay_active(args: argparse.Namespace, terminal: bool) -> set[str]:
         # (a filter or a count asks for the listing too; so does standard input)
         listing = not terminal or args.filter or args.count is not None or "-" in files
         on.add("listing" if listing else "tui")
-    return on
+    return _listing_format(args, on)
+
+
+# the listing's format: the time column is text's, the formula guard CSV's (JSONL has
+# both times as numbers and no spreadsheet reads it)
+LISTING_FORMATS = (
+    facet("text", "a text listing", "--time"),
+    facet("csv", "a CSV listing", "--raw-csv"),
+    facet("jsonl", "a JSONL listing"),
+)
+
+
+def _listing_format(args: argparse.Namespace, on: set[str]) -> set[str]:
+    return on | {args.format or "text"} if "listing" in on else on
 
 
 REPLAY = Table(
@@ -110,6 +123,7 @@ REPLAY = Table(
             # (--metrics with --mqtt alone: the figures are taken when publishing ends)
             facet("mqtt", "publishing to a broker (--mqtt)", *PUBLISH, "--speed", *METRICS),
         ),
+        LISTING_FORMATS,
     ),
     exclusive=(
         ("--stats", "--format", "both write standard output; run replay twice"),
@@ -140,8 +154,8 @@ EXPORT = Table(
         ),
         (
             facet("text", "a text export", "--time", "--jobs"),
-            facet("csv", "a CSV export", "--time", "--raw-csv", "--jobs"),
-            facet("jsonl", "a JSONL export", "--time", "--jobs"),
+            facet("csv", "a CSV export", "--raw-csv", "--jobs"),
+            facet("jsonl", "a JSONL export", "--jobs"),
             facet("pcapng", "a pcapng export", "--as", "--jobs"),
             facet("parquet", "a Parquet export (one process)"),
         ),
@@ -161,7 +175,7 @@ def _live_active(args: argparse.Namespace, terminal: bool) -> set[str]:
         on.add("listing")
     if args.format is None and args.pcap is None and terminal:
         on.add("tui")
-    return on
+    return _listing_format(args, on)
 
 
 LIVE = Table(
@@ -200,6 +214,7 @@ LIVE = Table(
             facet("publish", "publishing to a broker (--mqtt)", *PUBLISH),
             facet("broker", "a bus watched over MQTT (mqtt://)", "--mqtt-ca"),
         ),
+        LISTING_FORMATS,
     ),
     active=_live_active,
 )

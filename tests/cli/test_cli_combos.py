@@ -63,7 +63,10 @@ REFUSED = [
     (["replay", "--format", "text", "--offset", "a=1"], "--offset", "several files"),
     (["export", "DEMO", "-o", "x.parquet", "--jobs", "2"], "--jobs", "Parquet"),
     (["export", "DEMO", "-o", "x.jsonl", "--raw-csv"], "--raw-csv", "JSONL"),
-    (["export", "DEMO", "-o", "x.jsonl", "--what=registers", "--time=abs"], "--time", "--what"),
+    (["export", "DEMO", "-o", "x.txt", "--what=registers", "--time=abs"], "--time", "--what"),
+    (["export", "DEMO", "-o", "x.csv", "--time=abs"], "--time", "CSV"),
+    (["replay", "--format", "jsonl", "--time", "abs"], "--time", "JSONL"),
+    (["replay", "--format", "text", "--raw-csv"], "--raw-csv", "text listing"),
     (["record", "/dev/null", "-w", "x.pcapng", "--unit", "3=rvs-dn"], "--unit", "--mqtt"),
     (["record", "/dev/null", "-w", "x.pcapng", "--bus-name", "a"], "--bus-name", "--mqtt"),
     (["tui", "mqtt://127.0.0.1:1/x", "--baud", "9600"], "--baud", "mqtt://"),
@@ -100,7 +103,7 @@ def _namespace(argv: list[str]) -> tuple[argparse.ArgumentParser, argparse.Names
     ("argv", "option"),
     [
         (["replay", "--time", "abs"], "--time"),  # the TUI has its own time column
-        (["replay", "--raw-csv"], "--raw-csv"),
+        (["replay", "--jobs", "2"], "--jobs"),
         (["live", "/dev/ttyUSB0", "--duration", "1h"], "--duration"),  # the TUI runs on
         (["live", "/dev/ttyUSB0", "--stats"], "--stats"),
     ],
@@ -117,11 +120,13 @@ def test_on_a_terminal_listing_options_are_refused_rather_than_ignored_by_the_tu
 @pytest.mark.parametrize(
     "argv",
     [
-        ["replay", "--format", "jsonl", "--filter", "unit:3", "-c", "5", "--time", "abs"],
+        ["replay", "--format", "text", "--filter", "unit:3", "-c", "5", "--time", "abs"],
         ["replay", "--mqtt", "mqtt://h/x", "--format", "jsonl", "--filter", "unit:3"],
         ["replay", "--mqtt", "mqtt://h/x", "--stats", "--mqtt-every", "5", "--speed", "original"],
         ["replay", "A", "B", "--offset", "B=1.5", "--stats"],
-        ["export", "A", "-o", "x.csv", "--raw-csv", "--jobs", "2", "--time", "abs"],
+        ["export", "A", "-o", "x.csv", "--raw-csv", "--jobs", "2"],
+        ["export", "A", "-o", "x.txt", "--time", "abs", "--jobs", "2"],
+        ["replay", "--format", "csv", "--raw-csv", "--jobs", "2"],
         ["export", "A", "-o", "x.pcapng", "--as", "rtu"],
         ["live", "/dev/ttyUSB0", "--pcap", "x.pcapng", "-c", "5", "--duration", "1m"],
         ["live", "/dev/ttyUSB0", "--mqtt", "mqtt://h/x", "--ha-discovery"],
