@@ -10,6 +10,7 @@ import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -230,3 +231,27 @@ def test_mqtt_with_stats_publishes_and_prints_the_table(
     _, alone, _ = run(["replay", "--stats"], capsys)
     assert out == alone
     assert "published" in err
+
+
+def test_tui_opens_several_files_as_replay_does(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`tui A B` hands the TUI the same merged rows `replay A B` lists (the TUI itself is
+    not started: it needs a terminal; what it is given is the point here)."""
+    import sniffer.tui.app
+
+    shown: list[int] = []
+
+    def record(session: Any, capture: Any = None, live: Any = None, **kw: Any) -> int:
+        shown.append(len(session.store))
+        return 0
+
+    monkeypatch.setattr(sniffer.tui.app, "run_tui", record)
+    demo = str(DEMO_CAPTURE)
+    code, _, err = run(["tui", demo, demo], capsys)
+    assert code == 0, err
+    listed = run(["replay", demo, demo, "--format", "jsonl"], capsys)
+    assert listed[0] == 0
+    assert shown == [len(listed[1].splitlines())] and shown[0] > 2000
+    code, _, err = run(["tui", demo, demo, "--speed", "original"], capsys)
+    assert code == 2 and "--speed does not apply to several files together" in err
