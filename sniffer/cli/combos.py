@@ -229,11 +229,11 @@ def _record_active(args: argparse.Namespace, terminal: bool) -> set[str]:
 
 RECORD = Table(
     common=frozenset(("--port", *LINE, "--directions", "--write", "--rotate-size", "--queue"))
-    | frozenset(("--rotate-time", "--keep", "--duration", "--timeout", "--metrics")),
+    | frozenset(("--rotate-time", "--keep", "--duration", "--metrics")),
     groups=(
         (
             facet("bytes", "a recording alone (record -w)"),
-            facet("frames", "frames for --mqtt or --metrics", *DEVICE),
+            facet("frames", "frames for --mqtt or --metrics", *DEVICE, "--timeout"),
         ),
         (facet("publish", "publishing to a broker (--mqtt)", *PUBLISH),),
     ),

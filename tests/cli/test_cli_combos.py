@@ -70,6 +70,7 @@ REFUSED = [
     (["replay", "--format", "text", "--raw-csv"], "--raw-csv", "text listing"),
     (["record", "/dev/null", "-w", "x.pcapng", "--unit", "3=rvs-dn"], "--unit", "--mqtt"),
     (["record", "/dev/null", "-w", "x.pcapng", "--bus-name", "a"], "--bus-name", "--mqtt"),
+    (["record", "/dev/null", "-w", "x.pcapng", "--timeout", "1"], "--timeout", "--metrics"),
     (["tui", "mqtt://127.0.0.1:1/x", "--baud", "9600"], "--baud", "mqtt://"),
     (["live", "mqtt://127.0.0.1:1/x", "--parity", "N", "--format", "text"], "--parity", "mqtt"),
 ]  # fmt: skip
