@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every check modscope has, from a fresh clone: a virtual environment with the dev
 # extras, the peer programs the tests talk to (from Debian's packages, where apt-get and
-# root or sudo are available), then ruff, mypy (strict), lint-imports and the test suite. Each step
+# root or sudo are available), then ruff, mypy (strict), lint-imports, the test suite, and
+# the TUI tests again at the lowest Textual pyproject.toml allows. Each step
 # says what it does and how long it took. Without apt, or without root, the programs
 # that are missing are named and the tests that need them are skipped with that reason;
 # everything else still runs.
