@@ -13,6 +13,7 @@ import sys
 import time
 from typing import TextIO
 
+from sniffer.analysis.liveness import Heard, liveness, liveness_lines
 from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
 from sniffer.cli.backlog import BACKLOG_BYTES, Backlog
 from sniffer.cli.filtering import Selection, add_filter_options, query_of
@@ -223,8 +224,8 @@ def _tui_available() -> bool:
 
 
 class Summary:
-    """The --stats table (and poll cycle) on standard error: every `every` seconds while
-    capturing, and once when the capture ends."""
+    """The --stats table, poll cycle and liveness lines on standard error: every `every`
+    seconds while capturing, and once when the capture ends."""
 
     def __init__(
         self,
@@ -236,11 +237,20 @@ class Summary:
     ) -> None:
         """`whole`: the poll cycle covers the whole capture, not only the rows of its
         window still in memory: the requests of each segment are counted before it goes
-        (8 bytes each: asked for with --stats)."""
+        (8 bytes each: asked for with --stats); the liveness lines measure the ages to
+        its clock (`LiveCapture.now`), so they grow while no frame comes."""
         self.cycles: PollCycles | None = None
+        self.capture = whole
+        self.heard = Heard()  # the newest frame and answers, over every segment
         if whole is not None:
             cycles = self.cycles = PollCycles()
-            whole.segment = lambda s: cycles.add(s.store)
+            heard = self.heard
+
+            def segment(s: Session) -> None:
+                cycles.add(s.store)
+                heard.update(s.store)
+
+            whole.segment = segment
         self.session = session
         self.err = err
         self.labels = labels
@@ -248,6 +258,8 @@ class Summary:
         self.next = time.monotonic() + every if every else None
 
     def tick(self) -> None:
+        if self.capture is not None:
+            self.heard.update(self.session.store)
         if self.next is not None and time.monotonic() >= self.next:
             assert self.every is not None
             self.next = time.monotonic() + self.every
@@ -263,6 +275,21 @@ class Summary:
             poll_cycles(session.store) if self.cycles is None else self.cycles.cycles(session.store)
         )
         self.err.write(cycle_table(found, self.labels) + "\n")
+        heard = self.heard
+        heard.update(session.store)
+        # live, the ages run to the port's clock; without one (no --stats: its rows were
+        # not followed), to the newest frame, and the line is not judged
+        clock = self.capture
+        now = clock.now() if clock is not None else (heard.last_frame or 0.0)
+        alive = liveness(
+            list(session.stats.units.values()),
+            heard.last_answer,
+            now,
+            session.store.resolution,
+            last_frame=heard.last_frame,
+            ended=clock is None,
+        )
+        self.err.write("\n".join(liveness_lines(alive, self.labels)) + "\n")
         self.err.flush()
 
 
@@ -443,8 +470,10 @@ def register(sub: SubParsers) -> None:
         nargs="?",
         const=10.0,
         metavar="S",
-        help="print the statistics and poll cycle to stderr every S seconds (default 10); "
-        "they are printed once anyway when the capture ends",
+        help="print the statistics, poll cycle and liveness (seconds since the last frame "
+        "and each unit's last answer, the line idle or a unit silent after 3 of its poll "
+        "periods) to stderr every S seconds (default 10); they are printed once anyway "
+        "when the capture ends",
     )
     add_mqtt_options(p)
     add_metrics_options(p)

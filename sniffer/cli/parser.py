@@ -22,6 +22,7 @@ from typing import NoReturn, cast
 # naming the package here (`from sniffer.cli import ...`) would read as a cycle
 import sniffer.cli.dictcmd as dictcmd
 import sniffer.cli.diff as diff
+import sniffer.cli.doctor as doctor
 import sniffer.cli.export as export
 import sniffer.cli.live as live
 import sniffer.cli.manual as manual
@@ -37,7 +38,7 @@ from sniffer.cli.options import SubParsers
 from sniffer.text import plain
 
 # in the order `modscope --help` lists them (then `manual`: see build_parser)
-COMMANDS = (replay, live, scan, record, ports, export, diff, dictcmd, tui, serve)
+COMMANDS = (replay, live, scan, record, ports, export, diff, doctor, dictcmd, tui, serve)
 
 EPILOG = """\
 examples:

@@ -17,7 +17,8 @@ a lister or exporter with their numbers in the whole capture.
 For the TUI: `run_tui(session, None, live=capture)` gets a started `LiveCapture`. Call
 `capture.pump(timeout)` from one thread (it feeds the session and returns the range of
 new rows in `session.store`); `capture.messages` holds what happened on the ports
-(port lost, reconnect, data lost); `capture.stop()` ends it (idempotent).
+(port lost, reconnect, data lost); `capture.now()` is the time on the stamps' clock (the
+ages liveness shows are measured to it); `capture.stop()` ends it (idempotent).
 """
 
 from __future__ import annotations
@@ -219,6 +220,12 @@ class LiveCapture:
             thread.join(30)
         recorder.close(self.reader.clock.now())
         return list(recorder.files)
+
+    def now(self) -> float:
+        """The current time on the clock the frame stamps are read by (the ports' wall
+        clock, advanced monotonically): what liveness measures ages against, so they grow
+        while no frame comes (`sniffer.analysis.liveness`)."""
+        return self.reader.clock.now()
 
     @property
     def lost_bytes(self) -> int:

@@ -38,6 +38,7 @@ from sniffer.tui.rooms.watching import Watching
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.theme import themes
 from sniffer.tui.widgets.frame_list import FrameList
+from sniffer.tui.widgets.health import HealthScreen
 from sniffer.tui.widgets.watch import WatchPanel
 
 Reopen = Callable[[], tuple[Session, Capture]]
@@ -204,6 +205,9 @@ class ModscopeApp(App[int]):
 
     def action_ladder(self) -> None:
         self.panes.ladder()
+
+    def action_health(self) -> None:
+        self.push_screen(HealthScreen(self))
 
     def action_absolute(self) -> None:
         self.panes.toggle_absolute()

@@ -59,6 +59,7 @@ KEYS: tuple[Key, ...] = (
     Key("u", "pane('units')", "u", "units", bar=False),
     Key("w", "pane('watch')", "w", "watch", bar=False),
     Key("l", "ladder", "l", "ladder", bar=False),
+    Key("H", "health", "H", "bus health", bar=False),
     Key("z", "zoom", "z", "zoom"),
     Key("space", "pause", "␣", "pause"),
     Key("s", "speed", "s", "speed"),

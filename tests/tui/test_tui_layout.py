@@ -41,17 +41,17 @@ async def test_the_list_keeps_half_the_rows_at_80x24(pane: str) -> None:
 
 
 @pytest.mark.asyncio
-async def test_units_at_80_columns_keep_state_seen_and_latency() -> None:
+async def test_units_at_80_columns_keep_state_answer_and_latency() -> None:
     app = ModscopeApp(hostile_session())
     async with app.run_test(size=(80, 24)) as pilot:
         await opened(pilot, app)
         await pilot.press("u")
         await pilot.pause()
         shown = app.main.units.shown
-        assert {"unit", "state", "seen", "exc", "t/o", "median", "p95"} <= set(shown)
+        assert {"unit", "state", "answer", "exc", "t/o", "median", "p95"} <= set(shown)
         assert "device" not in shown  # the least important goes first
         text = screen_text(app)
-        assert "p95" in text and "seen" in text
+        assert "p95" in text and "answer" in text
 
 
 @pytest.mark.asyncio
@@ -72,7 +72,7 @@ async def test_a_notice_leaves_the_status_bar_alone() -> None:
 def test_columns_are_left_out_whole_least_important_first() -> None:
     assert fit_columns(units.COLUMNS, units.PRIORITY, 10_000) == [n for n, _ in units.COLUMNS]
     narrow = fit_columns(units.COLUMNS, units.PRIORITY, 40)
-    assert narrow == ["unit", "state", "exc", "t/o", "seen"]  # in their own order
+    assert narrow == ["unit", "state", "exc", "t/o", "answer"]  # in their own order
     assert fit_columns(watch.COLUMNS, watch.PRIORITY, 79)[:2] == ["unit", "register"]
 
 

@@ -258,7 +258,7 @@ async def test_at_80_columns_the_period_stays() -> None:
         await _shown(pilot)
         table = app.main.query_one("#units", UnitsPanel)
         assert "period" in table.shown
-        assert {"unit", "state", "seen", "exc", "t/o", "median", "p95"} <= set(table.shown)
+        assert {"unit", "state", "answer", "exc", "t/o", "median", "p95"} <= set(table.shown)
 
 
 @pytest.mark.asyncio

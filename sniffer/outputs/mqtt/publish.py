@@ -10,8 +10,10 @@ Topics under the base (see docs/mqtt.md for an example of each message):
   it changes and at least every `every` seconds (capture time) while it is read;
 - `events`: exceptions, timeouts, check errors, noise, source events, device rule
   violations, each a JSON object naming its frame;
-- `unit/<N>/status` (retained): counts, latency, polling period, online or silent;
+- `unit/<N>/status` (retained): counts, latency, polling period, seconds since its last
+  answer and last frame (to the live clock), online, silent or unknown;
 - `status` (retained, and the connection's last will): `online` or `offline`;
+- `findings` (retained): the bus doctor's findings on the rows so far (docs/doctor.md);
 - with Home Assistant discovery, `<prefix>/.../config` (retained): the bus, each unit
   polled, each named register (see `sniffer.outputs.mqtt.ha`); a unit's configs are
   published again when the bus shows its software or hardware version.
@@ -32,6 +34,9 @@ from typing import Any
 
 from dissectors.dictionary.model import Entry, RegisterValue, ValueSpec
 from sniffer import __version__
+from sniffer.analysis.liveness import SILENT_AFTER as SILENT_AFTER
+from sniffer.analysis.liveness import SILENT_MIN as SILENT_MIN
+from sniffer.analysis.liveness import UnitState, unit_liveness
 from sniffer.analysis.stats import RECENT, UnitStats, median_gap, nearest_rank, resolved_period
 from sniffer.framing.pairing import Latency
 from sniffer.framing.store import NO_PARTNER
@@ -39,6 +44,7 @@ from sniffer.meaning.annotate import Binding
 from sniffer.meaning.describe import FrameDetail
 from sniffer.model import Chunk, SourceInfo
 from sniffer.outputs.listing import KIND_NAMES, shown_latency_max_ms, shown_latency_ms
+from sniffer.outputs.mqtt.findings import FindingsClock, findings_payload
 from sniffer.outputs.mqtt.ha import (
     UnitDevice,
     bus_configs,
@@ -55,10 +61,20 @@ from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 
 DEFAULT_EVERY = 60.0  # seconds between two publications of an unchanged value
 STATUS_EVERY = 5.0  # seconds between two unit status messages
-SILENT_AFTER = 3.0  # polling periods without an answer after which a unit is silent
-SILENT_MIN = 2.0  # ... but never fewer seconds than this
+# (SILENT_AFTER and SILENT_MIN, imported above, are the one rule of every view; the
+# metrics import them from here)
 WINDOW = RECENT  # answers (and requests) a unit's latency quantiles and poll period are over
 READ_IDENTIFICATION = 43  # FC 43 (MEI 14 Read Device Identification names the versions)
+
+
+# a unit's liveness as the status message's `state` says it: `online` while it answers
+# within its threshold, `silent` once past it (or asked and never answering), `unknown`
+# where its period is not known to judge by, or it was never asked
+UNIT_STATES = {UnitState.OK: "online", UnitState.SILENT: "silent"}
+
+
+def _seconds(value: float | None) -> float | None:
+    return None if value is None else round(value, 3)
 
 
 class UnitWindow:
@@ -167,6 +183,7 @@ class BusPublisher:
         self._windows: dict[int, UnitWindow] = {}
         self._last_t = 0.0
         self._resend = threading.Event()
+        self.findings = FindingsClock()
         link._on_connect_hook = self._on_connect
 
     # -- the link's connection ----------------------------------------------------------------
@@ -273,6 +290,9 @@ class BusPublisher:
         ):
             self._status_t = self._last_t
             self.unit_status()
+        if self.findings.due(final):  # (the bus doctor's findings: outputs/mqtt/findings.py)
+            payload = findings_payload(self.session, self.bindings)
+            self._send(self.target.topic("findings"), payload, retain=True)
 
     def _row(self, i: int) -> None:
         store = self.session.store
@@ -435,14 +455,23 @@ class BusPublisher:
             if measured is not None:
                 period, bound = (None, measured.ms) if measured.bound else (measured.ms, None)
             answered = self._answered.get(u)
-            limit = max(SILENT_MIN, SILENT_AFTER * (measured.seconds if measured else 0.0))
-            online = answered is not None and now - answered <= limit
+            newest = st.newest_requests(1)
+            alive = unit_liveness(
+                u,
+                now,
+                asked=st.requests > 0,
+                last_frame=st.last_seen or None,
+                last_answer=answered,
+                last_request=newest[-1] if newest else None,
+                period=measured.seconds if measured is not None else None,
+                period_bound=measured.bound if measured is not None else False,
+            )
             median, p95 = window.latency_ms(0.5), window.latency_ms(0.95)
             binding = self.bindings.get(u)
             message = {
                 "unit": u,
                 "device": binding.label if binding else "",
-                "state": "online" if online else "silent",
+                "state": UNIT_STATES.get(alive.state, "unknown"),
                 "requests": st.requests,
                 "answers": st.responses,
                 "exceptions": st.exception_count,
@@ -453,6 +482,10 @@ class BusPublisher:
                 "poll_period_ms": period,
                 "poll_period_max_ms": bound,
                 "last_answer": answered,
+                # seconds to `t` (live: the port's clock, so they grow with no frame)
+                "since_answer_s": _seconds(alive.since_answer),
+                "since_frame_s": _seconds(alive.since_frame),
+                "silent_after_s": _seconds(alive.silent_after),
                 "t": now,
                 "time": iso_time(now),
             }

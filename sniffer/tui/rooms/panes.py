@@ -3,7 +3,6 @@ zoom, the ladder screen, the time column's format and the theme."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from sniffer.framing.store import FrameStore
@@ -68,11 +67,13 @@ class Panes(Room):
         model, session = self.model, self.app.session
         labels = {u: b.label for u, b in session.annotator.bindings.items()}
         units = list(session.stats.units.values())
-        rows = unit_rows(units, labels, dict(model.last_answer), model.latest, self.units_cache)
-        # `seen` is when the unit was last heard (its last answer), in every pane: a unit
-        # the master keeps asking but that never answers is SILENT and not `seen` lately
-        rows = [replace(r, last_seen=r.last_answer or 0.0) for r in rows]
-        self.main.units.show(rows, model.latest)
+        # ages from the live port's clock (they grow while no frame comes), or from the
+        # end of a capture
+        now = self.app.status_line.now()
+        resolution = model.reader.resolution
+        last = dict(model.last_answer)
+        rows = unit_rows(units, labels, last, now, self.units_cache, resolution)
+        self.main.units.show(rows, now)
 
     def fields(self) -> None:
         if self.main.lower.current == "detail":

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sniffer.analysis.liveness import LineLiveness, liveness
 from sniffer.tui.feed import LiveStatus, live_status
 from sniffer.tui.rooms.base import Room
 from sniffer.tui.screens.ladder import LadderScreen
@@ -40,6 +41,26 @@ class StatusLine(Room):
             self._rate = (rows - mark_rows) / (now - mark_t) if not self.model.done else None
             self._rate_mark = (now, rows)
 
+    def now(self) -> float:
+        """The time ages are measured to: a live capture's clock (`LiveCapture.now`, the
+        clock its stamps come from), else the newest frame (a capture's end)."""
+        clock = getattr(self.app.live, "now", None)
+        return float(clock()) if callable(clock) else self.model.latest
+
+    def liveness(self) -> LineLiveness | None:
+        """The live line's state from the clock; None for a capture file or a live
+        source without a clock (nothing to judge it by)."""
+        app = self.app
+        if app.live is None or not callable(getattr(app.live, "now", None)):
+            return None
+        stats = app.session.stats
+        return liveness(
+            list(stats.units.values()),
+            dict(self.model.last_answer),
+            self.now(),
+            self.model.reader.resolution,
+        )
+
     def show(self) -> None:
         app = self.app
         model, session = self.model, app.session
@@ -50,6 +71,7 @@ class StatusLine(Room):
             span = model.latest - model.origin
             rate = model.published / span if span > 0 else None
         live = app.live
+        alive = self.liveness()
         status = live_status(live) if live is not None else LiveStatus()
         line = session.line.describe()
         if session.mode != session.line.mode:
@@ -63,7 +85,7 @@ class StatusLine(Room):
             rate=rate,
             indexing=not model.done and live is None and app.pacing.speed is None,
             paused=app.paused,
-            following=self.frames.following,
+            following=self.frames.at_newest,
             speed="1x" if app.pacing.speed else "",
             recording=Path(status.recording).name if status.recording else "",
             recorded_bytes=status.recorded_bytes,
@@ -72,6 +94,9 @@ class StatusLine(Room):
             live=live is not None,
             reconnecting=status.reconnecting,
             progress=app.feeding.index_progress(),
+            liveness=alive.state.value if alive is not None else "",
+            since_frame=alive.since_frame if alive is not None else None,
+            resolution=alive.resolution if alive is not None else 0.0,
         )
         self.main.status.show(info)
         screen = app.screen

@@ -99,6 +99,13 @@ class FrameList(ScrollView, can_focus=True):
         return len(self.model.view)
 
     @property
+    def at_newest(self) -> bool:
+        """Following with the cursor on the newest row shown: what the status bar's ▼
+        says (an empty list, or a cursor left above the end, is not at the newest)."""
+        count = self.count
+        return self.following and count > 0 and self.cursor >= count - 1
+
+    @property
     def cursor_row(self) -> int | None:
         """The store row under the cursor."""
         if not self.count:

@@ -1,6 +1,8 @@
-"""Provides the units panel: per-unit requests, answers, exceptions, timeouts, check errors,
-latency median and p95, last seen, and the poll cycle (period, jitter, gaps of the
-unit's main poll); units that stopped answering stand out."""
+"""Provides the units panel: per-unit state, requests, answers, exceptions, timeouts, check
+errors, latency median and p95, the time since its last answer and its last frame, and
+the poll cycle (period, jitter, gaps of the unit's main poll); units that stopped
+answering stand out. The state and the ages are measured against a clock
+(`sniffer.analysis.liveness`): live, the port's, so they age while no frame comes."""
 
 from __future__ import annotations
 
@@ -17,13 +19,15 @@ from rich.text import Text
 from textual.widgets import DataTable
 
 from dissectors import mbap
+from sniffer.analysis.liveness import UnitState, age_text, unit_liveness
 from sniffer.analysis.pollcycle import GAP_FACTOR, MIN_REPEATS, resolved_cycle
 from sniffer.analysis.polls import FRAMED_APART, Identity, frame_body, poll_identity
 from sniffer.analysis.stats import UnitStats
 from sniffer.framing.columns import marking
+from sniffer.framing.pairing import Latency
 from sniffer.framing.store import FrameStore
 from sniffer.text import plain
-from sniffer.tui.render import ago_text, fit_columns
+from sniffer.tui.render import fit_columns
 from sniffer.vocab import BAD_CHECK, Flag, Kind
 
 # fixed widths: columns that grew with whatever was shown first would jump about
@@ -41,13 +45,14 @@ COLUMNS = (
     ("period", 6),
     ("jitter", 6),
     ("gaps", 4),
-    ("seen", 10),
+    ("answer", 10),
+    ("frame", 10),
 )
 # what stays when the pane is narrow, most important first
 PRIORITY = (
     "unit",
     "state",
-    "seen",
+    "answer",
     "exc",
     "t/o",
     "chk",
@@ -57,10 +62,17 @@ PRIORITY = (
     "ans",
     "req",
     "device",
+    "frame",
     "gaps",
     "jitter",
 )
-SILENT_AFTER = 2.0  # seconds without an answer, at least, before a polled unit is silent
+STATE_WORDS = {
+    UnitState.OK: "ok",
+    UnitState.SILENT: "SILENT",
+    UnitState.UNKNOWN: "?",  # quiet a while, its period unknown: not judged
+    UnitState.NOT_ASKED: "-",
+    UnitState.BROADCAST: "bcast",  # unit 0: nobody answers it
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +89,10 @@ class UnitRow:
     last_seen: float
     last_answer: float | None
     silent: bool
+    state: UnitState = UnitState.OK
+    since_answer: float | None = None  # seconds from the clock's now (None: never)
+    since_frame: float | None = None
+    resolution: float = 0.0  # the stamps': an age under it is a bound (`age_text`)
     period: float | None = None  # seconds between sendings of the unit's main poll
     jitter: float | None = None  # p95 - p5 of those seconds
     gaps: int = 0  # waits of more than GAP_FACTOR periods, over all its polls
@@ -103,14 +119,19 @@ def latency_quantiles(st: UnitStats, cache: Cache) -> tuple[float | None, float 
     return median, p95
 
 
-def polling_period(st: UnitStats, cache: Cache) -> float | None:
-    """Median seconds between requests (redone only when there are new requests)."""
-    n = len(st.request_times)
+def polling_period(st: UnitStats, cache: Cache, resolution: float = 0.0) -> Latency | None:
+    """Median seconds between requests as the stamps vouch for it (`UnitStats.period`;
+    redone only when there are new requests)."""
+    n = st.request_count
     found = cache.get((st.unit, "period"))
     if found is not None and found[0] == n:
-        return found[1]
-    period = st.polling_period()
-    cache[(st.unit, "period")] = (n, period, None)
+        return None if found[1] is None else Latency(found[1], bool(found[2]))
+    period = st.period(resolution)
+    cache[(st.unit, "period")] = (
+        n,
+        None if period is None else period.seconds,
+        None if period is None else float(period.bound),
+    )
     return period
 
 
@@ -120,18 +141,28 @@ def unit_rows(
     last_answer: dict[int, float],
     now: float,
     cache: Cache | None = None,
+    resolution: float = 0.0,
 ) -> list[UnitRow]:
-    """The panel's rows. A unit is silent when it is polled but has not answered for
-    five polling periods (at least SILENT_AFTER seconds), or never answered."""
+    """The panel's rows at `now` (live: the port's clock; a replay: the end of the
+    capture). A unit's state is `sniffer.analysis.liveness.unit_liveness`: silent once
+    its last answer is older than SILENT_AFTER of its own poll periods (and SILENT_MIN
+    seconds), or asked and never answered; `?` where its period is unknown."""
     out = []
     cache = cache if cache is not None else {}
     for st in sorted(units, key=lambda s: s.unit):
         median, p95 = latency_quantiles(st, cache)
         answered = last_answer.get(st.unit)
-        period = polling_period(st, cache) or 1.0
-        quiet = now - answered if answered is not None else None
-        silent = st.requests > 0 and (
-            answered is None or (quiet is not None and quiet > max(SILENT_AFTER, 5 * period))
+        measured = polling_period(st, cache, resolution)
+        requests = st.newest_requests(1)
+        alive = unit_liveness(
+            st.unit,
+            now,
+            asked=st.requests > 0,
+            last_frame=st.last_seen or None,
+            last_answer=answered,
+            last_request=requests[-1] if requests else None,
+            period=measured.seconds if measured is not None else None,
+            period_bound=measured.bound if measured is not None else False,
         )
         out.append(
             UnitRow(
@@ -146,7 +177,11 @@ def unit_rows(
                 p95,
                 st.last_seen,
                 answered,
-                silent,
+                alive.state is UnitState.SILENT,
+                state=alive.state,
+                since_answer=alive.since_answer,
+                since_frame=alive.since_frame,
+                resolution=resolution,
             )
         )
     return out
@@ -437,11 +472,13 @@ class UnitsPanel(DataTable[Text]):
             return Text(value, style=style or "", justify="right" if right else "left")
 
         row_style = silent if r.silent else None
-        seen = ago_text(now - r.last_seen) + " ago" if r.last_seen else "-"
+        res = r.resolution
+        answer = "never" if r.since_answer is None else age_text(r.since_answer, res) + " ago"
+        frame = "-" if r.since_frame is None else age_text(r.since_frame, res) + " ago"
         return [
             cell(str(r.unit), row_style),
             cell(plain(r.label, 16), row_style, right=False),
-            cell("SILENT" if r.silent else "ok", silent if r.silent else None, right=False),
+            cell(STATE_WORDS[r.state], silent if r.silent else None, right=False),
             cell(str(r.requests)),
             cell(str(r.answers)),
             cell(str(r.exceptions), bad if r.exceptions else None),
@@ -452,5 +489,6 @@ class UnitsPanel(DataTable[Text]):
             cell(_span(r.period, r.period_bound)),
             cell(_span(r.jitter, r.jitter_bound)),
             cell(str(r.gaps) if r.gaps else "-", bad if r.gaps else None),
-            cell(seen),
+            cell(answer, row_style),
+            cell(frame),
         ]
