@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from sniffer.cli.doctor import _is_port as is_port  # (doctor's own rule for a port)
 from sniffer.outputs.export import EXTENSIONS
 
 LINE = ("--baud", "--bytesize", "--parity", "--stopbits", "--mode")
@@ -260,6 +261,22 @@ TUI = Table(
     active=_tui_active,
 )
 
+
+def _doctor_active(args: argparse.Namespace, terminal: bool) -> set[str]:
+    return {"port" if is_port(args.capture) else "file"}
+
+
+DOCTOR = Table(
+    common=frozenset(("--format", *LINE, "--timeout", *DEVICE)),
+    groups=(
+        (
+            facet("file", "a capture file", *NETWORK),
+            facet("port", "listening to a port", "--duration"),
+        ),
+    ),
+    active=_doctor_active,
+)
+
 SERVE = Table(common=frozenset(("--host", "--port", "--public-url", *LINE, "--timeout", *DEVICE)))
 
 TABLES: dict[str, Table] = {
@@ -269,6 +286,7 @@ TABLES: dict[str, Table] = {
     "record": RECORD,
     "tui": TUI,
     "serve": SERVE,
+    "doctor": DOCTOR,
     # one way of running each: every option applies
     "scan": Table(common=frozenset(("--baud", "--formats", "--dwell", "--max-dwell"))),
     "ports": Table(common=frozenset(("--format",))),
@@ -332,5 +350,5 @@ def refusal(command: str, parser: argparse.ArgumentParser, args: argparse.Namesp
                 continue
             takers = [f.what for f in group if name in f.honours and f.what]
             doing = " and ".join(f.what for f in running) or "this command line"
-            return f"{name} does not apply to {doing}; it is for {' or '.join(takers)}"
+            return f"{name} does not apply to {doing}: {name} is for {' or '.join(takers)}"
     return None

@@ -72,6 +72,8 @@ REFUSED = [
     (["record", "/dev/null", "-w", "x.pcapng", "--bus-name", "a"], "--bus-name", "--mqtt"),
     (["record", "/dev/null", "-w", "x.pcapng", "--timeout", "1"], "--timeout", "--metrics"),
     (["tui", "mqtt://127.0.0.1:1/x", "--baud", "9600"], "--baud", "mqtt://"),
+    (["doctor", "/dev/ttyUSB9", "--carrier", "tcp"], "--carrier", "listening to a port"),
+    (["doctor", "DEMO", "--duration", "1m"], "--duration", "capture file"),
     (["live", "mqtt://127.0.0.1:1/x", "--parity", "N", "--format", "text"], "--parity", "mqtt"),
 ]  # fmt: skip
 
