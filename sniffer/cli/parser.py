@@ -15,6 +15,7 @@ options (a test fails until it does).
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 from typing import NoReturn, cast
 
@@ -80,11 +81,13 @@ class Parser(argparse.ArgumentParser):
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> tuple[argparse.Namespace, list[str]]:
-        if self._mixing or not self._leaf():
-            return super().parse_known_args(args, namespace)
+        words = sys.argv[1:] if args is None else list(args)
+        if self._mixing or not self._leaf() or "--" in words:
+            # (after `--` every word is a file, even `-c`: argparse's own parse keeps that)
+            return super().parse_known_args(words, namespace)
         self._mixing = True
         try:
-            found, extras = self.parse_known_intermixed_args(args, namespace)
+            found, extras = self.parse_known_intermixed_args(words, namespace)
         finally:
             self._mixing = False
         if extras:  # said here, so the message names this command, not the top level

@@ -153,6 +153,9 @@ def test_files_may_come_after_options(capsys: pytest.CaptureFixture[str]) -> Non
     assert mixed[1] == first[1] and len(mixed[1].splitlines()) == 4
     flags_first = run(["replay", "--format", "jsonl", "-c", "4", demo], capsys)
     assert flags_first[0] == 0 and len(flags_first[1].splitlines()) == 4
+    # after `--` every word is a file, as getopt has it: `-c` here is a file name
+    args = build_parser().parse_args(["replay", "--format", "text", "--", demo, "-c"])
+    assert args.file == [demo, "-c"] and args.count is None
 
 
 @pytest.mark.parametrize(
