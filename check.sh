@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every check modscope has, from a fresh clone: a virtual environment with the dev
 # extras, the peer programs the tests talk to (from Debian's packages, where apt-get and
-# root or sudo are available), then ruff, mypy (strict), lint-imports and the test suite. Each step
+# root or sudo are available), then ruff, mypy (strict), lint-imports, the test suite, and
+# the TUI tests again at the lowest Textual pyproject.toml allows. Each step
 # says what it does and how long it took. Without apt, or without root, the programs
 # that are missing are named and the tests that need them are skipped with that reason;
 # everything else still runs.
@@ -137,6 +138,43 @@ if [ "${1:-}" = "--quick" ]; then
 else
   step "pytest, the whole suite, slow tests included ($JOBS workers; a few minutes)"
   "$VENV/bin/pytest" -q -n "$JOBS" --durations=10
+fi
+done_step
+# -- the TUI at the lowest Textual pyproject.toml allows ------------------------------------
+# The suite above ran with the Textual pip chose for the venv (the newest, on a clean clone);
+# the floor in pyproject.toml is a claim too. Textual at the floor, with the dependencies
+# pip picks for it, goes into a folder inside the venv that PYTHONPATH puts first; the TUI
+# tests run against it. The folder is kept, so later runs only run the tests.
+FLOOR=$("$VENV/bin/python" - <<'PY'
+import re, tomllib
+with open("pyproject.toml", "rb") as f:
+    deps = tomllib.load(f)["project"]["dependencies"]
+floors = [m[1] for d in deps if (m := re.fullmatch(r"textual>=([0-9.]+)(,.*)?", d.replace(" ", "")))]
+print(floors[0] if len(floors) == 1 else "")
+PY
+)
+if [ -z "$FLOOR" ]; then
+  echo "== pyproject.toml has no 'textual>=X' dependency to test the floor of"
+  exit 1
+fi
+VERSION='from importlib.metadata import version; print(version("textual"))'
+NEWEST=$("$VENV/bin/python" -c "$VERSION")
+FLOOR_DIR="$VENV/textual-floor-$FLOOR"
+step "the TUI tests at Textual $FLOOR, the floor pyproject.toml declares (above: $NEWEST)"
+if [ ! -d "$FLOOR_DIR" ]; then
+  ticking "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
+    --target "$FLOOR_DIR.part" "textual==$FLOOR"
+  mv "$FLOOR_DIR.part" "$FLOOR_DIR"
+fi
+got=$(PYTHONPATH="$FLOOR_DIR" "$VENV/bin/python" -c "$VERSION")
+if [ "$got" != "$FLOOR" ]; then
+  echo "   Textual $got loaded instead of $FLOOR: the floor check would prove nothing"
+  exit 1
+fi
+if [ "${1:-}" = "--quick" ]; then
+  PYTHONPATH="$FLOOR_DIR" "$VENV/bin/pytest" -q -n "$JOBS" -p no:cacheprovider -m "not slow" tests/tui
+else
+  PYTHONPATH="$FLOOR_DIR" "$VENV/bin/pytest" -q -n "$JOBS" -p no:cacheprovider tests/tui
 fi
 done_step
 echo "== all checks passed in $((SECONDS - T0)) s"

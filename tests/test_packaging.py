@@ -3,11 +3,15 @@ dictionaries are package data, `modscope` runs from any folder (issue 15, item 9
 
 from __future__ import annotations
 
+import ast
 import os
+import re
 import subprocess
 import sys
+import tomllib
 import venv
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -59,3 +63,61 @@ def test_an_installed_wheel_runs_without_the_source_tree(tmp_path: Path) -> None
     serve = _run([modscope, "serve"], elsewhere, env)
     assert serve.returncode == 2
     assert "pip install 'modscope[serve]'" in serve.stderr  # as the README says
+
+
+# -- extras and floors that are true (issue 26) ----------------------------------------------
+
+
+def _project() -> dict[str, Any]:
+    with (ROOT / "pyproject.toml").open("rb") as f:
+        project: dict[str, Any] = tomllib.load(f)["project"]
+    return project
+
+
+def _names(requirements: list[str]) -> set[str]:
+    return {re.split(r"[<>=!~\[; ]", r, maxsplit=1)[0].lower() for r in requirements}
+
+
+def _third_party_imports(path: Path) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "importorskip":
+            arg = node.args[0]
+            if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+                found.add(arg.value.split(".")[0])
+        elif isinstance(node, ast.Import):
+            found |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.add(node.module.split(".")[0])
+    ours = {"sniffer", "dissectors", "tests", "pytest", "hypothesis", "__future__"}
+    return {m for m in found if m not in sys.stdlib_module_names and m not in ours}
+
+
+def test_the_analytics_extra_has_what_its_recipes_need() -> None:
+    """docs/analytics.md's queries are run by tests/outputs/test_analytics_queries.py:
+    what that test imports is what `pip install 'modscope[analytics]'` must bring."""
+    extra = _names(_project()["optional-dependencies"]["analytics"])
+    needed = _third_party_imports(ROOT / "tests" / "outputs" / "test_analytics_queries.py")
+    assert {"duckdb", "pyarrow"} <= needed
+    assert needed <= extra, f"missing from [analytics]: {sorted(needed - extra)}"
+
+
+def test_the_textual_floor_is_the_one_check_sh_tests() -> None:
+    """One `textual>=X` in the dependencies; ./check.sh reads X from pyproject.toml and runs
+    tests/tui against exactly that release; docs/install.md names it."""
+    floors = [
+        m[1]
+        for d in _project()["dependencies"]
+        if (m := re.fullmatch(r"textual>=([0-9.]+)", d.replace(" ", "")))
+    ]
+    assert len(floors) == 1, "textual needs one floor, written textual>=X"
+    check = (ROOT / "check.sh").read_text()
+    assert '"textual==$FLOOR"' in check and 'PYTHONPATH="$FLOOR_DIR"' in check
+    assert re.search(r'pytest"[^\n]*tests/tui', check)
+    assert f"Textual {floors[0]}" in (ROOT / "docs" / "install.md").read_text()
+    # (the floor the check computes, by the same rule as this test, is the declared one)
+    script = check.split("FLOOR=$(\"$VENV/bin/python\" - <<'PY'\n", 1)[1].split("\nPY\n", 1)[0]
+    done = subprocess.run(
+        [sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == floors[0]

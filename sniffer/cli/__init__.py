@@ -20,7 +20,7 @@ from typing import TextIO
 from sniffer import __version__
 from sniffer.cli import heap
 from sniffer.cli.options import Command
-from sniffer.cli.parser import build_parser
+from sniffer.cli.parser import build_parser, combination_error
 from sniffer.errors import USER_ERRORS
 from sniffer.outputs.mqtt.target import redact
 from sniffer.text import plain
@@ -46,6 +46,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         # the bundled demo: in the TUI on a terminal, as a listing when piped
         args = parser.parse_args(["replay"])
+    refused = combination_error(args, out.isatty() and sys.stdin.isatty())
+    if refused is not None:  # an option the command line would ignore: said, not ignored
+        err.write(refused)
+        return EX_USAGE
     func: Command = args.func
     try:
         return func(args, out, err)

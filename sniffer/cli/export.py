@@ -25,6 +25,7 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
+from sniffer.cli.replaying import stdin_copy
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.outputs.export import (
@@ -72,7 +73,16 @@ def output_format(path: str, fmt: str | None) -> str:
 
 
 def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    source = Path(args.file)
+    if args.file == "-":  # as replay -: the bytes kept in a file, read from its content
+        output_format(args.output, args.format)  # a usage error before stdin is read
+        with stdin_copy() as path:
+            return _export(args, out, err, path, "standard input")
+    return _export(args, out, err, Path(args.file), None)
+
+
+def _export(
+    args: argparse.Namespace, out: TextIO, err: TextIO, source: Path, given: str | None
+) -> int:
     fmt = output_format(args.output, args.format)
     what = args.what
     if args.style != "modbus-tcp" and fmt != "pcapng":
@@ -81,7 +91,7 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise UsageError(f"a pcapng export holds frames; --what {what} needs csv or jsonl")
     if fmt == "text" and what != "frames":
         raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
-    if args.output != "-" and Path(args.output).resolve() == source.resolve():
+    if given is None and args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
     query = query_of(args)
     bindings = bindings_for(args)
@@ -89,8 +99,8 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     session, capture = open_session(
         source, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
     )
-    told = line_warnings(options, capture.info.recorded_line, str(source))
-    progress = Progress(err, source.name, source)
+    told = line_warnings(options, capture.info.recorded_line, given or str(source))
+    progress = Progress(err, given or source.name, None if given else source)
     settle()
     session.ingest(capture.chunks(), progress.reading)
     progress.done()
@@ -109,8 +119,8 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             n = write_parquet(args.output, what, describer, progress.rows(chosen, len(chosen)))
         except ParquetError as exc:
             raise UsageError(str(exc)) from None
-        err.write(f"{args.output}: {n} {what} (parquet)\n")
-        return 0
+        err.write(f"{plain(args.output)}: {n} {what} (parquet)\n")
+        return status  # a truncated capture exits 1 here too: the table holds what was read
 
     def shown(part: Sequence[int], first: bool) -> Iterable[int]:
         # the parent's own range runs alongside the workers': its share is the whole's
@@ -121,7 +131,12 @@ def cmd_export(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
         def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
             exporter = PcapExporter(
-                stream, describer, session.line, name=source.name, style=args.style, header=first
+                stream,
+                describer,
+                session.line,
+                name=given or source.name,
+                style=args.style,
+                header=first,
             )
             return exporter.write(shown(part, first))
 
@@ -204,7 +219,7 @@ def register(sub: SubParsers) -> None:
         epilog=EXPORT_EXAMPLES + READ_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("file", help="capture file (any format replay reads)")
+    p.add_argument("file", help="capture file (any format replay reads), - for standard input")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file, or -")
     p.add_argument(
         "--what",

@@ -144,8 +144,108 @@ def man_page(parser: argparse.ArgumentParser) -> str:
             out += [".TP", names, _roff(str(action.help or ""))]
         if sub.epilog:
             out += [".PP", ".nf", _roff(sub.epilog), ".fi"]
-    out += [".SH EXAMPLES", ".nf", _roff(parser.epilog or ""), ".fi", ""]
+    out += [".SH EXAMPLES", ".nf", _roff(parser.epilog or ""), ".fi"]
+    out += _section("EXIT STATUS", EXIT_STATUS)
+    out += _section("ENVIRONMENT", ENVIRONMENT)
+    out += _section("FILES", FILES)
+    out += [
+        ".SH SEE ALSO",
+        ", ".join(f"\\fB{name}\\fR({sec})" for name, sec in SEE_ALSO),
+        ".PP",
+        _roff(
+            "The manual in the docs/ folder of the source: replay.md, live.md, output.md, "
+            "mqtt.md, metrics.md, analytics.md, dictionaries.md, install.md."
+        ),
+        "",
+    ]
     return "\n".join(out)
+
+
+EXIT_STATUS = (
+    ("0", "done: the whole input was read and every step succeeded"),
+    (
+        "1",
+        "done with findings: a capture read with warnings (truncated, a damaged record; the "
+        "rows before and after the damage are there), or dict check found bad files",
+    ),
+    (
+        "2",
+        "a usage error or an input that cannot be read: a missing file, a bad option, two "
+        "options that do not go together, a port that refuses its settings, nothing usable "
+        "in a capture; one line on standard error says what to fix",
+    ),
+    (
+        "70",
+        "a bug in modscope (EX_SOFTWARE): the traceback is printed, with a request to report it",
+    ),
+    ("130", "interrupted (Ctrl-C)"),
+)
+"""Exit statuses, as capture tools use them (see `sniffer.cli`)."""
+
+ENVIRONMENT = (
+    (
+        "MODSCOPE_MQTT_USER, MODSCOPE_MQTT_PASSWORD",
+        "credentials for the broker of --mqtt and of mqtt:// URLs, kept out of the command "
+        "line and the shell history; a user or password in the URL wins",
+    ),
+    (
+        "MODSCOPE_NO_INDEX",
+        "set to anything but 0: never read or write sidecar indexes (as --no-index on every "
+        "command)",
+    ),
+    (
+        "MODSCOPE_PURE_PYTHON",
+        "1: do not load the compiled core; the same code runs in pure Python, slower",
+    ),
+    (
+        "MODSCOPE_PARALLEL_MIN_ROWS",
+        "the fewest rows --jobs auto writes with several processes (default 20000; tests "
+        "set it low to force workers)",
+    ),
+    ("XDG_CACHE_HOME", "where sidecar indexes go when the capture's folder is not writable"),
+)
+"""The environment variables modscope reads (a test holds this to the code)."""
+
+FILES = (
+    (
+        "FILE.modscope\\-index",
+        "the sidecar index of a capture of 4 MB or more, beside it; read instead of the "
+        "capture while it matches (--no-index ignores it)",
+    ),
+    (
+        "$XDG_CACHE_HOME/modscope/index/",
+        "sidecar indexes of captures in folders modscope cannot write (~/.cache when "
+        "XDG_CACHE_HOME is unset)",
+    ),
+    (
+        "sniffer/demo/demo.pcapng, sniffer/demo/demo\\-bus.toml",
+        "the bundled demo capture and its bus file, in the installed package",
+    ),
+    (
+        "dissectors/devices/*.toml",
+        "the device dictionaries modscope ships (modscope dict list), in the installed package",
+    ),
+)
+"""Files modscope reads or writes on its own (not those a command line names)."""
+
+SEE_ALSO = (
+    ("tshark", 1),
+    ("wireshark", 1),
+    ("tcpdump", 8),
+    ("text2pcap", 1),
+    ("socat", 1),
+    ("mbpoll", 1),
+    ("mosquitto_sub", 1),
+    ("jq", 1),
+    ("sigrok\\-cli", 1),
+)
+
+
+def _section(title: str, items: tuple[tuple[str, str], ...]) -> list[str]:
+    out = [f'.SH "{title}"']
+    for name, text in items:
+        out += [".TP", f"\\fB{name}\\fR", _roff(text)]
+    return out
 
 
 Build = Callable[[], argparse.ArgumentParser]

@@ -115,9 +115,8 @@ def _read(
 ) -> int:
     query = query_of(args)
     options = read_options(args)
-    if getattr(args, "mqtt", None):
-        return cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
-    if use_tui:
+    published = bool(getattr(args, "mqtt", None))
+    if use_tui and not published:
         from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
         def reopen() -> tuple[Session, Capture]:
@@ -129,7 +128,11 @@ def _read(
     settle()
     cycles = speed = None
     origin: float | None = None  # the first row's time: where the listing counts from
-    if args.stats:
+    if published:
+        # --mqtt publishes every row as it is read; the statistics or the listing asked
+        # for alongside (--stats, --format) are made from the same rows afterwards
+        cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
+    elif args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
             cycles, speed, origin = _windowed(session, capture, reading)
@@ -171,6 +174,8 @@ def _read(
         if origin is None and len(session.store):
             origin = session.store.t[0]
         out.write(cycle_table(found, labels, origin or 0.0) + "\n")
+        return status
+    if published and not args.format:
         return status
     write_listing(out, args, session, query)
     return status

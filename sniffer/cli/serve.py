@@ -70,7 +70,7 @@ def public_url(host: str, port: int, given: str | None) -> str:
 
 
 def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    capture_path(args)  # fail here, not in the browser, when there is nothing to show
+    capture_path(args.file)  # fail here, not in the browser, when there is nothing to show
     url = public_url(args.host, args.port, args.public_url)
     try:  # here: an optional extra (modscope[serve]), loaded by this command only
         from textual_serve.server import Server

@@ -49,7 +49,10 @@ def parse_offsets(texts: list[str], files: list[str]) -> dict[str, float]:
     return out
 
 
-def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO) -> int:
+def replay_together(
+    args: argparse.Namespace, files: list[str], out: TextIO, err: TextIO, *, tui: bool = False
+) -> int:
+    """`replay FILE FILE...` (and `tui FILE FILE...`, `tui` set: the TUI whatever stdout is)."""
     if files.count("-") > 1:
         raise UsageError("standard input (-) can be given once")
     if args.timeout is not None and not args.timeout > 0:
@@ -66,7 +69,7 @@ def replay_together(args: argparse.Namespace, files: list[str], out: TextIO, err
         raise UsageError("--mqtt takes one capture; replay the files one at a time")
     metrics = open_metrics(args, err, several=True)  # a `bus` label: each file's name
     try:
-        status = _together(args, files, out, err, given, query, bindings, options, metrics)
+        status = _together(args, files, out, err, given, query, bindings, options, metrics, tui)
     except BaseException:
         if metrics is not None:
             metrics.close()
@@ -85,6 +88,7 @@ def _together(
     bindings: dict[int, Binding],
     options: ReadOptions,
     metrics: Metrics | None,
+    tui: bool,
 ) -> int:
     with ExitStack() as stack:
         paths = []
@@ -130,7 +134,7 @@ def _together(
                 "FILE=SECONDS)\n"
             )
     status = max([*statuses, READ_WITH_WARNINGS if warnings else ALL_READ])
-    use_tui = (
+    use_tui = tui or (
         args.format is None
         and not args.stats
         and query is None

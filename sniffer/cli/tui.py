@@ -15,6 +15,7 @@ from sniffer.cli.options import (
     bindings_for,
     read_options,
 )
+from sniffer.cli.together import replay_together
 from sniffer.errors import UsageError
 from sniffer.live.engine import LiveCapture
 from sniffer.outputs.mqtt.command import (
@@ -28,10 +29,10 @@ from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, open_session
 from sniffer.text import plain
 
 
-def capture_path(args: argparse.Namespace) -> Path:
+def capture_path(file: str | None) -> Path:
     """The capture FILE names, or the bundled demo; UsageError if there is none."""
-    if args.file:
-        path = Path(args.file)
+    if file:
+        path = Path(file)
         if not path.is_file():
             raise UsageError(f"{path}: no such file; give the path of a capture to show")
         return path
@@ -41,10 +42,20 @@ def capture_path(args: argparse.Namespace) -> Path:
 
 
 def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    if args.file and args.file.lower().startswith(("mqtt://", "mqtts://")):
-        return _watch(args, err)
-    path = capture_path(args)
-    bindings = bindings_for(args, DEMO_BUS if not args.file else None)
+    files: list[str] = list(args.file or [])
+    if any(f.lower().startswith(("mqtt://", "mqtts://")) for f in files):
+        if len(files) > 1:
+            raise UsageError(f"{files[0]}: watch a published bus alone, without other files")
+        return _watch(args, err, files[0])
+    if len(files) > 1:
+        # what `replay A B` opens on a terminal: the files merged by time, gateways linked
+        together = argparse.Namespace(
+            **vars(args), format=None, stats=False, filter=None, count=None, offset=[]
+        )
+        together.gateway_timeout = 1.0
+        return replay_together(together, files, out, err, tui=True)
+    path = capture_path(files[0] if files else None)
+    bindings = bindings_for(args, DEMO_BUS if not files else None)
     options = read_options(args)
     session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
     from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
@@ -52,7 +63,7 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)
 
 
-def _watch(args: argparse.Namespace, err: TextIO) -> int:
+def _watch(args: argparse.Namespace, err: TextIO, url: str) -> int:
     """`modscope tui mqtt://host/base`: the TUI on a bus another modscope publishes."""
     messages: list[str] = []
 
@@ -61,7 +72,7 @@ def _watch(args: argparse.Namespace, err: TextIO) -> int:
         err.write(f"modscope: {plain(text)}\n")
         err.flush()
 
-    reader = open_mqtt_source(args.file, args, tell)
+    reader = open_mqtt_source(url, args, tell)
     bindings = published_bindings(bindings_for(args), reader, messages.append)
     session = mqtt_session(reader, bindings, args.timeout)
     capture = LiveCapture(reader, session, quiet=MQTT_QUIET)
@@ -84,9 +95,10 @@ def register(sub: SubParsers) -> None:
     )
     p.add_argument(
         "file",
-        nargs="?",
-        help="capture file (default: the bundled demo), or mqtt://host/base to watch a bus "
-        "another modscope publishes",
+        nargs="*",
+        help="capture file (default: the bundled demo); several files open together, merged "
+        "by time, as replay does; or mqtt://host/base to watch a bus another modscope "
+        "publishes",
     )
     add_broker_options(p)  # --mqtt-ca, --mqtt-password-file
     add_line_options(p)

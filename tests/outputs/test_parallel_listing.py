@@ -175,7 +175,8 @@ CASES = [
     (name, fmt, time)
     for name in ("demo", "mixed", "ports", "ascii")
     for fmt in ("text", "jsonl", "csv")
-    for time in ("rel", "abs")
+    # (--time abs changes text only: JSONL and CSV refuse it, their times being numbers)
+    for time in (("rel", "abs") if fmt == "text" else ("rel",))
 ]
 
 

@@ -208,7 +208,7 @@ def test_cli_default_is_modbus_tcp_and_as_rtu_is_byte_exact(
     rtu = (tmp_path / "rtu.pcapng").read_bytes()
     assert b"mbtcp" not in rtu and BAD_CRC in rtu
     assert main(["export", str(source), "-o", str(tmp_path / "x.csv"), "--as", "rtu"]) == 2
-    assert "--as rtu is for a pcapng export" in capsys.readouterr().err
+    assert "--as does not apply to a CSV export" in capsys.readouterr().err
 
 
 def tshark(path: Path, *args: str) -> str:
