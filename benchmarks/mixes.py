@@ -209,6 +209,13 @@ def mix_frames(mix: Mix, n: int) -> list[Wire]:
                     out.append(Wire(stray, t, frame=False))
                     t += len(stray) * char
                 t += t35 * rng.uniform(1.0, 3.0)  # the master's gap before its next poll
+    # exactly n frames (a cycle of many slaves is long: a file of 10 frames takes
+    # start-up off a rate, so it must hold 10)
+    seen = 0
+    for i, w in enumerate(out):
+        seen += w.frame
+        if seen == n:
+            return out[: i + 1]
     return out
 
 
