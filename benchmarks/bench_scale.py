@@ -1,6 +1,13 @@
 """Provides the scale benchmark: whole-process times of modscope and tshark on one recording.
 
 Run: python benchmarks/bench_scale.py [--frames N] [--runs R] [--dir DIR]
+     python benchmarks/bench_scale.py --mixes N [--mix-frames F] [--seed S]
+
+With --mixes N it measures N buses instead of the project's one stream
+(`benchmarks/mixes.py`: the project's stream, the bus of issue #29, then random buses the
+benchmark was not tuned on), each as `modscope record` writes it and one frame per
+packet, with tshark on the same frames, and prints each mix, then the worst and the
+median mix of every figure (the worst is the one to judge by).
 
 It writes (once; kept in DIR and reused while their frame count matches):
 - `reads-N.pcapng`: N frames of a polling bus at 115200 8N1 as `modscope record` writes
@@ -34,6 +41,7 @@ from pathlib import Path
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks.common import LINE, usb_reads
+from benchmarks.mixes import Mix, issue_mix, mixes, project_mix, random_mix, write_mix
 from sniffer.live.port import PortSpec
 from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk
@@ -235,6 +243,168 @@ session.ingest(capture.chunks(), window=REPLAY_WINDOW)
 """
 
 
+@dataclass
+class MixResult:
+    mix: Mix
+    frames: int
+    reads: Figure
+    one: Figure
+    tshark: Figure | None
+    listings: dict[str, tuple[Figure, Figure | None]]
+
+
+def _ratio(ours: Figure, theirs: Figure | None) -> float:
+    return ours.per_frame / theirs.per_frame if theirs is not None else float("nan")
+
+
+def make_mix_files(folder: Path, mix: Mix, n: int) -> tuple[Path, Path]:
+    """The mix's two files of n frames, written by a child process (see make_files)."""
+    reads = folder / f"{mix.name}-reads-{n}.pcapng"
+    one = folder / f"{mix.name}-frames-{n}.pcapng"
+    if not (reads.exists() and one.exists()):
+        subprocess.run(
+            [
+                sys.executable,
+                __file__,
+                "--write-mix",
+                str(n),
+                "--mix-name",
+                mix.name,
+                "--seed",
+                str(mix.seed),
+                "--dir",
+                str(folder),
+            ],
+            check=True,
+        )
+    return reads, one
+
+
+def mix_of(name: str, seed: int) -> Mix:
+    """The mix a child process is asked to write, by its name."""
+    if name == "project":
+        return project_mix()
+    if name == "issue29":
+        return issue_mix()
+    return random_mix(seed)
+
+
+def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings: int) -> MixResult:
+    """The mix's figures: modscope on n frames, tshark on its first `tshark` frames (0:
+    none). tshark's rate per frame falls as a file grows (its Modbus request tracking),
+    so a ratio to tshark on fewer frames than modscope read is, if anything, low."""
+    print(f"{mix.name}: {mix.describe()}", flush=True)
+    reads, one = make_mix_files(folder, mix, n)
+    reads10, one10 = make_mix_files(folder, mix, SMALL)
+    ix = measure(
+        "replay --stats (reads as recorded)",
+        n,
+        modscope("replay", str(reads), "--stats"),
+        modscope("replay", str(reads10), "--stats"),
+        runs,
+    )
+    ix1 = measure(
+        "replay --stats (frame per packet)",
+        n,
+        modscope("replay", str(one), "--stats"),
+        modscope("replay", str(one10), "--stats"),
+        runs,
+    )
+    ts = None
+    if tshark:
+        _, tone = make_mix_files(folder, mix, tshark) if tshark != n else (reads, one)
+        ts = measure(
+            f"tshark plain summary (frame per packet, {tshark:,})",
+            tshark,
+            [*TSHARK, "-r", str(tone)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+        print(
+            f"  => {_ratio(ix, ts):.1f}x tshark (reads as recorded), "
+            f"{_ratio(ix1, ts):.1f}x (frame per packet)",
+            flush=True,
+        )
+    rows: dict[str, tuple[Figure, Figure | None]] = {}
+    if listings:
+        lreads, lone = make_mix_files(folder, mix, listings)
+        out = folder / "out.pcapng"
+        plain = ek = None
+        if tshark:
+            plain = measure(
+                "tshark plain summary (listing frames)",
+                listings,
+                [*TSHARK, "-r", str(lone)],
+                [*TSHARK, "-r", str(one10)],
+                runs,
+            )
+            ek = measure(
+                "tshark -T ek",
+                listings,
+                [*TSHARK, "-T", "ek", "-r", str(lone)],
+                [*TSHARK, "-T", "ek", "-r", str(one10)],
+                runs,
+            )
+        for label, argv, peer in (
+            ("jsonl", ("replay", "--format", "jsonl"), ek),
+            ("text", ("replay", "--format", "text"), plain),
+            ("export", ("export", "-o", str(out)), plain),
+        ):
+            verb, *rest = argv
+            fig = measure(
+                f"{verb} {' '.join(rest)}",
+                listings,
+                modscope(verb, str(lreads), *rest),
+                modscope(verb, str(reads10), *rest),
+                runs,
+            )
+            rows[label] = (fig, peer)
+        out.unlink(missing_ok=True)
+    return MixResult(mix, n, ix, ix1, ts, rows)
+
+
+def summarize(results: list[MixResult]) -> None:
+    """Each mix's ratios, then the worst and the median mix of each figure."""
+    figures: list[tuple[str, list[tuple[float, float, str]]]] = []
+
+    def add(label: str, pick: list[tuple[Figure, Figure | None, str]]) -> None:
+        figures.append(
+            (label, [(_ratio(ours, theirs), ours.per_frame, name) for ours, theirs, name in pick])
+        )
+
+    add("replay --stats, reads as recorded", [(r.reads, r.tshark, r.mix.name) for r in results])
+    add("replay --stats, frame per packet", [(r.one, r.tshark, r.mix.name) for r in results])
+    for key, label in (
+        ("jsonl", "replay --format jsonl (vs -T ek)"),
+        ("text", "replay --format text"),
+        ("export", "export -o x.pcapng"),
+    ):
+        pick = [(*r.listings[key], r.mix.name) for r in results if key in r.listings]
+        if pick:
+            add(label, pick)
+    print("\nper frame, start-up taken off; ratio = modscope / tshark on the same mix")
+    print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
+    for r in results:
+        print(
+            f"  {r.mix.name:<14} {r.reads.per_frame:>11,.0f} {_ratio(r.reads, r.tshark):>5.1f}x "
+            f"{r.one.per_frame:>11,.0f} {_ratio(r.one, r.tshark):>5.1f}x  {r.mix.describe()}"
+        )
+    print(f"\n  {'figure':<36} {'worst':>24} {'median':>24}")
+    for label, values in figures:
+        ordered = sorted(values)
+        worst = ordered[0]
+        median = ordered[(len(ordered) - 1) // 2]
+        print(
+            f"  {label:<36} {worst[0]:5.1f}x {worst[1]:>10,.0f}/s {worst[2]:<7} "
+            f"{median[0]:5.1f}x {median[1]:>10,.0f}/s {median[2]}"
+        )
+    ratio = [r.reads.per_frame / r.one.per_frame for r in results]
+    print(
+        f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
+        f"median {statistics.median(ratio):.2f}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0] if __doc__ else "")
     parser.add_argument("--frames", type=int, default=1_000_000, help="frames for the index")
@@ -245,10 +415,53 @@ def main() -> None:
     parser.add_argument("--dir", type=Path, default=Path("/tmp/modscope-bench"))
     parser.add_argument("--no-tshark", action="store_true", help="time modscope only")
     parser.add_argument("--only-index", action="store_true", help="skip listings and export")
+    parser.add_argument(
+        "--mixes", type=int, metavar="N", help="measure N bus mixes (benchmarks/mixes.py)"
+    )
+    parser.add_argument("--mix-frames", type=int, default=2_000_000, help="frames per mix")
+    parser.add_argument(
+        "--mix-listings",
+        type=int,
+        default=0,
+        metavar="F",
+        help="also the listings and export of each mix, on F frames",
+    )
+    parser.add_argument(
+        "--tshark-frames",
+        type=int,
+        default=200_000,
+        help="frames of each mix tshark reads (its rate per frame falls as files grow)",
+    )
+    parser.add_argument("--seed", type=int, default=29, help="seed of the random mixes")
     parser.add_argument("--write-files", type=int, metavar="N", help=argparse.SUPPRESS)
+    parser.add_argument("--write-mix", type=int, metavar="N", help=argparse.SUPPRESS)
+    parser.add_argument("--mix-name", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.write_files is not None:
         write_files(args.dir, args.write_files)
+        return
+    if args.write_mix is not None:
+        write_mix(args.dir, mix_of(args.mix_name, args.seed), args.write_mix)
+        return
+    if args.mixes is not None:
+        print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f}")
+        print(
+            f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
+            f"{args.tshark_frames:,}), median of {args.runs}"
+        )
+        results = [
+            measure_mix(
+                mix,
+                args.mix_frames,
+                args.dir,
+                args.runs,
+                0 if args.no_tshark else args.tshark_frames,
+                args.mix_listings,
+            )
+            for mix in mixes(args.mixes, args.seed)
+        ]
+        summarize(results)
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
         return
     print(f"machine: {machine()}")
     n, ln, runs = args.frames, args.listing_frames, args.runs

@@ -460,6 +460,44 @@ typedef struct {
     double t_start, t_end, gap;
 } Span;
 
+/* The span of the reads holding `pos`, as _Timeline._span finds it (the newest whose
+ * first byte is at or before pos): among the reads added by this call, then the read that
+ * was the newest when it began (`entry`); NULL when pos lies before those. */
+static const Span *span_at(const Span *entry, const Span *spans, Py_ssize_t n, Py_ssize_t pos) {
+    for (Py_ssize_t j = n - 1; j >= 0; j--)
+        if (spans[j].start <= pos) return &spans[j];
+    if (entry == NULL) return NULL;
+    if (entry[0].start <= pos) return &entry[0];
+    /* the read holding the scan's first position, when older than the newest read */
+    return entry[1].end > entry[1].start && entry[1].start <= pos && pos < entry[1].end ? &entry[1]
+                                                                                        : NULL;
+}
+
+/* _Timeline.start_time and end_time of one span, with Python's operations in its order */
+static double span_start(const Span *s, Py_ssize_t pos) {
+    Py_ssize_t n = s->end - s->start;
+    return n ? s->t_start + (double)(pos - s->start) * (s->t_end - s->t_start) / (double)n
+             : s->t_start;
+}
+
+static double span_end(const Span *s, Py_ssize_t pos) {
+    Py_ssize_t n = s->end - s->start;
+    return n ? s->t_start + (double)(pos + 1 - s->start) * (s->t_end - s->t_start) / (double)n
+             : s->t_end;
+}
+
+/* Whether the CRC of buf[0:length] is right and that of no shorter prefix from MIN_RTU
+ * bytes on is: then the slow path's search (RtuLengths.candidates, which tests lengths
+ * shortest first) can find no other frame at this position than one of `length`. */
+static int crc_only_at(const unsigned char *p, Py_ssize_t length) {
+    uint16_t crc = 0xFFFF;
+    for (Py_ssize_t i = 0; i < length; i++) {
+        crc = (uint16_t)((crc >> 8) ^ crc_table[(crc ^ p[i]) & 0xFF]);
+        if (crc == 0 && i + 1 >= MIN_RTU && i + 1 < length) return 0;
+    }
+    return crc == 0;
+}
+
 static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
     Py_ssize_t q = a / b;
     if ((a % b != 0) && ((a < 0) != (b < 0))) q -= 1;
@@ -468,18 +506,31 @@ static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
 
 /* rtu_scan(buf, tables, pos, end, final, batch, pu, pf, pl, pdl, pr, row, timeout,
  *          cur_start, cur_t0, cur_rate, offset, last_end, slack, char_time, t35,
- *          too_fast, first_too_fast, ends, t_starts, t_ends, k, prev, base)
+ *          too_fast, first_too_fast, ends, t_starts, t_ends, k, prev, base, split,
+ *          held_start, held_end, held_t0, held_t1)
  * See RtuFramer._fast_scan, which calls it and applies what it returns. NaN stands for
- * None in last_end, first_too_fast and t_starts. */
+ * None in last_end, first_too_fast and t_starts.
+ *
+ * With `split`, a frame that began in an earlier read (pos < cur_start) is framed here
+ * too, as the slow path frames it: only where the slow path's search must find that
+ * frame (its CRC right and no shorter prefix's: crc_only_at), timed by the spans of the
+ * reads holding its first and last bytes (_Timeline.start_time, end_time: the reads this
+ * call adds, the newest read before it, and `held`, the read holding pos when the call
+ * began, if older; a frame begun in any other read goes the slow way), left unpaired
+ * (RtuFramer._emit_frame leaves slow-path rows to the Pairer) and setting the open
+ * request as _emit_frame does. Anywhere else it stops for the slow path as before. */
 static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     Py_buffer view, tview, eview, sview, teview;
     Py_ssize_t pos, end, pu, pf, pl, pr, row, cur_start, offset, too_fast, k, prev, base;
-    int final, batch;
+    int final, batch, split;
+    Py_ssize_t held_start, held_end;
+    double held_t0, held_t1;
     double pdl, timeout, cur_t0, cur_rate, last_end, slack, char_time, t35, first_too_fast;
-    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnn", &view, &tview, &pos, &end,
-                          &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout, &cur_start,
-                          &cur_t0, &cur_rate, &offset, &last_end, &slack, &char_time, &t35,
-                          &too_fast, &first_too_fast, &eview, &sview, &teview, &k, &prev, &base))
+    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnndd", &view, &tview, &pos,
+                          &end, &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout,
+                          &cur_start, &cur_t0, &cur_rate, &offset, &last_end, &slack, &char_time,
+                          &t35, &too_fast, &first_too_fast, &eview, &sview, &teview, &k, &prev,
+                          &base, &split, &held_start, &held_end, &held_t0, &held_t1))
         return NULL;
     const unsigned char *buf = (const unsigned char *)view.buf;
     const int64_t *tab = (const int64_t *)tview.buf;
@@ -509,6 +560,10 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
             goto done;
         }
     }
+    /* the newest read when the call began, for frames that began in it */
+    Span entry_spans[2] = {{cur_start, offset, cur_t0, last_end, 0.0},
+                           {held_start, held_end, held_t0, held_t1, 0.0}};
+    const Span *entry = offset > cur_start && !isnan(last_end) ? entry_spans : NULL;
     Py_ssize_t pfx = pf | EXCEPTION_BIT;
     for (;;) { /* once, or once a read of the batch */
         if (batch) {
@@ -550,11 +605,17 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
         while (end - pos >= MIN_RTU) {
             int unit = buf[pos], fc = buf[pos + 1];
             if (unit == pu && fc == pf && pdl != INF) {
-                if (pos < cur_start) { /* needs the timeline of older reads */
-                    slow = 1;
-                    goto stopped;
+                double t0;
+                if (pos >= cur_start) {
+                    t0 = cur_t0 + (double)(pos - cur_start) * cur_rate;
+                } else { /* the timeline of older reads */
+                    const Span *s0 = split ? span_at(entry, spans, n_spans, pos) : NULL;
+                    if (s0 == NULL) {
+                        slow = 1;
+                        goto stopped;
+                    }
+                    t0 = span_start(s0, pos);
                 }
-                double t0 = cur_t0 + (double)(pos - cur_start) * cur_rate;
                 if (t0 > pdl) pu = -1;
             }
             Py_ssize_t length, stop;
@@ -582,6 +643,30 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         if (buf_put(&c_pairs, pair, 16) < 0) goto done;
                     }
                     pr = pu = -1;
+                    row += 1;
+                    pos = stop;
+                    continue;
+                } else if (split && !final && pos < cur_start &&
+                           (fc != pf || answer_pos[pf] < 0 || buf[pos + 2] == pl - 5) &&
+                           crc_only_at(buf + pos, length)) {
+                    /* the answer, begun in an earlier read: as _emit_frame takes it */
+                    const Span *s0 = span_at(entry, spans, n_spans, pos);
+                    const Span *s1 = span_at(entry, spans, n_spans, stop - 1);
+                    if (s0 == NULL || s1 == NULL) {
+                        slow = 1;
+                        goto stopped;
+                    }
+                    double t0 = span_start(s0, pos), t1 = span_end(s1, stop - 1);
+                    uint64_t o = (uint64_t)pos;
+                    uint16_t l = (uint16_t)length;
+                    unsigned char kind = fc == pf ? K_RESPONSE : K_EXCEPTION, u = (unsigned char)unit,
+                                  f = (unsigned char)fc;
+                    if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
+                        buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
+                        buf_put(&c_kind, &kind, 1) < 0 || buf_put(&c_unit, &u, 1) < 0 ||
+                        buf_put(&c_fc, &f, 1) < 0)
+                        goto done;
+                    pr = pu = -1; /* unpaired: the Pairer pairs it */
                     row += 1;
                     pos = stop;
                     continue;
@@ -639,6 +724,51 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                                 pdl = t0 + (double)length * cur_rate + timeout;
                             }
                             if (pl > MAX_RTU) pu = -1;
+                        }
+                        row += 1;
+                        pos = stop;
+                        continue;
+                    } else if (split && !final && pos < cur_start && crc_only_at(buf + pos, length)) {
+                        /* a request begun in an earlier read: as _emit_frame takes it */
+                        Py_ssize_t ap = answer_pos[fc];
+                        const Span *s0 = span_at(entry, spans, n_spans, pos);
+                        const Span *s1 = span_at(entry, spans, n_spans, stop - 1);
+                        if ((unit && (ap == WALKED || (ap >= 0 && length < ap + 2))) || s0 == NULL ||
+                            s1 == NULL) {
+                            slow = 1;
+                            goto stopped;
+                        }
+                        double t0 = span_start(s0, pos), t1 = span_end(s1, stop - 1);
+                        uint64_t o = (uint64_t)pos;
+                        uint16_t l = (uint16_t)length;
+                        unsigned char kind = K_REQUEST, u = (unsigned char)unit, f = (unsigned char)fc;
+                        if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
+                            buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
+                            buf_put(&c_kind, &kind, 1) < 0 || buf_put(&c_unit, &u, 1) < 0 ||
+                            buf_put(&c_fc, &f, 1) < 0)
+                            goto done;
+                        pr = pu = -1; /* unpaired: the Pairer pairs it */
+                        pdl = INF;
+                        if (unit) { /* a broadcast gets no answer */
+                            Py_ssize_t predicted = -1;
+                            if (ap >= 0) {
+                                Py_ssize_t q = buf[pos + ap] << 8 | buf[pos + ap + 1];
+                                predicted = (Py_ssize_t)answer_base[fc] +
+                                            floordiv(q * (Py_ssize_t)answer_item[fc] +
+                                                         (Py_ssize_t)answer_up[fc],
+                                                     (Py_ssize_t)answer_byte[fc]);
+                            } else if (ap == FIXED) {
+                                predicted = (Py_ssize_t)answer_base[fc];
+                            } else if (ap == ECHO) {
+                                predicted = length;
+                            }
+                            if (predicted >= MIN_RTU && predicted <= MAX_RTU) {
+                                pu = unit;
+                                pf = fc;
+                                pfx = fc | EXCEPTION_BIT;
+                                pl = predicted;
+                                if (ap == ECHO) pdl = t1 + timeout;
+                            }
                         }
                         row += 1;
                         pos = stop;

@@ -549,6 +549,9 @@ class RtuFramer(_Framer):
         out = self.out
         last_end = tl.last_end
         first_too_fast = tl.first_too_fast
+        # the read holding the first undecided byte, when older than the newest read: a
+        # frame begun there is timed by it (see rtu_scan)
+        held = tl._span(self.pos) if tl.spans and self.pos < tl.cur_start else _NO_SPAN
         if reads is not None:
             ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
         else:
@@ -612,6 +615,11 @@ class RtuFramer(_Framer):
             k,
             prev,
             base,
+            not tl.line_errors,  # frames begun in an earlier read, too (see rtu_scan)
+            held.start,
+            held.end,
+            held.t_start,
+            held.t_end,
         )
         self.pos = pos
         self.scan_end = end
@@ -736,6 +744,8 @@ class RtuFramer(_Framer):
         self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
 
 
+# the read the compiled fast paths get when no older read holds the scan's position
+_NO_SPAN = _Span(0, 0, 0.0, 0.0, 0.0)
 # the empty batch the compiled fast paths get when there is none
 _NO_READS: tuple[array[int], array[float], array[float]] = (array("q"), array("d"), array("d"))
 
