@@ -634,7 +634,20 @@ def test_rvs_dn_dump_is_still_a_hexdump() -> None:
     assert detect.sniff(head) == detect.HEXDUMP
 
 
-EXISTING = sorted(p for p in CAPTURES.rglob("*") if p.is_file() and LOGS not in p.parents)
+# the doctor's buses are Saleae exports by design (tests/captures/doctor/README.md)
+DOCTOR = CAPTURES / "doctor"
+EXISTING = sorted(
+    p
+    for p in CAPTURES.rglob("*")
+    if p.is_file() and LOGS not in p.parents and DOCTOR not in p.parents
+)
+
+
+@pytest.mark.parametrize("path", sorted(DOCTOR.glob("*.csv")), ids=lambda p: p.name)
+def test_the_doctors_buses_are_read_as_the_saleae_exports_they_are(path: Path) -> None:
+    head = path.read_bytes()[: detect.HEAD_SIZE]
+    assert sniff_log(head) is None
+    assert detect.sniff(head) == detect.SALEAE
 
 
 @pytest.mark.parametrize("path", EXISTING, ids=[p.name for p in EXISTING])
