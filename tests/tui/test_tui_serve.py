@@ -92,7 +92,7 @@ def test_a_browser_on_another_machine_sees_the_app(link: str) -> None:
     pytest.importorskip("textual_serve", reason="the [serve] extra is not installed")
     port = _free_port(HERE)
     url = f"http://{HERE}:{port}"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MODSCOPE_SERVE_TOKEN": "test-token"}
     # listening on every address, as on a site PC; the page points at the public URL
     server = subprocess.Popen(
         [
@@ -131,7 +131,7 @@ def test_a_browser_on_another_machine_sees_the_app(link: str) -> None:
                 link,
                 sys.executable,
                 str(ROOT / "tests" / "support" / "tui_browser.py"),
-                url + "/",
+                url + "/?token=test-token",
                 "60",
                 "REPLAY",
                 "demo.pcapng",

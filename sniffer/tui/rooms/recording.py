@@ -8,6 +8,7 @@ from pathlib import Path
 from sniffer.live.recorder import RecordError
 from sniffer.tui.feed import Recordable
 from sniffer.tui.rooms.base import Room
+from sniffer.tui.rooms.exporting import served, served_path
 
 
 class Recording(Room):
@@ -37,8 +38,15 @@ class Recording(Room):
         live = app.live
         if not answer or not isinstance(live, Recordable):
             return
+        path: Path | None = Path(answer).expanduser()
+        if served():  # a browser visitor records only inside serve's --export-dir
+            path, why = served_path(answer)
+            if path is None:
+                why = why or "recording needs `modscope serve --export-dir DIR`"
+                app.say(why, severity="error")
+                return
         try:
-            recorder = live.start_recording(Path(answer).expanduser())
+            recorder = live.start_recording(path)
         except RecordError as exc:
             app.say(str(exc), severity="error")
             return
