@@ -1,19 +1,30 @@
-"""Nothing dropped at 128 connections (issue #30, item 4): a poller that connects anew
-for each poll goes on past its 128th connection in the channels of closed ones, every
-request answered and paired (tshark, a real peer, counts the same answers); more
+"""Nothing dropped at 128 connections or interfaces (issue #30, item 4): a poller that
+connects anew for each poll goes on past its 128th connection in the channels of closed
+ones, every request answered and paired (tshark, a real peer, pairs as many); more
 connections open at once than channels hold give one warning with a count, not one per
-connection."""
+connection; 200 pcapng sections of one port joined by `cat` are read whole."""
 
 from __future__ import annotations
 
+import io
 import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
+from dissectors.checks import with_crc
+from sniffer.model import LineSettings
 from sniffer.session.session import Session, open_session
+from sniffer.sources import open_capture
+from sniffer.sources.linktypes import LINKTYPE_RTAC_SERIAL
 from sniffer.sources.net.decoder import REUSED
+from sniffer.sources.pcapng_writer import (
+    EPB_FLAG_INBOUND,
+    PcapngWriter,
+    describe_interface,
+    rtac_record,
+)
 from sniffer.vocab import Kind, Status
 from tests.support.gateway import mbap_frame
 from tests.support.netbuild import TCP_ACK, TCP_FIN, Conversation, pcap
@@ -88,3 +99,28 @@ def test_too_many_connections_at_once_give_one_warning_with_a_count(tmp_path: Pa
     assert "192.168.1.10:40128" in left[0]
     store = session.store
     assert sum(1 for i in range(len(store)) if store.kind[i] == Kind.REQUEST) == 128
+
+
+def test_concatenated_pcapng_sections_are_read_past_128_interfaces(tmp_path: Path) -> None:
+    """`cat` of 200 recordings of one port: each section describes the same interface,
+    which goes on in one channel; every section's frames are read."""
+    line = LineSettings(baud=19200, parity="N", stopbits=2, mode="rtu")
+    frame = with_crc(bytes.fromhex("010300000001"))
+    sections = []
+    for k in range(200):
+        out = io.BytesIO()
+        writer = PcapngWriter(out)
+        iface = writer.add_interface(
+            LINKTYPE_RTAC_SERIAL, name="ttyUSB0", description=describe_interface(line)
+        )
+        t = T0 + k * 1.0
+        writer.write_packet(iface, t, rtac_record(t - 0.005, frame), flags=EPB_FLAG_INBOUND)
+        sections.append(out.getvalue())
+    path = tmp_path / "cat.pcapng"
+    path.write_bytes(b"".join(sections))
+    capture = open_capture(path)
+    data = [c for c in capture.chunks() if c.data]
+    assert [c.data for c in data] == [frame] * 200
+    assert {c.channel for c in data} == {0}
+    assert capture.warnings == []
+    assert capture.info.channels == {0: "ttyUSB0 (RTAC serial)"}
