@@ -409,6 +409,12 @@ class NetDecoder:
                 f"{sum(h.gaps for _, h in gaps)} gap(s) in TCP streams, {total} bytes the "
                 "capture does not hold; the frames around each gap are marked"
             )
+        conflicts = sum(h.conflicts for c in self.connections.values() for h in c.halves)
+        if conflicts:
+            self.warnings.append(
+                f"{conflicts} TCP retransmission(s) carry bytes different from those first "
+                "sent (a reassembly error); the first bytes were kept, each place is marked"
+            )
         if self.skipped:
             parts = ", ".join(f"{n} {reason}" for reason, n in sorted(self.skipped.items()))
             self.warnings.append(f"packets without Modbus left out: {parts}")
