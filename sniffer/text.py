@@ -70,9 +70,9 @@ def csv_cell(value: object, *, raw: bool = False) -> str | int | float:
     number (a time or a latency we formatted, `-1.5`), is written as it is; a spreadsheet
     reads it as a number, which cannot run. Every other text goes through `plain`
     (control characters escaped, so nothing reaches a terminal that `cat`s the file) and,
-    when it starts with `=`, `+`, `-` or `@`, gets a leading `'`, which spreadsheets take
-    as "this is text" and do not show. `raw` (the `--raw-csv` option) leaves that `'`
-    out, for programs that read the file and never a spreadsheet."""
+    when it starts with `=`, `+`, `-` or `@` (after any spaces), gets a leading `'`,
+    which spreadsheets take as "this is text" and do not show. `raw` (the `--raw-csv`
+    option) leaves that `'` out, for programs that read the file and never a spreadsheet."""
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -80,7 +80,8 @@ def csv_cell(value: object, *, raw: bool = False) -> str | int | float:
     if isinstance(value, int) or (isinstance(value, float) and math.isfinite(value)):
         return value
     text = plain(str(value), CSV_TEXT_LIMIT)
-    if raw or not text or text[0] not in FORMULA_START or _NUMBER.fullmatch(text):
+    first = text.lstrip(" ")[:1]  # " =1+1": spreadsheets that trim spaces run it too
+    if raw or not first or first not in FORMULA_START or _NUMBER.fullmatch(text.strip(" ")):
         return text
     return "'" + text
 
