@@ -228,7 +228,10 @@ def register(sub: SubParsers) -> None:
             "  modscope serve bus.pcapng --host 0.0.0.0 --port 8000 \\\n"
             "      --public-url http://10.0.0.5:8000   from other machines, at 10.0.0.5\n"
             "The page's scripts connect back to --public-url, so give the address other\n"
-            "machines reach this one at (behind a proxy: the proxy's address)."
+            "machines reach this one at (behind a proxy: the proxy's address).\n"
+            "The address printed holds a random token (MODSCOPE_SERVE_TOKEN sets one that\n"
+            "lasts); without it the page answers 403. Visitors' exports go to --export-dir\n"
+            "only, as downloads (docs/untrusted-input.md)."
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
