@@ -6,6 +6,7 @@ export names no path outside the export folder."""
 from __future__ import annotations
 
 import asyncio
+import json
 import os
 import re
 import socket
@@ -34,7 +35,8 @@ def _free_port() -> int:
 
 @pytest.fixture
 def served(tmp_path: Path) -> Iterator[tuple[str, str]]:
-    """A running `modscope serve --max-sessions 1`: (its base URL, the token it printed)."""
+    """A running `modscope serve --max-sessions 1 --export-dir TMP`: (its base URL, the
+    token it printed)."""
     port = _free_port()
     env = {k: v for k, v in os.environ.items() if k != serve.TOKEN_ENV}
     env["PYTHONPATH"] = str(ROOT)
@@ -50,6 +52,8 @@ def served(tmp_path: Path) -> Iterator[tuple[str, str]]:
             str(port),
             "--max-sessions",
             "1",
+            "--export-dir",
+            str(tmp_path),
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -142,3 +146,72 @@ def test_a_served_export_stays_in_the_export_folder(
         assert path is None and why, answer
     path, why = exporting.served_path("kept.jsonl")
     assert path is None and "exists" in why
+
+
+@pytest.mark.asyncio
+async def test_a_served_visitors_export_goes_to_the_folder_and_downloads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The app as `serve` starts it: a path outside the export folder is refused; a plain
+    name is written inside it, never over a file (the download: the served test below)."""
+    from sniffer.tui.app import ModscopeApp
+    from tests.support.tui import hostile_session, ready
+    from tests.tui.test_tui_app import SIZE, wait_said
+
+    folder = tmp_path / "exports"
+    folder.mkdir()
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))  # (Textual's headless delivery)
+    monkeypatch.setenv(exporting.SERVED_ENV, "1")
+    monkeypatch.setenv(exporting.EXPORT_DIR_ENV, str(folder))
+    outside = tmp_path / "outside.jsonl"
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=SIZE) as pilot:
+        await ready(pilot, app)
+        await pilot.press("e", "ctrl+u", *str(outside), "enter")
+        await wait_said(pilot, app, "give a plain file name")
+        await pilot.press("e", "ctrl+u", *"rows.jsonl", "enter")
+        await wait_said(pilot, app, "wrote")
+        await pilot.press("e", "ctrl+u", *"rows.jsonl", "enter")
+        await wait_said(pilot, app, "exists in the export folder")
+    assert not outside.exists()
+    written = (folder / "rows.jsonl").read_text(encoding="utf-8").splitlines()
+    assert written and all(json.loads(x)["index"] >= 0 for x in written)
+
+
+async def _export_through_the_browser(base: str, token: str) -> tuple[bytes, int]:
+    """As a browser does: open the app, press `e` and Enter (the default name), take the
+    download the app offers; (its bytes, the status a visitor without the cookie gets)."""
+    cookies = {serve.COOKIE: token}
+    async with (
+        aiohttp.ClientSession(cookies=cookies) as http,
+        http.ws_connect(f"{base}/ws?width=120&height=36", headers={"Origin": base}) as ws,
+    ):
+        screen = b""
+        while b"demo.pcapng" not in screen:  # the status bar names the capture: ready
+            got = await ws.receive(timeout=30)
+            if got.type == aiohttp.WSMsgType.BINARY:
+                screen += got.data
+        await ws.send_json(["stdin", "e"])
+        await asyncio.sleep(0.5)  # (the prompt opens; its default name is offered)
+        await ws.send_json(["stdin", "\r"])
+        while True:
+            got = await ws.receive(timeout=30)
+            if got.type == aiohttp.WSMsgType.TEXT and got.data.startswith('["deliver_file_start"'):
+                key = json.loads(got.data)[1]
+                break
+        async with http.get(f"{base}/download/{key}") as r:
+            assert r.status == 200
+            body = await r.read()
+    async with aiohttp.ClientSession() as stranger, stranger.get(f"{base}/download/{key}") as r:
+        return body, int(r.status)
+
+
+@pytest.mark.slow
+def test_an_export_in_the_browser_is_a_download_and_stays_in_the_folder(
+    served: tuple[str, str], tmp_path: Path
+) -> None:
+    base, token = served
+    body, stranger = asyncio.run(_export_through_the_browser(base, token))
+    kept = (tmp_path / exporting.EXPORT_DEFAULT).read_bytes()
+    assert body == kept and kept.count(b"\n") > 10  # the rows, as written in the folder
+    assert stranger == 403
