@@ -150,10 +150,10 @@ def test_record_to_a_closed_pipe_blames_the_pipe(tmp_path: Path) -> None:
             text=False,
         )
         assert proc.stdout is not None and proc.stderr is not None
-        wait_ready(_Text(proc.stderr))
-        proc.stdout.read(64)  # `head -c 64`: the header, then the reader goes away
-        proc.stdout.close()
         try:
+            wait_ready(_Text(proc.stderr))
+            proc.stdout.read(64)  # `head -c 64`: the header, then the reader goes away
+            proc.stdout.close()
             deadline = time.monotonic() + 20
             while proc.poll() is None and time.monotonic() < deadline:
                 bus.inject(FRAME, source="master")
