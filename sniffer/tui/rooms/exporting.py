@@ -23,7 +23,7 @@ from sniffer.tui.rooms.base import Room
 
 EXPORT_DEFAULT = "modscope-export.jsonl"
 EXPORT_FORMATS = {"jsonl": "jsonl", "json": "jsonl", "ndjson": "jsonl", "csv": "csv"}
-# set by `modscope serve` for the apps it starts (the same names as sniffer.cli.serve's)
+# set by `modscope serve` for the apps it starts (the names its command module uses)
 SERVED_ENV = "MODSCOPE_SERVED"
 EXPORT_DIR_ENV = "MODSCOPE_SERVE_EXPORT_DIR"
 
