@@ -20,7 +20,12 @@ FORMULA_START = frozenset("=+-@\t\r")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 # what `plain` escapes; text with none of it is returned as it is (one regex search in C
 # instead of a Python loop over its characters: most text has nothing to escape)
-_UNSAFE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+# bidirectional controls too (U+202A-202E, U+2066-2069, marks): they reorder what a
+# terminal shows after them (Trojan Source, CVE-2021-42574)
+_BIDI = frozenset((0x061C, 0x200E, 0x200F, *range(0x202A, 0x202F), *range(0x2066, 0x206A)))
+_UNSAFE = re.compile(
+    r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]"
+)
 
 
 def plain(text: str, limit: int = MAX_TEXT) -> str:
@@ -30,7 +35,7 @@ def plain(text: str, limit: int = MAX_TEXT) -> str:
     out = []
     for ch in text:
         code = ord(ch)
-        if code < 0x20 or 0x7F <= code < 0xA0 or code in (0x2028, 0x2029):
+        if code < 0x20 or 0x7F <= code < 0xA0 or code in (0x2028, 0x2029) or code in _BIDI:
             out.append(f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
         else:
             out.append(ch)
@@ -65,9 +70,9 @@ def csv_cell(value: object, *, raw: bool = False) -> str | int | float:
     number (a time or a latency we formatted, `-1.5`), is written as it is; a spreadsheet
     reads it as a number, which cannot run. Every other text goes through `plain`
     (control characters escaped, so nothing reaches a terminal that `cat`s the file) and,
-    when it starts with `=`, `+`, `-` or `@`, gets a leading `'`, which spreadsheets take
-    as "this is text" and do not show. `raw` (the `--raw-csv` option) leaves that `'`
-    out, for programs that read the file and never a spreadsheet."""
+    when it starts with `=`, `+`, `-` or `@` (after any spaces), gets a leading `'`,
+    which spreadsheets take as "this is text" and do not show. `raw` (the `--raw-csv`
+    option) leaves that `'` out, for programs that read the file and never a spreadsheet."""
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -75,7 +80,8 @@ def csv_cell(value: object, *, raw: bool = False) -> str | int | float:
     if isinstance(value, int) or (isinstance(value, float) and math.isfinite(value)):
         return value
     text = plain(str(value), CSV_TEXT_LIMIT)
-    if raw or not text or text[0] not in FORMULA_START or _NUMBER.fullmatch(text):
+    first = text.lstrip(" ")[:1]  # " =1+1": spreadsheets that trim spaces run it too
+    if raw or not first or first not in FORMULA_START or _NUMBER.fullmatch(text.strip(" ")):
         return text
     return "'" + text
 

@@ -53,6 +53,7 @@ LAZY = {
     ("sniffer.cli.tui", "sniffer.tui.app"): "the TUI only for the command that opens it",
     ("sniffer.cli.live", "sniffer.tui.app"): "the TUI only for a live line shown in it",
     ("sniffer.cli.serve", "textual_serve"): "the optional serve extra, for `serve` alone",
+    ("sniffer.cli.serve", "aiohttp"): "textual-serve's web server (its guard), for `serve` alone",
     ("sniffer.core", "sniffer._core"): "the compiled core: may be missing or disabled",
     ("sniffer.live.port", "serial"): "pyserial's port enumeration, for `ports` alone",
     ("sniffer.outputs.mqtt.link", "paho"): "the optional MQTT extra, when publishing",

@@ -75,12 +75,26 @@ def _csv_enum(path: str, line: int, text: str) -> dict[str, str]:
     return names
 
 
+MAX_COLUMN_PROBLEMS = 20  # unknown or repeated header columns told one by one; then counted
+
+
+def _cells(name: str, line: int, text: str, dialect: type[csv.Dialect] | csv.Dialect) -> list[str]:
+    """The cells of one line; a DictionaryError naming the line when the csv module
+    refuses it (a cell over its field size limit, 131,072 characters; a NUL)."""
+    try:
+        return next(csv.reader([text], dialect), [])
+    except csv.Error as exc:
+        raise DictionaryError(
+            name, line, f"the line cannot be read as CSV ({exc})", "shorten or fix the line"
+        ) from None
+
+
 def _csv_row(
     name: str, header: list[str], line: int, row_text: str, dialect: type[csv.Dialect] | csv.Dialect
 ) -> dict[str, object] | None:
     """One register row as the entry a TOML dictionary would hold (None: an empty row)."""
     decimal_comma = dialect.delimiter != ","
-    cells = next(csv.reader([row_text], dialect), [])
+    cells = _cells(name, line, row_text, dialect)
     if not any(cell.strip() for cell in cells):
         return None
     if len(cells) > len(header):
@@ -144,27 +158,41 @@ def import_csv(path: str | Path) -> DeviceDictionary:
             name, None, "the CSV file is empty", "add a header row: table,address,name"
         )
     header_line, header_text = rows[0]
-    try:
+    try:  # (the sniffer reads a header of real length: a few hundred characters)
         dialect: type[csv.Dialect] | csv.Dialect = csv.Sniffer().sniff(
-            header_text, delimiters=",;\t"
+            header_text[:4096], delimiters=",;\t"
         )
     except csv.Error:
         dialect = csv.excel
-    header = [cell.strip().lower() for cell in next(csv.reader([header_text], dialect))]
+    header = [cell.strip().lower() for cell in _cells(name, header_line, header_text, dialect)]
     problems: list[DictionaryError] = []
-    for index, column in enumerate(header):
-        if column in header[:index]:
+    seen: set[str] = set()
+    more = 0  # header problems past MAX_COLUMN_PROBLEMS
+    for column in header:
+        if len(problems) >= MAX_COLUMN_PROBLEMS and (column in seen or column not in CSV_COLUMNS):
+            more += 1
+        elif column in seen:
             problems.append(
                 DictionaryError(
                     name, header_line, f"the header has '{column}' twice", "keep one of the columns"
                 )
             )
         elif column not in CSV_COLUMNS:
-            close = nearest(column, CSV_COLUMNS)
+            close = nearest(column[:64], CSV_COLUMNS)
             fix = f"rename it '{close}'" if close else f"use columns from {', '.join(CSV_COLUMNS)}"
             problems.append(
-                DictionaryError(name, header_line, f"unknown CSV column '{column}'", fix)
+                DictionaryError(name, header_line, f"unknown CSV column '{column[:64]}'", fix)
             )
+        seen.add(column)
+    if more:
+        problems.append(
+            DictionaryError(
+                name,
+                header_line,
+                f"{more:,} more unknown or repeated columns",
+                f"use columns from {', '.join(CSV_COLUMNS)}",
+            )
+        )
     for column in CSV_REQUIRED:
         if column not in header:
             problems.append(

@@ -290,7 +290,20 @@ DOCTOR = Table(
     active=_doctor_active,
 )
 
-SERVE = Table(common=frozenset(("--host", "--port", "--public-url", *LINE, "--timeout", *DEVICE)))
+SERVE = Table(
+    common=frozenset(
+        (
+            "--host",
+            "--port",
+            "--public-url",
+            "--export-dir",
+            "--max-sessions",
+            *LINE,
+            "--timeout",
+            *DEVICE,
+        )
+    )
+)
 
 TABLES: dict[str, Table] = {
     "replay": REPLAY,

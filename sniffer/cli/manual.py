@@ -202,6 +202,16 @@ ENVIRONMENT = (
         "the fewest rows --jobs auto writes with several processes (default 20000; tests "
         "set it low to force workers)",
     ),
+    (
+        "MODSCOPE_SERVE_TOKEN",
+        "serve: the token visitors must bring (in the printed URL), instead of a random one "
+        "each start (a bookmark that lasts)",
+    ),
+    (
+        "MODSCOPE_SERVED, MODSCOPE_SERVE_EXPORT_DIR",
+        "set by serve for the apps it starts (a visitor's exports and recordings only inside "
+        "--export-dir); not for setting by hand",
+    ),
     ("XDG_CACHE_HOME", "where sidecar indexes go when the capture's folder is not writable"),
 )
 """The environment variables modscope reads (a test holds this to the code)."""

@@ -114,6 +114,8 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         err.write("\r\x1b[K")
     err.write(f"modscope: {status(capture)}{_published(publisher)}\n")
     check_reader(capture)
+    if recorder.stopped is not None:
+        return 2  # a full disk or a closed pipe: said once already, as it happened
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0

@@ -1,23 +1,41 @@
 """Provides `modscope serve`: the TUI in a web browser, one app per visitor, through the
-optional textual-serve package (`pip install 'modscope[serve]'`)."""
+optional textual-serve package (`pip install 'modscope[serve]'`).
+
+Safe by default (docs/untrusted-input.md, "serve"): the address printed carries a random
+token (or the one in MODSCOPE_SERVE_TOKEN); the page answers only with it, and hands the
+browser a cookie that the app's WebSocket must show. The WebSocket must also come from
+the page's own origin (a page of another site, opened in the same browser, is refused),
+and at most --max-sessions apps run at once. A visitor's export and recording write only
+inside --export-dir, under a plain name, never over a file, and are handed to the browser
+as downloads; without --export-dir nothing is kept on this machine.
+"""
 
 from __future__ import annotations
 
 import argparse
 import atexit
+import hmac
+import os
 import re
+import secrets
 import shlex
 import shutil
 import socket
 import sys
 import tempfile
+from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TextIO
-from urllib.parse import urlsplit
+from typing import TYPE_CHECKING, Any, TextIO
+from urllib.parse import quote, urlsplit
 
 from sniffer.cli.options import SubParsers, add_device_options, add_line_options
 from sniffer.cli.tui import capture_path
 from sniffer.errors import UsageError
+
+if TYPE_CHECKING:
+    from aiohttp import web
+
+    Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
 SERVE_MISSING = (
     "modscope: error: `modscope serve` needs the optional textual-serve package; "
@@ -44,6 +62,82 @@ def forwarded(args: argparse.Namespace) -> list[str]:
 
 
 WILDCARDS = ("0.0.0.0", "::", "[::]", "")
+TOKEN_ENV = "MODSCOPE_SERVE_TOKEN"  # a token of one's own (a bookmark that lasts)
+EXPORT_DIR_ENV = "MODSCOPE_SERVE_EXPORT_DIR"  # read by the TUI's export and recording
+SERVED_ENV = "MODSCOPE_SERVED"  # set for the apps `serve` starts: write nowhere else
+COOKIE = "modscope_token"
+MAX_SESSIONS = 4  # each app is a process of about 50 MB
+
+
+def origin_of(url: str) -> str:
+    """scheme://host[:port] of `url`, lower-cased, default ports dropped."""
+    parts = urlsplit(url)
+    host = (parts.hostname or "").lower()
+    if ":" in host:
+        host = f"[{host}]"
+    default = {"http": 80, "https": 443, "ws": 80, "wss": 443}.get(parts.scheme)
+    port = "" if parts.port in (None, default) else f":{parts.port}"
+    return f"{parts.scheme.lower()}://{host}{port}"
+
+
+class Guard:
+    """The checks every request passes (module doc): the token, the origin, the cap."""
+
+    def __init__(self, token: str, public: str, max_sessions: int) -> None:
+        self.token = token
+        self.public = origin_of(public)
+        self.max_sessions = max_sessions
+        self.sessions = 0
+
+    def authorised(self, query_token: str | None, cookie: str | None) -> bool:
+        given = query_token if query_token is not None else cookie
+        return given is not None and hmac.compare_digest(given.encode(), self.token.encode())
+
+    def same_origin(self, origin: str | None, host: str | None, scheme: str) -> bool:
+        """Whether a WebSocket's Origin header is the page's own: the public URL's, or
+        the address the browser asked for (Host). A browser always sends Origin."""
+        if not origin:
+            return False
+        seen = origin_of(origin)
+        return seen == self.public or (host is not None and seen == origin_of(f"{scheme}://{host}"))
+
+    def middleware(self) -> Any:
+        from aiohttp import web  # textual-serve's own dependency
+
+        @web.middleware
+        async def guard(request: web.Request, handler: Handler) -> web.StreamResponse:
+            if request.path.startswith("/static/"):
+                return await handler(request)  # the page's scripts and fonts: nothing private
+            query_token = request.query.get("token")
+            if not self.authorised(query_token, request.cookies.get(COOKIE)):
+                raise web.HTTPForbidden(
+                    text="modscope serve: open the address with ?token=... that "
+                    "`modscope serve` printed\n"
+                )
+            if request.path == "/ws":
+                if not self.same_origin(
+                    request.headers.get("Origin"), request.host, request.scheme
+                ):
+                    raise web.HTTPForbidden(
+                        text="modscope serve: this page's origin may not open the app\n"
+                    )
+                if self.sessions >= self.max_sessions:
+                    raise web.HTTPServiceUnavailable(
+                        text=f"modscope serve: {self.max_sessions} sessions are open "
+                        "already (--max-sessions); close one and reload\n"
+                    )
+                self.sessions += 1
+                try:
+                    return await handler(request)
+                finally:
+                    self.sessions -= 1
+            response: web.StreamResponse = await handler(request)
+            if query_token is not None:
+                response.set_cookie(COOKIE, self.token, httponly=True, samesite="Strict", path="/")
+            response.headers["Referrer-Policy"] = "no-referrer"  # the token stays here
+            return response
+
+        return guard
 
 
 def public_url(host: str, port: int, given: str | None) -> str:
@@ -69,9 +163,23 @@ def public_url(host: str, port: int, given: str | None) -> str:
     return f"http://{name}" + ("" if port == 80 else f":{port}")
 
 
+def export_dir(given: str | None) -> str | None:
+    """The folder visitors' exports go to, checked: it exists and is a folder."""
+    if given is None:
+        return None
+    path = Path(given).expanduser().resolve()
+    if not path.is_dir():
+        raise UsageError(f"--export-dir {given}: no such folder; create it or name another")
+    return str(path)
+
+
 def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     capture_path(args.file)  # fail here, not in the browser, when there is nothing to show
     url = public_url(args.host, args.port, args.public_url)
+    if args.max_sessions < 1:
+        raise UsageError(f"--max-sessions {args.max_sessions}: give 1 or more")
+    folder = export_dir(args.export_dir)
+    token = os.environ.get(TOKEN_ENV) or secrets.token_urlsafe(18)
     try:  # here: an optional extra (modscope[serve]), loaded by this command only
         from textual_serve.server import Server
     except ImportError:
@@ -79,13 +187,26 @@ def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         return 2
     command = shlex.join([sys.executable, "-m", "sniffer.cli", *forwarded(args)])
     where = "every address" if args.host in WILDCARDS else args.host
-    out.write(f"modscope: listening on {where}, port {args.port}; browsers open {url}\n")
+    out.write(
+        f"modscope: listening on {where}, port {args.port}; browsers open "
+        f"{url}/?token={quote(token)}\n"
+    )
+    out.write(
+        f"modscope: at most {args.max_sessions} sessions; exports "
+        + (f"go to {folder} and download" if folder else "download only (no --export-dir)")
+        + "\n"
+    )
     if args.host in WILDCARDS and not args.public_url:
         out.write(
             f"modscope: if other machines cannot resolve {urlsplit(url).hostname}, "
             "pass --public-url http://THIS-ADDRESS:PORT\n"
         )
     out.flush()
+    # the apps are this process's children and inherit its environment (textual-serve)
+    os.environ[SERVED_ENV] = "1"
+    os.environ.pop(EXPORT_DIR_ENV, None)
+    if folder:
+        os.environ[EXPORT_DIR_ENV] = folder
     server = Server(
         command,
         host=args.host,
@@ -94,6 +215,15 @@ def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         public_url=url,
         templates_path=offline_templates(),
     )
+    guard = Guard(token, url, args.max_sessions)
+    make_app = server._make_app
+
+    async def guarded_app() -> Any:
+        app = await make_app()
+        app.middlewares.append(guard.middleware())  # before the app starts (and freezes)
+        return app
+
+    server._make_app = guarded_app  # type: ignore[method-assign]
     server.serve()
     return 0
 
@@ -109,7 +239,10 @@ def register(sub: SubParsers) -> None:
             "  modscope serve bus.pcapng --host 0.0.0.0 --port 8000 \\\n"
             "      --public-url http://10.0.0.5:8000   from other machines, at 10.0.0.5\n"
             "The page's scripts connect back to --public-url, so give the address other\n"
-            "machines reach this one at (behind a proxy: the proxy's address)."
+            "machines reach this one at (behind a proxy: the proxy's address).\n"
+            "The address printed holds a random token (MODSCOPE_SERVE_TOKEN sets one that\n"
+            "lasts); without it the page answers 403. Visitors' exports go to --export-dir\n"
+            "only, as downloads (docs/untrusted-input.md)."
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -125,6 +258,19 @@ def register(sub: SubParsers) -> None:
         metavar="URL",
         help="the address browsers use to reach this machine, e.g. http://10.0.0.5:8000 "
         "(default http://HOST:PORT; this machine's name when HOST is 0.0.0.0)",
+    )
+    p.add_argument(
+        "--max-sessions",
+        type=int,
+        default=MAX_SESSIONS,
+        metavar="N",
+        help=f"apps running at once, about 50 MB each (default {MAX_SESSIONS})",
+    )
+    p.add_argument(
+        "--export-dir",
+        metavar="DIR",
+        help="the folder visitors' exports and recordings are written to (default: "
+        "none; exports are downloads only)",
     )
     add_line_options(p)
     add_device_options(p)

@@ -32,6 +32,12 @@ left undecided are decided (its turn is over).
 chunks in time order over all connections (`sniffer.sources.net.decoder`), so rows are
 merged as soon as no channel can still give an older one: rows are stored in time
 order, a request before its answer when both have the same time.
+
+A connection that takes the channels of a closed one (past 128 connections, see
+`sniffer.sources.net.decoder`) starts with a `REUSED` event: what the closed one left
+unframed is closed as it is (as at a gap), its requests still open time out (no answer
+can come on another connection), and the channels' peers are read again from their
+labels.
 """
 
 from __future__ import annotations
@@ -49,7 +55,8 @@ from sniffer.framing.serial import MAX_NOISE, RtuFramer
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.sources.net.carrier import MBAP_CARRIERS, parse_label
-from sniffer.sources.net.tcp import GAP
+from sniffer.sources.net.decoder import REUSED
+from sniffer.sources.net.tcp import CONNECTION, GAP
 from sniffer.vocab import Flag, Kind, Status
 
 if TYPE_CHECKING:
@@ -402,6 +409,21 @@ class NetPairer:
             if s.status[req] == Status.OPEN and s.partner[req] == NO_PARTNER:
                 self._time_out(req)
 
+    def end_connection(self, conn: int) -> None:
+        """Connection `conn` ended and another takes its channels: its open requests time
+        out and no late answer is awaited for them."""
+        self.update()
+        s = self.store
+        for key in [k for k in self.open if k[0] == conn]:
+            for req in self.open.pop(key):
+                if s.partner[req] == NO_PARTNER:
+                    s.status[req] = Status.TIMEOUT
+        for key in [k for k in self.late if k[0] == conn]:
+            del self.late[key]
+        req = self.serial_open.pop(conn, -1)
+        if req >= 0 and s.partner[req] == NO_PARTNER:
+            s.status[req] = Status.TIMEOUT
+
     def _time_out(self, req: int) -> None:
         s = self.store
         if s.partner[req] != NO_PARTNER:
@@ -449,6 +471,8 @@ class NetPipeline(Pipeline):
             ch = self.channels.get(chunk.channel)
             if ch is not None and isinstance(ch.framer, TcpFramer):
                 ch.framer.gap()
+        if chunk.event == CONNECTION and chunk.note.startswith(REUSED):
+            self._reused(chunk.channel & ~1)
         if chunk.data:
             # one request in flight: when one side sends, the other's turn is over
             other = self.channels.get(chunk.channel ^ 1)
@@ -460,6 +484,20 @@ class NetPipeline(Pipeline):
                 other.framer.idle()
         self.now = max(self.now, chunk.t_end)
         super().feed(chunk)
+
+    def _reused(self, first: int) -> None:
+        """A new connection in the channels `first`, `first + 1` (module doc)."""
+        for number in (first, first + 1):
+            ch = self.channels.get(number)
+            if ch is not None and isinstance(ch.framer, TcpFramer):
+                ch.framer.gap()
+            elif ch is not None and isinstance(ch.framer, PacketRtuFramer):
+                ch.framer.idle()
+            label = parse_label(self.channel_labels.get(number, ""))
+            if label is not None and number in self.store.peers:
+                self.store.peers[number] = label.sender
+        if isinstance(self.pairer, NetPairer):
+            self.pairer.end_connection(first >> 1)
 
     def too_fast(self) -> tuple[int, float | None]:
         """Packets carry bytes as fast as the network does: no line speed applies."""

@@ -16,18 +16,28 @@ it is written, so a killed process loses at most the block being written.
 Ring buffer: with a size or time limit the recording goes to numbered files
 `NAME_00001_20250101120000.pcapng` (Wireshark's style), each complete in itself; with
 `keep` only the newest files stay.
+
+A full disk (ENOSPC), or the file size limit (EFBIG, `ulimit -f`), never leaves half a
+block: each block is written whole or the file is cut back to where it began, so the
+file stays readable to its last whole block. A ring buffer then frees its oldest file and
+writes the block again; otherwise the recording stops with one line naming the file and
+saying the disk is full (`RecordError`), and the rest of the program goes on to close
+cleanly. A pipe whose reader went away (`record -w - | head`) is said to be that, not a
+disk.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
 import re
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, TypeVar, cast
 
 from sniffer import __version__
 from sniffer.errors import UserError
@@ -46,6 +56,8 @@ from sniffer.sources.pcapng_writer import (
     describe_interface,
     rtac_record,
 )
+
+_T = TypeVar("_T")
 
 EVENT_TYPES = {
     "framing error": RTAC_FRAMING_ERROR,
@@ -67,6 +79,73 @@ def epb_size(data: int, comment: int = 0) -> int:
 
 class RecordError(UserError):
     """The recording cannot be written. The message names the file and what to do."""
+
+
+FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)  # no room: a ring may free its oldest file
+
+
+class WholeBlocks:
+    """A file written in whole blocks: `write` writes all of its bytes or, failing, cuts
+    the file back to where the block began and raises (see the module doc). Unbuffered,
+    so nothing is left to flush at close."""
+
+    def __init__(self, raw: BinaryIO) -> None:
+        self.raw = raw
+        self.good = raw.tell()  # the end of the last whole block
+
+    def write(self, data: bytes) -> int:
+        view = memoryview(data)
+        done = 0
+        try:
+            while done < len(view):
+                n = self.raw.write(view[done:])
+                if not n:  # a full disk may take part of a block, then nothing
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                done += n
+        except OSError:
+            with contextlib.suppress(OSError, ValueError):
+                self.raw.seek(self.good)
+                self.raw.truncate(self.good)
+            raise
+        self.good += done
+        return done
+
+    def flush(self) -> None:
+        """Every write went to the file already."""
+
+    def tell(self) -> int:
+        return self.good
+
+    def close(self) -> None:
+        self.raw.close()
+
+
+def open_blocks(path: Path) -> BinaryIO:
+    """`path` opened for writing in whole blocks (the recorder's file)."""
+    return cast("BinaryIO", WholeBlocks(path.open("wb", buffering=0)))
+
+
+def write_failure(path: str | Path, exc: OSError, packets: int) -> str:
+    """The one line that says why writing `path` stopped, and what to do."""
+    if exc.errno == errno.EPIPE:
+        return (
+            f"{path}: the program reading the recording closed the pipe; the recording "
+            f"stopped after {packets:,} packets"
+        )
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return (
+            f"{path}: the disk is full; the recording stopped after {packets:,} packets and "
+            "the file ends on its last whole block; free space (or record with a ring "
+            "buffer, --rotate-size and --keep) and record again"
+        )
+    if exc.errno == errno.EFBIG:
+        return (
+            f"{path}: the file reached the size limit of this process or file system "
+            f"(ulimit -f); the recording stopped after {packets:,} packets, the file ends on "
+            "its last whole block; record with a ring buffer (--rotate-size)"
+        )
+    reason = exc.strerror or str(exc)
+    return f"{path}: writing failed ({reason}); check the free space on its disk"
 
 
 MIN_RING_FILE = 1000  # bytes: `1k`, the smallest ring buffer file the help promises
@@ -121,6 +200,7 @@ class Recorder:
         *,
         ring: Ring | None = None,
         stream: BinaryIO | None = None,
+        opener: Callable[[Path], BinaryIO] = open_blocks,
     ) -> None:
         self.path = Path(path)
         self.ports = sorted(ports, key=lambda p: p.channel)
@@ -132,9 +212,12 @@ class Recorder:
         if stream is not None and self.ring.active:
             raise RecordError("a recording to a stream cannot rotate; write to a file")
         self.files: list[Path] = []  # files of this recording still on disk
+        self.freed: list[Path] = []  # ring files deleted early because the disk was full
+        self.stopped: str | None = None  # why writing stopped (a full disk), once it has
         self.packets = 0
         self.bytes = 0  # bus bytes recorded
         self._stream = stream
+        self._opener = opener
         self._handle: BinaryIO | None = None
         self._writer: PcapngWriter | None = None
         self._interfaces: dict[int, int] = {}
@@ -160,7 +243,7 @@ class Recorder:
         else:
             path = self._name(t)
             try:
-                handle = path.open("wb")
+                handle = self._opener(path)
             except OSError as exc:
                 reason = exc.strerror or str(exc)
                 raise RecordError(
@@ -169,17 +252,40 @@ class Recorder:
             self.files.append(path)
             self._prune()
         self._handle = handle
-        writer = PcapngWriter(handle, application=f"modscope {__version__}")
         self._interfaces = {}
+        self._writer = None
+        writer = self._retrying(lambda: PcapngWriter(handle, application=f"modscope {__version__}"))
         for spec in self.ports:
-            self._interfaces[spec.channel] = writer.add_interface(
-                LINKTYPE_RTAC_SERIAL,
-                name=spec.name,
-                description=describe_interface(spec.line, spec.direction),
+            self._interfaces[spec.channel] = self._retrying(
+                lambda spec=spec: writer.add_interface(  # type: ignore[misc]
+                    LINKTYPE_RTAC_SERIAL,
+                    name=spec.name,
+                    description=describe_interface(spec.line, spec.direction),
+                )
             )
         self._writer = writer
         self._file_t0 = t if t is not None else time.time()
         self._file_bytes = handle.tell() if self._stream is None else 0
+
+    def _retrying(self, write: Callable[[], _T]) -> _T:
+        """Run `write` (one block); on a full disk a ring frees its oldest file and runs it
+        again, until no older file is left. RecordError (one line) when writing stops."""
+        while True:
+            try:
+                return write()
+            except OSError as exc:
+                if exc.errno in FULL and self._stream is None and len(self.files) > 1:
+                    old = self.files.pop(0)
+                    with contextlib.suppress(FileNotFoundError):
+                        old.unlink()
+                    self.freed.append(old)
+                    continue
+                self.stopped = write_failure(
+                    self.files[-1] if self.files and self._stream is None else self.path,
+                    exc,
+                    self.packets,
+                )
+                raise RecordError(self.stopped) from None
 
     def _prune(self) -> None:
         keep = self.ring.keep
@@ -189,7 +295,7 @@ class Recorder:
                 old.unlink()
 
     def _close_file(self, t: float | None = None) -> None:
-        if self._writer is not None:
+        if self._writer is not None and self.stopped is None:
             # "capture complete" on every interface: the file shows how long it listened
             end = max(t if t is not None else time.time(), 0.0)
             with contextlib.suppress(OSError, ValueError):
@@ -197,7 +303,8 @@ class Recorder:
                     packet = rtac_record(end, b"", event=RTAC_CAPTURE_COMPLETE)
                     self._writer.write_packet(interface, end, packet, flags=EPB_FLAG_INBOUND)
         if self._handle is not None and self._stream is None:
-            self._handle.close()
+            with contextlib.suppress(OSError):  # whole blocks: nothing is left to write
+                self._handle.close()
         self._handle = None
         self._writer = None
 
@@ -219,6 +326,8 @@ class Recorder:
         return ring.size is not None and self._file_bytes >= ring.size
 
     def write(self, chunk: Chunk) -> None:
+        if self.stopped is not None:
+            raise RecordError(self.stopped)
         if self._writer is None:
             raise RecordError(f"{self.path}: the recording is closed")
         if self.ring.active and self._due(chunk.t_end):
@@ -228,16 +337,10 @@ class Recorder:
         if interface is None:
             return  # not one of our ports
         t = max(chunk.t_end, 0.0)
-        try:
-            if chunk.data:
-                self._data(interface, chunk, t)
-            if chunk.event:
-                self._event(interface, chunk, t)
-        except OSError as exc:
-            reason = exc.strerror or str(exc)
-            raise RecordError(
-                f"{self.path}: writing failed ({reason}); check the free space on its disk"
-            ) from None
+        if chunk.data:
+            self._retrying(lambda: self._data(interface, chunk, t))
+        if chunk.event:
+            self._retrying(lambda: self._event(interface, chunk, t))
 
     def _data(self, interface: int, chunk: Chunk, t: float) -> None:
         assert self._writer is not None
@@ -248,9 +351,9 @@ class Recorder:
         if last is not None and start < last:
             start = last
         start = max(min(start, t), 0.0)
-        self._last_end[chunk.channel] = t
         packet = rtac_record(start, chunk.data, event=RTAC_DATA_RX_START)
         self._writer.write_packet(interface, t, packet, flags=EPB_FLAG_INBOUND)
+        self._last_end[chunk.channel] = t
         self.packets += 1
         self.bytes += len(chunk.data)
         self._file_bytes += epb_size(len(packet))

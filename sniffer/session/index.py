@@ -20,14 +20,20 @@ per-unit latencies and request times. It is read a block at a time (`load`): the
 shows the first rows after the first block while the rest is read.
 
 A sidecar is data, never code: one that is damaged or does not fit its capture is
-ignored. `MODSCOPE_NO_INDEX=1` (or `open_session(...,
-index=False)`) neither reads nor writes one.
+ignored, and the capture indexed again (a damaged block found after rows were read: the
+rows are taken back, unless another thread shows them, see `load`). A sidecar is written
+to a temporary file `.modscope-index-*` beside its place, locked (flock) while it is
+written, then renamed: a writer killed halfway leaves its temporary file unlocked, and
+the next run that looks in that folder removes it (`sweep`).
+
+`MODSCOPE_NO_INDEX=1` (or `open_session(..., index=False)`) neither reads nor writes one.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import fcntl
 import hashlib
 import json
 import operator
@@ -82,6 +88,49 @@ def sidecars(capture: Path) -> list[Path]:
         absolute.with_name(absolute.name + SUFFIX),
         cache_dir() / f"{digest[:32]}{SUFFIX}",
     ]
+
+
+TEMP_PREFIX = ".modscope-index-"
+
+
+def sweep(folder: Path) -> int:
+    """Remove the temporary files of sidecar writers that died (their lock is free);
+    how many were removed."""
+    removed = 0
+    try:
+        names = list(folder.glob(TEMP_PREFIX + "*"))
+    except OSError:
+        return 0
+    for name in names:
+        try:
+            fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its writer is gone
+            os.unlink(name)
+            removed += 1
+        except OSError:  # held: a writer is at work (BlockingIOError), or not ours to remove
+            pass
+        finally:
+            os.close(fd)
+    return removed
+
+
+def _temporary(folder: Path) -> tuple[int, str]:
+    """A new temporary file for a sidecar in `folder`, locked for as long as it is open
+    (see `sweep`); stale ones of killed writers are removed first."""
+    folder.mkdir(parents=True, exist_ok=True)
+    sweep(folder)
+    fd, tmp = tempfile.mkstemp(prefix=TEMP_PREFIX, dir=folder)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return fd, tmp
 
 
 def identity(capture: Path) -> dict[str, Any] | None:
@@ -243,8 +292,7 @@ def save(state: SessionState, capture: Capture, path: Path, key: str) -> Path | 
     blob = json.dumps(header).encode()
     for target in sidecars(path):
         try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+            fd, tmp = _temporary(target.parent)
         except OSError:
             continue
         try:
@@ -258,7 +306,8 @@ def save(state: SessionState, capture: Capture, path: Path, key: str) -> Path | 
                         out.write(part)
                 for part in tail:
                     out.write(memoryview(part).cast("B"))
-            _publish(tmp, target)
+                out.flush()
+                _publish(tmp, target)  # while still locked (see `sweep`)
             return target
         except OSError:
             with contextlib.suppress(OSError):
@@ -344,8 +393,7 @@ class Writer:
         self.target: Path | None = None
         for target in sidecars(path):
             try:
-                target.parent.mkdir(parents=True, exist_ok=True)
-                fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+                fd, tmp = _temporary(target.parent)
             except OSError:
                 continue
             self.out, self.tmp, self.target = os.fdopen(fd, "wb"), tmp, target
@@ -421,8 +469,9 @@ class Writer:
                 out.seek(len(MAGIC))
                 out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
                 out.write(blob)
+                out.flush()
+                _publish(self.tmp, target)  # while still locked (see `sweep`)
                 out.close()
-                _publish(self.tmp, target)
             else:
                 self._rewrite(blob, target)
         except OSError:
@@ -433,8 +482,8 @@ class Writer:
 
     def _rewrite(self, blob: bytes, target: Path) -> None:
         """The header in front of a copy of the blocks (it did not fit its room)."""
-        self.out.close()
-        fd, tmp = tempfile.mkstemp(prefix=".modscope-index-", dir=target.parent)
+        self.out.flush()
+        fd, tmp = _temporary(target.parent)
         try:
             with os.fdopen(fd, "wb") as out, open(self.tmp, "rb") as blocks:
                 out.write(MAGIC)
@@ -443,7 +492,9 @@ class Writer:
                 blocks.seek(len(MAGIC) + _PREFIX.size + RESERVE)
                 while piece := blocks.read(1 << 22):
                     out.write(piece)
-            _publish(tmp, target)
+                out.flush()
+                _publish(tmp, target)
+            self.out.close()
         except OSError:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
@@ -608,6 +659,7 @@ def load(
     if who is None:
         return None
     for candidate in sidecars(path):
+        sweep(candidate.parent)  # what killed writers left (see the module doc)
         try:
             handle = candidate.open("rb")
         except OSError:
@@ -739,7 +791,8 @@ class _Filling:
             if self.progress is not None:
                 done = self.capture_size * self.handle.tell() // max(1, self.file_size)
                 self.progress(done, state.base + len(store))
-                self.handed_out = self.handed_out or bool(len(store))
+                # rows another thread shows cannot be taken back; counted ones can
+                self.handed_out = self.handed_out or (self.shown and bool(len(store)))
             if should_stop is not None and should_stop():
                 self.stopped = True
                 return False

@@ -106,7 +106,10 @@ RTAC_MAX_LEAD = 60.0  # seconds an RTAC header time may precede its packet time
 
 
 # channels are one byte in the frame store: interfaces past this many (a damaged file, not
-# a serial capture) are described but not read
+# a serial capture) are described but not read. An interface of a later section described
+# byte for byte as one of an earlier section (a `cat` of recordings: each section names the
+# same ports) goes on in that one's channel, so this bounds interfaces that differ, or are
+# in one section together, not sections
 MAX_INTERFACES = 128
 
 
@@ -701,12 +704,27 @@ class _Section:
         self.all: list[_Interface] = []
         self.file_line: LineSettings | None = None
         self.unknown: set[tuple[int, int]] = set()
+        # channels by their interface's description (byte order, IDB body): a later
+        # section's interface described alike goes on in the same channel
+        self.described: dict[tuple[str, bytes], list[int]] = {}
+        self.in_section: set[int] = set()  # channels of the current section
+        self.left_out = 0  # interfaces past MAX_INTERFACES
 
     def new_section(self) -> None:
         self.current = []
+        self.in_section = set()
 
     def add(self, block: _Block) -> _Interface:
         order, body = block.order, block.body
+        key = (order, bytes(body))
+        same = self.described.get(key, []) if len(body) >= 8 else []
+        free = next((ch for ch in same if ch not in self.in_section), None)
+        if free is not None:  # the same interface as in an earlier section (see above)
+            linktype, _reserved, snaplen = struct.unpack_from(order + "HHI", body)
+            iface = self._interface(linktype, snaplen, _options(body, 8, order), order, free)
+            self.current.append(iface)
+            self.in_section.add(free)
+            return iface
         channel = len(self.all)
         if channel >= MAX_INTERFACES:
             if channel == MAX_INTERFACES:
@@ -726,8 +744,10 @@ class _Section:
         else:
             linktype, _reserved, snaplen = struct.unpack_from(order + "HHI", body)
             iface = self._interface(linktype, snaplen, _options(body, 8, order), order, channel)
+            self.described.setdefault(key, []).append(channel)
         self.current.append(iface)
         self.all.append(iface)
+        self.in_section.add(channel)
         return iface
 
     def _interface(

@@ -54,6 +54,9 @@ def test_serve_runs_the_tui_command_for_each_visitor(
         def serve(self) -> None:
             made["served"] = True
 
+        async def _make_app(self) -> Any:  # what serve's guard wraps (textual-serve's)
+            return None
+
     package = types.ModuleType("textual_serve")
     server = types.ModuleType("textual_serve.server")
     server.Server = Server  # type: ignore[attr-defined]

@@ -94,7 +94,7 @@ def test_a_browser_on_another_machine_sees_the_app(link: str) -> None:
     pytest.importorskip("textual_serve", reason="the [serve] extra is not installed")
     port = _free_port(HERE)
     url = f"http://{HERE}:{port}"
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MODSCOPE_SERVE_TOKEN": "test-token"}
     # listening on every address, as on a site PC; the page points at the public URL
     server = subprocess.Popen(
         [
@@ -133,7 +133,7 @@ def test_a_browser_on_another_machine_sees_the_app(link: str) -> None:
                 link,
                 sys.executable,
                 str(ROOT / "tests" / "support" / "tui_browser.py"),
-                url + "/",
+                url + "/?token=test-token",
                 "60",
                 "REPLAY",
                 "demo.pcapng",
@@ -168,7 +168,9 @@ def test_the_served_page_loads_nothing_from_the_internet() -> None:
     modscope it refers to nothing outside the server (a plant network has no internet)."""
     pytest.importorskip("textual_serve", reason="the [serve] extra is not installed")
     port = _free_port("127.0.0.1")
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MODSCOPE_SERVE_TOKEN": "page-test"}
+    # a visitor with the token (its cookie kept, as a browser keeps it)
+    opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor())
     server = subprocess.Popen(
         [sys.executable, "-m", "sniffer.cli", "serve", "--port", str(port)],
         stdout=subprocess.PIPE,
@@ -181,7 +183,8 @@ def test_the_served_page_loads_nothing_from_the_internet() -> None:
         deadline = time.monotonic() + 20
         while True:
             try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=5) as reply:
+                url = f"http://127.0.0.1:{port}/?token=page-test"
+                with opener.open(url, timeout=5) as reply:
                     page = reply.read().decode()
                 break
             except OSError:

@@ -24,6 +24,17 @@ chunks wait behind it, on the evidence it has by then. A connection that has sen
 payload by then (opened, then silent) gives its events out under a provisional label
 (the port's guess: Modbus TCP on 502 and 503, else `other`) and is decided by its
 first payloads when they come.
+
+Channels are numbered in one byte, so at most 128 connections get a pair of their own.
+Past that, a connection takes the pair of a closed one (FIN both ways, or a reset)
+between the same client host and the same server `ip:port`: a poller that connects
+anew for each poll goes on in the channels of its first connections. The pair's labels
+then name the client by its host only (`192.168.1.10:*`, the port varies: each
+connection's own port is in its opening event, `REUSED`), it carries what the closed
+connection carried (the same client and server: taken to be the same polling, not
+detected again), and the bytes and open requests of the closed connection end there
+(`sniffer.framing.tcp.NetPipeline`). A connection that finds no such pair is left out;
+one warning at the end says how many were, and names the first.
 """
 
 from __future__ import annotations
@@ -35,12 +46,14 @@ from dataclasses import dataclass, field
 import sniffer.sources.net.carrier as carriers
 from sniffer.model import Chunk, Direction
 from sniffer.sources.net.packets import TCP_ACK, TCP_FIN, TCP_RST, TCP_SYN, Segment, Skip, decode
-from sniffer.sources.net.tcp import Piece, TcpHalf
+from sniffer.sources.net.tcp import CONNECTION, Piece, TcpHalf
 
 MAX_CHANNEL = 255  # the frame store keeps channel numbers in one byte
 MAX_HELD = 64  # chunks a connection may hold while its carrier is being detected
 HOLD_SPAN = 10.0  # seconds of capture time a connection may hold chunks back
 MAX_READY = 1 << 16  # chunks that may wait behind a connection holding its own back
+# the note of the event that starts a connection in the channels of a closed one
+REUSED = "a new connection in the channels of a closed one, from "
 
 
 @dataclass(eq=False)
@@ -56,6 +69,12 @@ class _Connection:
     held: list[Chunk] = field(default_factory=list)
     bytes: int = 0
     provisional: bool = False  # labelled by its port's guess while its payload is awaited
+    reset: bool = False  # a reset ended it (both directions)
+    shown_client: str = ""  # the client as its channels' labels name it (else `client`)
+
+    @property
+    def closed(self) -> bool:
+        return self.reset or all(h.closed for h in self.halves)
 
 
 class NetDecoder:
@@ -84,6 +103,12 @@ class NetDecoder:
         self.skipped: Counter[str] = Counter()
         self.next_pair = 0
         self.refused: set[tuple[str, str, str]] = set()
+        # closed connections whose channels a new one may take: (transport, client host,
+        # server) -> connections, oldest first
+        self.closed: dict[tuple[str, str, str], deque[_Connection]] = {}
+        self.retired: set[tuple[str, str, str]] = set()  # whose channels went to another
+        self.left_out = 0  # connections that found no channels
+        self.first_left_out = ""
         self.last_t = 0.0
         # chunks of connections whose carrier is known, in time order, waiting until no
         # connection holds an older one
@@ -113,6 +138,8 @@ class NetDecoder:
             return self._flow(t)
         half = conn.halves[sending]
         pieces = half.segment(found, t)
+        if found.flags & TCP_RST:
+            conn.reset = True
         if found.ack is not None:
             other = conn.halves[1 - sending]
             pieces_other = other.acknowledged(found.ack, t)
@@ -188,6 +215,10 @@ class NetDecoder:
             return conn
         if key in self.refused:
             return None
+        if key in self.retired:
+            if not seg.flags & TCP_SYN:
+                return None  # the rest of a connection whose channels went to another
+            self.retired.discard(key)  # the same ports open a new connection
         if self.port is not None and self.port not in (seg.sport, seg.dport):
             self.refused.add(key)
             self.skipped[f"not on port {self.port}"] += 1
@@ -208,19 +239,58 @@ class NetDecoder:
         client, server = (seg.src, seg.dst) if to_server else (seg.dst, seg.src)
         server_port = seg.dport if to_server else seg.sport
         pair = self._allocate()
-        if pair is None:
+        old = None if pair is not None else self._closed_like(seg.transport, client, server)
+        if pair is None and old is None:
             self.refused.add(key)
-            self.warnings.append(
-                f"more connections than {MAX_CHANNEL + 1} channels can hold: "
-                f"{seg.transport} {client} > {server} and later ones are left out"
-            )
+            if not self.left_out:
+                self.first_left_out = f"{seg.transport} {client} > {server}"
+            self.left_out += 1
             return None
+        if old is not None:
+            pair = old.channels
+            self._retire(old)
+        assert pair is not None
         conn = _Connection(seg.transport, client, server, server_port, pair)
         conn.carrier = carriers.forced(self.carrier, seg.transport)
+        if old is not None:
+            conn.carrier = old.carrier
+            conn.shown_client = f"{_host(client)}:*"  # the label: the client's host only
         if conn.carrier is not None:
             self._label(conn)
         self.connections[key] = conn
+        if old is not None:
+            t = self.last_t
+            self._emit(conn, 0, [Piece(t, event=CONNECTION, note=REUSED + client)])
         return conn
+
+    def _closed_like(self, transport: str, client: str, server: str) -> _Connection | None:
+        """A closed connection of the same client host to the same server whose channels
+        a new one may take (see the module doc)."""
+        waiting = self.closed.get((transport, _host(client), server))
+        while waiting:
+            conn = waiting.popleft()
+            if conn.closed and not conn.held and conn.carrier not in (None, carriers.OTHER):
+                return conn
+        return None
+
+    def _retire(self, conn: _Connection) -> None:
+        """`conn` gives its channels to a new connection: what it still sends is ignored."""
+        for key, known in list(self.connections.items()):
+            if known is conn:
+                del self.connections[key]
+                self.retired.add(key)
+                break
+        for side in (0, 1):
+            self.waiting.discard((conn, side))
+
+    def _closing(self, conn: _Connection) -> None:
+        """`conn` has closed: a later connection may take its channels (module doc)."""
+        if conn.transport != "tcp" or not conn.closed:
+            return
+        key = (conn.transport, _host(conn.client), conn.server)
+        waiting = self.closed.setdefault(key, deque())
+        if conn not in waiting:
+            waiting.append(conn)
 
     def _allocate(self) -> tuple[int, int] | None:
         while True:
@@ -233,10 +303,9 @@ class NetDecoder:
 
     def _label(self, conn: _Connection) -> None:
         assert conn.carrier is not None
+        client = conn.shown_client or conn.client
         for side, channel in enumerate(conn.channels):
-            sender, receiver = (
-                (conn.client, conn.server) if side == 0 else (conn.server, conn.client)
-            )
+            sender, receiver = (client, conn.server) if side == 0 else (conn.server, client)
             role = Direction.MASTER if side == 0 else Direction.SLAVE
             label = carriers.ChannelLabel(conn.transport, sender, receiver, conn.carrier, role)
             self.channels[channel] = label.text
@@ -258,6 +327,8 @@ class NetDecoder:
                 note=piece.note,
             )
             closes = closes or piece.closes
+            if piece.closes:
+                self._closing(conn)
             if piece.data:
                 conn.bytes += len(piece.data)
             if conn.carrier is None and (piece.data or conn.held or not conn.provisional):
@@ -311,6 +382,13 @@ class NetDecoder:
             self.ready = deque(heapq.merge(self.ready, held, key=_time))
 
     def _summarise(self) -> None:
+        if self.left_out:
+            self.warnings.append(
+                f"{self.left_out:,} connection(s) left out, from {self.first_left_out} on: "
+                f"modscope reads {(MAX_CHANNEL + 1) // 2} connections at once, and a new one "
+                "goes on only in the channels of a closed one of the same client host and "
+                "server; give --port, or split the capture (editcap)"
+            )
         others = [c for c in self.connections.values() if c.carrier == carriers.OTHER]
         if others:
             names = ", ".join(f"{c.transport} {c.client} > {c.server}" for c in others[:5])
@@ -331,9 +409,20 @@ class NetDecoder:
                 f"{sum(h.gaps for _, h in gaps)} gap(s) in TCP streams, {total} bytes the "
                 "capture does not hold; the frames around each gap are marked"
             )
+        conflicts = sum(h.conflicts for c in self.connections.values() for h in c.halves)
+        if conflicts:
+            self.warnings.append(
+                f"{conflicts} TCP retransmission(s) carry bytes different from those first "
+                "sent (a reassembly error); the first bytes were kept, each place is marked"
+            )
         if self.skipped:
             parts = ", ".join(f"{n} {reason}" for reason, n in sorted(self.skipped.items()))
             self.warnings.append(f"packets without Modbus left out: {parts}")
+
+
+def _host(endpoint: str) -> str:
+    """The address of an `ip:port` endpoint (`[v6]:port` too)."""
+    return endpoint.rsplit(":", 1)[0]
 
 
 def _time(chunk: Chunk) -> float:

@@ -5,7 +5,10 @@ and returns `Piece`s: runs of bytes in stream order, and events (connection open
 closed, reset, and gaps). The rules:
 
 - retransmitted bytes (sequence numbers already delivered) are dropped; a segment that
-  overlaps what was delivered gives only its new bytes;
+  overlaps what was delivered gives only its new bytes. Where its old bytes differ from
+  those delivered (within the last `RECENT` bytes), a `REASSEMBLY` event says so and the
+  first bytes are kept (Wireshark reports the same case as a reassembly error, and keeps
+  the first too);
 - a segment ahead of the next expected byte waits until the hole before it is filled
   (out-of-order capture); its bytes come out with the time of the packet that filled
   the hole, when the receiver could first read them;
@@ -16,11 +19,15 @@ closed, reset, and gaps). The rules:
   the connection closes or resets, or at the end of the capture (`flush`);
 - bytes the capture's snap length cut off are a gap as well.
 
-Sequence numbers wrap at 2**32; comparisons are made modulo that.
+Sequence numbers wrap at 2**32; comparisons are made modulo that. Segments waiting
+behind a hole are kept by their position in the stream (not wrapped) in a heap, so that
+thousands of tiny or out-of-order segments cost a logarithm each, not a scan of all the
+others.
 """
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass, field
 
 from sniffer.sources.net.packets import TCP_ACK, TCP_FIN, TCP_RST, TCP_SYN, Segment
@@ -31,6 +38,8 @@ PENDING_LIMIT = 1 << 18  # bytes waiting behind a hole before the hole is declar
 
 GAP = "gap"
 CONNECTION = "connection"
+REASSEMBLY = "reassembly error"
+RECENT = 1 << 16  # delivered bytes kept to compare with retransmissions
 
 
 def seq_diff(a: int, b: int) -> int:
@@ -65,12 +74,16 @@ class TcpHalf:
     next: int | None = None  # sequence number of the next byte expected
     isn: int | None = None
     acked: int | None = None  # highest acknowledgement the other side sent
-    waiting: dict[int, _Waiting] = field(default_factory=dict)
+    waiting: dict[int, _Waiting] = field(default_factory=dict)  # by stream position
+    heap: list[int] = field(default_factory=list)  # the positions in `waiting`
+    position: int = 0  # the stream position of `next` (not wrapped)
     waiting_bytes: int = 0
     hole_since: float | None = None
     closed: bool = False
     delivered: int = 0
     retransmitted: int = 0  # bytes dropped as already delivered
+    conflicts: int = 0  # retransmissions whose bytes differed from those delivered
+    recent: bytearray = field(default_factory=bytearray)  # the last bytes delivered
     gaps: int = 0
     gap_bytes: int = 0
 
@@ -86,6 +99,7 @@ class TcpHalf:
             self.closed = False
             seq = (seq + 1) % SEQ_MOD
             self.next = seq
+            self.position = 0
             note = "accepted (SYN ACK)" if seg.flags & TCP_ACK else "opened (SYN)"
             out.append(Piece(t, event=CONNECTION, note=note))
         if seg.flags & TCP_RST:
@@ -126,7 +140,13 @@ class TcpHalf:
         out: list[Piece] = []
         while self.waiting:
             out.extend(self._gap(t, why))
+        self.heap.clear()
         return out
+
+    def _advance(self, count: int) -> None:
+        assert self.next is not None
+        self.next = (self.next + count) % SEQ_MOD
+        self.position += count
 
     # -- internals -----------------------------------------------------------------------
 
@@ -135,11 +155,14 @@ class TcpHalf:
         out: list[Piece] = []
         ahead = seq_diff(seq, self.next)
         if ahead > 0:
-            known = self.waiting.get(seq)
+            at = self.position + ahead
+            known = self.waiting.get(at)
             if known is None or len(data) + missing > len(known.data) + known.missing:
                 if known is not None:
                     self.waiting_bytes -= len(known.data)
-                self.waiting[seq] = _Waiting(data, missing, fin, t)
+                else:
+                    heapq.heappush(self.heap, at)
+                self.waiting[at] = _Waiting(data, missing, fin, t)
                 self.waiting_bytes += len(data)
             if self.hole_since is None:
                 self.hole_since = t
@@ -162,45 +185,64 @@ class TcpHalf:
         if old:
             seen = min(old, len(data))
             self.retransmitted += seen
+            out.extend(self._compare(old, data[:seen], t))
             data = data[seen:]
             missing = max(0, missing - (old - seen))
         if data:
             out.append(Piece(t, data=data))
             self.delivered += len(data)
-            self.next = (self.next + len(data)) % SEQ_MOD
+            self._advance(len(data))
+            recent = self.recent
+            recent += data
+            if len(recent) > 2 * RECENT:
+                del recent[:-RECENT]
         if missing:
             out.append(
                 Piece(t, event=GAP, note=f"{missing} bytes cut off by the capture's snap length")
             )
             self.gaps += 1
             self.gap_bytes += missing
-            self.next = (self.next + missing) % SEQ_MOD
+            self._advance(missing)
         if fin and not self.closed:
             self.closed = True
-            self.next = (self.next + 1) % SEQ_MOD
+            self._advance(1)
             out.append(Piece(t, event=CONNECTION, note="closed by the sender (FIN)", closes=True))
         return out
 
+    def _compare(self, old: int, again: bytes, t: float) -> list[Piece]:
+        """A retransmission of bytes that began `old` bytes before the next expected:
+        a `REASSEMBLY` event when they differ from those delivered (module doc)."""
+        recent = self.recent
+        start = len(recent) - old  # where `again` begins in `recent`
+        if start < 0 or not again:
+            return []  # older than the bytes kept: not compared
+        first = bytes(recent[start : start + len(again)])
+        if first == again[: len(first)]:
+            return []
+        self.conflicts += 1
+        differ = sum(a != b for a, b in zip(first, again, strict=False))
+        note = (
+            f"a retransmission carries {differ} byte(s) different from those delivered "
+            f"{old} byte(s) back; the first were kept"
+        )
+        return [Piece(t, event=REASSEMBLY, note=note)]
+
     def _drain(self, t: float) -> list[Piece]:
-        """Deliver waiting segments that now follow on."""
+        """Deliver waiting segments that now follow on, in stream order."""
         out: list[Piece] = []
-        while self.waiting and self.next is not None:
-            ready = [s for s in self.waiting if seq_diff(s, self.next) <= 0]
-            if not ready:
-                break
-            for s in sorted(ready, key=lambda s: seq_diff(s, self.next or 0)):
-                w = self.waiting.pop(s)
-                self.waiting_bytes -= len(w.data)
-                ahead = seq_diff(s, self.next)
-                if ahead + len(w.data) + w.missing <= 0 and not w.fin:
-                    self.retransmitted += len(w.data)
-                    continue
-                if ahead > 0:  # an earlier one of this batch did not reach it
-                    self.waiting[s] = w
-                    self.waiting_bytes += len(w.data)
-                    continue
-                out.extend(self._deliver(ahead, w.data, w.missing, w.fin, t))
-        self.hole_since = t if self.waiting else None
+        heap, waiting = self.heap, self.waiting
+        while heap and heap[0] <= self.position and self.next is not None:
+            at = heapq.heappop(heap)
+            w = waiting.pop(at, None)
+            if w is None:
+                continue
+            self.waiting_bytes -= len(w.data)
+            ahead = at - self.position
+            if ahead + len(w.data) + w.missing <= 0 and not w.fin:
+                self.retransmitted += len(w.data)
+                continue
+            out.extend(self._deliver(ahead, w.data, w.missing, w.fin, t))
+        self.hole_since = t if waiting else None
         return out
 
     def _gap(self, t: float, why: str) -> list[Piece]:
@@ -208,12 +250,13 @@ class TcpHalf:
         go on from that segment."""
         if not self.waiting or self.next is None:
             return []
-        first = min(self.waiting, key=lambda s: seq_diff(s, self.next or 0))
-        size = seq_diff(first, self.next)
+        while self.heap[0] not in self.waiting:
+            heapq.heappop(self.heap)
+        size = self.heap[0] - self.position
         self.gaps += 1
         self.gap_bytes += size
         out = [Piece(t, event=GAP, note=f"{size} bytes missing from the capture; {why}")]
-        self.next = first
+        self._advance(size)
         self.hole_since = None
         out.extend(self._drain(t))
         return out

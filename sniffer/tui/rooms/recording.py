@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 from sniffer.live.recorder import Recorder, RecordError
 from sniffer.tui.feed import Recordable
 from sniffer.tui.rooms.base import Room
+from sniffer.tui.rooms.exporting import served, served_path
 from sniffer.tui.widgets.status import size_text
 
 if TYPE_CHECKING:
@@ -162,7 +163,13 @@ class Recording(Room):
         live = app.live
         if not answer or not isinstance(live, Recordable):
             return
-        path = Path(answer).expanduser()
+        path: Path | None = Path(answer).expanduser()
+        if served():  # a browser visitor records only inside serve's --export-dir
+            path, why = served_path(answer)
+            if path is None:
+                why = why or "recording needs `modscope serve --export-dir DIR`"
+                app.say(why, severity="error")
+                return
         try:
             recorder = live.start_recording(path)
         except RecordError as exc:
@@ -185,10 +192,18 @@ class Recording(Room):
         if not isinstance(live, Switchable) or not isinstance(live, Recordable) or old is None:
             app.say("this live source cannot switch files; r then r stops, r starts anew")
             return
+        path: Path | None = Path(answer).expanduser()
+        if served():  # the new file too only inside serve's --export-dir
+            path, why = served_path(answer)
+            if path is None:
+                app.say(
+                    why or "recording needs `modscope serve --export-dir DIR`", severity="error"
+                )
+                return
         reads = live.recorder.packets if live.recorder is not None else 0
         rows = self._rows()
         try:
-            recorder, old_files = live.switch_recording(Path(answer).expanduser())
+            recorder, old_files = live.switch_recording(path)
         except RecordError as exc:
             app.say(f"{exc} (still recording to the old file)", severity="error")
             return
