@@ -40,7 +40,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.common import LINE, usb_reads
+from benchmarks.common import LINE, Unflushed, usb_reads
 from benchmarks.mixes import Mix, issue_mix, mixes, project_mix, random_mix, write_mix
 from sniffer.live.port import PortSpec
 from sniffer.live.recorder import Recorder
@@ -59,32 +59,13 @@ SMALL = 10
 TSHARK = ["tshark", "-n", "-d", "rtacser.data,mbrtu"]
 
 
-class _Unflushed:
-    """A file the pcapng writer may flush after every block without a system call each."""
-
-    def __init__(self, path: Path) -> None:
-        self.handle = path.open("wb", buffering=1 << 20)
-
-    def write(self, data: bytes) -> int:
-        return self.handle.write(data)
-
-    def flush(self) -> None:
-        pass
-
-    def tell(self) -> int:
-        return self.handle.tell()
-
-    def close(self) -> None:
-        self.handle.close()
-
-
 def _frames(n: int) -> list[SynthFrame]:
     return polling_frames(n, line=LINE)
 
 
 def write_reads(path: Path, frames: list[SynthFrame]) -> int:
     """The frames as `modscope record` writes a USB adapter's 16 ms reads; returns reads."""
-    stream = _Unflushed(path)
+    stream = Unflushed(path)
     recorder = Recorder(path, [PortSpec("/dev/ttyUSB0", LINE)], stream=stream)  # type: ignore[arg-type]
     reads = usb_reads(frames)
     for chunk in reads:
@@ -96,7 +77,7 @@ def write_reads(path: Path, frames: list[SynthFrame]) -> int:
 
 def write_frames(path: Path, frames: list[SynthFrame]) -> None:
     """The same frames one per packet: RTAC header at the first byte, packet at the last."""
-    stream = _Unflushed(path)
+    stream = Unflushed(path)
     writer = PcapngWriter(stream)  # type: ignore[arg-type]
     iface = writer.add_interface(
         LINKTYPE_RTAC_SERIAL, name="/dev/ttyUSB0", description=describe_interface(LINE)

@@ -7,6 +7,7 @@ import gc
 import resource
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import TypeVar
 
 from sniffer.model import Chunk, LineSettings
@@ -79,3 +80,22 @@ def peak_rss_mb() -> float:
 def chunks_of(items: list[T], size: int) -> Iterator[list[T]]:
     for i in range(0, len(items), size):
         yield items[i : i + size]
+
+
+class Unflushed:
+    """A file the pcapng writer may flush after every block without a system call each."""
+
+    def __init__(self, path: Path) -> None:
+        self.handle = path.open("wb", buffering=1 << 20)
+
+    def write(self, data: bytes) -> int:
+        return self.handle.write(data)
+
+    def flush(self) -> None:
+        pass
+
+    def tell(self) -> int:
+        return self.handle.tell()
+
+    def close(self) -> None:
+        self.handle.close()

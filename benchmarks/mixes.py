@@ -17,7 +17,7 @@ from bisect import bisect_right
 from dataclasses import dataclass
 from pathlib import Path
 
-from benchmarks.common import usb_reads
+from benchmarks.common import Unflushed, usb_reads
 from dissectors.checks import with_crc
 from sniffer.live.port import PortSpec
 from sniffer.live.recorder import Recorder
@@ -269,28 +269,9 @@ def _reads(mix: Mix, wire: list[Wire]) -> list[Chunk]:
     return out
 
 
-class _Unflushed:
-    """A file the pcapng writer may flush after every block without a system call each."""
-
-    def __init__(self, path: Path) -> None:
-        self.handle = path.open("wb", buffering=1 << 20)
-
-    def write(self, data: bytes) -> int:
-        return self.handle.write(data)
-
-    def flush(self) -> None:
-        pass
-
-    def tell(self) -> int:
-        return self.handle.tell()
-
-    def close(self) -> None:
-        self.handle.close()
-
-
 def write_reads(path: Path, mix: Mix, wire: list[Wire]) -> int:
     """The mix as `modscope record` writes its reads; returns how many reads."""
-    stream = _Unflushed(path)
+    stream = Unflushed(path)
     port = PortSpec("/dev/ttyUSB0", mix.line)
     recorder = Recorder(path, [port], stream=stream)  # type: ignore[arg-type]
     reads = _reads(mix, wire)
@@ -304,7 +285,7 @@ def write_reads(path: Path, mix: Mix, wire: list[Wire]) -> int:
 def write_frames(path: Path, mix: Mix, wire: list[Wire]) -> None:
     """The same bytes one frame (or run of stray bytes) a packet: RTAC header time at the
     first byte, packet time at the last."""
-    stream = _Unflushed(path)
+    stream = Unflushed(path)
     writer = PcapngWriter(stream)  # type: ignore[arg-type]
     iface = writer.add_interface(
         LINKTYPE_RTAC_SERIAL, name="/dev/ttyUSB0", description=describe_interface(mix.line)

@@ -16,6 +16,7 @@ from rich.style import Style
 from rich.text import Text
 
 from dissectors.dictionary import RegisterValue
+from sniffer.analysis.liveness import age_text
 from sniffer.framing.pairing import latency_words
 from sniffer.framing.store import FrameView
 from sniffer.meaning.describe import FrameDetail
@@ -106,16 +107,9 @@ def delta_text(dt: float | None) -> str:
 
 
 def ago_text(seconds: float) -> str:
-    """A compact age: `95ms`, `3.0s`, `2m03s`, `1h02m`."""
-    if seconds < 1:
-        return f"{max(0.0, seconds) * 1000:.0f}ms"
-    if seconds < 60:
-        return f"{seconds:.1f}s"
-    minutes, secs = divmod(int(seconds), 60)
-    if minutes < 60:
-        return f"{minutes}m{secs:02d}s"
-    hours, minutes = divmod(minutes, 60)
-    return f"{hours}h{minutes:02d}m"
+    """A compact age, `95ms`, `3.0s`, `2m03s`, `1h02m`: the one spelling of ages
+    (`liveness.age_text`, which the units pane and `--stats` use)."""
+    return age_text(seconds)
 
 
 def latency_text(d: FrameDetail | None) -> str:
