@@ -42,7 +42,7 @@ _LOCAL_SIGNATURE = 0x04034B50
 _DESCRIPTOR_SIGNATURE = b"PK\x07\x08"
 _STORED, _DEFLATED = 0, 8
 _METHODS = {_STORED: "stored", _DEFLATED: "deflated", 12: "bzip2", 14: "LZMA"}
-READ_STEP = 1 << 16  # compressed bytes read from the file at a time
+READ_STEP = 1 << 20  # compressed bytes read from the file at a time
 _INFLATE_STEP = 1 << 20  # bytes inflated at a time while looking for a member's end
 
 
@@ -166,13 +166,13 @@ class Archive:
             raise ArchiveError(f"no ZIP member {name!r}")
         yield from self._local_blocks(local, size)
 
-    def _raw(self, local: _Local) -> Iterator[bytes]:
+    def _raw(self, local: _Local, step_size: int = READ_STEP) -> Iterator[bytes]:
         """The member's compressed bytes in steps, read from the file as they are used."""
         assert self._file is not None
         pos = local.start
         while pos < local.end:
             self._file.seek(pos)
-            step = self._file.read(min(READ_STEP, local.end - pos))
+            step = self._file.read(min(step_size, local.end - pos))
             if not step:
                 return
             pos += len(step)
@@ -181,14 +181,7 @@ class Archive:
     def _local_blocks(self, local: _Local, size: int) -> Iterator[bytes]:
         where = f"ZIP member {local.name!r} at byte offset {local.offset}"
         if local.method == _STORED:
-            pending = b""
-            for step in self._raw(local):
-                pending += step
-                while len(pending) >= size:
-                    yield pending[:size]
-                    pending = pending[size:]
-            if pending:
-                yield pending
+            yield from self._raw(local, size)
         elif local.method == _DEFLATED:
             inflater = zlib.decompressobj(-15)
             try:

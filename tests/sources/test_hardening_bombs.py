@@ -143,6 +143,28 @@ def test_member_without_directory_is_found_and_read_in_bounded_memory(tmp_path: 
     assert peak[0] < 24 * MIB
 
 
+def test_members_found_from_local_headers_come_in_blocks_of_the_size_asked(
+    tmp_path: Path,
+) -> None:
+    body = bytes(range(256)) * 20_000  # 5 MB
+    inflater = zlib.compressobj(6, zlib.DEFLATED, -15)
+    packed = inflater.compress(body) + inflater.flush()
+    path = tmp_path / "cut.zip"
+    path.write_bytes(
+        local_member("stored", body)
+        + local_member("deflated", packed, method=8, descriptor=True)
+        + b"PK\x07\x08"
+        + bytes(12)
+        + local_member("last", b"xyz")
+    )
+    with Archive(path) as archive:
+        assert archive.names() == ["stored", "deflated", "last"]
+        for name, expected in (("stored", body), ("deflated", body), ("last", b"xyz")):
+            blocks = list(archive.blocks(name, MIB))
+            assert b"".join(blocks) == expected
+            assert max(len(block) for block in blocks) <= MIB
+
+
 def test_cut_short_real_session_still_streams_every_character(tmp_path: Path) -> None:
     data = bytes(range(1, 200))
     logic = uart(data, 10)
