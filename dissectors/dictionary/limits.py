@@ -9,7 +9,9 @@ time or Python's recursion depth:
 - nesting: at most `MAX_DEPTH` levels of arrays, tables and mappings (tomllib and PyYAML
   build nested values by recursion and would end in a RecursionError);
 - YAML aliases: the document with every alias expanded may hold at most `MAX_NODES`
-  values (a "billion laughs" file of a few hundred bytes expands to billions);
+  values (a "billion laughs" file of a few hundred bytes expands to billions) and at
+  most `MAX_EXPANDED` characters of text (one long string named a hundred times costs
+  a hundred times its length to everything that reads the entries);
 - numbers: at most `MAX_DIGITS` digits (Python refuses to convert an integer of more
   than 4300 digits with a ValueError that names no file).
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+from collections.abc import Iterator
 from typing import Any
 
 from .errors import DictionaryError
@@ -28,6 +31,10 @@ from .errors import DictionaryError
 MAX_BYTES = 4 << 20  # 4 MiB; the largest real dictionary is about 100 kB
 MAX_DEPTH = 64  # real files nest 4-8 levels
 MAX_NODES = 200_000  # values after alias expansion; 1,000 HA sensors are about 20,000
+# characters of keys and strings after alias expansion: 4 x MAX_BYTES, as no file under
+# the size limit reaches it without aliases, and aliases in real files repeat small
+# blocks (a hub's settings), adding kilobytes
+MAX_EXPANDED = 4 * MAX_BYTES
 MAX_DIGITS = 1000  # Python's int() refuses more than 4300
 
 # The parts of TOML text that matter for nesting: strings and comments (skipped whole,
@@ -153,19 +160,37 @@ def check_yaml(path: str, text: str) -> None:
     """Refuse YAML text over the size, nesting, alias expansion or digit limits.
 
     Walks PyYAML's event stream (its parser keeps an explicit stack, no recursion) and
-    counts the values each anchor stands for, so an alias costs what it expands to. A
-    syntax error stops the check quietly: the real load reports it with its line."""
+    counts the values and characters each anchor stands for, so an alias costs what it
+    expands to. libyaml's parser goes first where PyYAML has it (50 times faster on a
+    long scalar); it stops at its own nesting limit of 1,000 with a syntax error, so on
+    any syntax error the Python parser walks the file again, to name the deep line. A
+    syntax error there stops the check quietly: the real load reports it with its line."""
     import yaml
 
     check_size(path, text)
-    sizes: dict[str, int] = {}
-    # one open collection: (anchor, values counted inside it so far)
-    open_: list[tuple[str | None, int]] = []
-    total = 0
+    fast = getattr(yaml, "CSafeLoader", None)
+    for parser in (fast, yaml.SafeLoader) if fast is not None else (yaml.SafeLoader,):
+        try:
+            _check_yaml_events(path, yaml.parse(text, Loader=parser))
+            return
+        except yaml.YAMLError:
+            continue
 
-    def add(count: int, line: int) -> None:
-        nonlocal total
+
+def _check_yaml_events(path: str, events: Iterator[Any]) -> None:
+    """The limits of `check_yaml` over one parser's events."""
+    import yaml
+
+    sizes: dict[str, tuple[int, int]] = {}  # anchor -> (values, characters)
+    # one open collection: [anchor, values inside it so far, characters inside it so far]
+    open_: list[tuple[str | None, int, int]] = []
+    total = 0
+    chars = 0
+
+    def add(count: int, length: int, line: int) -> None:
+        nonlocal total, chars
         total += count
+        chars += length
         if total > MAX_NODES:
             raise DictionaryError(
                 path,
@@ -175,40 +200,48 @@ def check_yaml(path: str, text: str) -> None:
                 "write the values out, or use fewer nested aliases; a Home Assistant "
                 "configuration needs a few thousand values",
             )
+        if chars > MAX_EXPANDED:
+            raise DictionaryError(
+                path,
+                line,
+                f"the YAML expands to more than {MAX_EXPANDED:,} characters once its "
+                "aliases (*name) are followed",
+                "name a long value with an alias once or twice, not over and over, or "
+                "shorten it; a Home Assistant configuration is a few hundred kilobytes",
+            )
         if open_:
-            anchor, inside = open_[-1]
-            open_[-1] = (anchor, inside + count)
+            anchor, inside, inside_chars = open_[-1]
+            open_[-1] = (anchor, inside + count, inside_chars + length)
 
-    try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
-            line = event.start_mark.line + 1 if event.start_mark is not None else 0
-            if isinstance(event, yaml.CollectionStartEvent):
-                if len(open_) >= MAX_DEPTH:
-                    raise _too_deep(path, line)
-                open_.append((event.anchor, 0))
-            elif isinstance(event, yaml.CollectionEndEvent) and open_:
-                anchor, inside = open_.pop()
-                size = inside + 1
-                if anchor is not None:
-                    sizes[anchor] = size
-                total -= inside  # counted once already as they arrived; re-add as a whole
-                add(size, line)
-            elif isinstance(event, yaml.ScalarEvent):
-                value = event.value
-                long_number = len(value) > MAX_DIGITS and _LONG_NUMBER.fullmatch(value)
-                if event.style is None and long_number:
-                    raise _too_long(path, line)
-                if event.anchor is not None:
-                    sizes[event.anchor] = 1
-                add(1, line)
-            elif isinstance(event, yaml.AliasEvent):
-                if any(anchor == event.anchor for anchor, _ in open_):
-                    raise DictionaryError(
-                        path,
-                        line,
-                        f"the alias *{event.anchor} is inside the value it names, a loop",
-                        "an alias may only repeat a value that is complete before it",
-                    )
-                add(sizes.get(event.anchor or "", 1), line)
-    except yaml.YAMLError:
-        return
+    for event in events:
+        line = event.start_mark.line + 1 if event.start_mark is not None else 0
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(open_) >= MAX_DEPTH:
+                raise _too_deep(path, line)
+            open_.append((event.anchor, 0, 0))
+        elif isinstance(event, yaml.CollectionEndEvent) and open_:
+            anchor, inside, inside_chars = open_.pop()
+            size = inside + 1
+            if anchor is not None:
+                sizes[anchor] = (size, inside_chars)
+            # counted once already as they arrived; re-add as a whole
+            total -= inside
+            chars -= inside_chars
+            add(size, inside_chars, line)
+        elif isinstance(event, yaml.ScalarEvent):
+            value = event.value
+            long_number = len(value) > MAX_DIGITS and _LONG_NUMBER.fullmatch(value)
+            if not event.style and long_number:  # plain: None (Python), "" (libyaml)
+                raise _too_long(path, line)
+            if event.anchor is not None:
+                sizes[event.anchor] = (1, len(value))
+            add(1, len(value), line)
+        elif isinstance(event, yaml.AliasEvent):
+            if any(anchor == event.anchor for anchor, _, _ in open_):
+                raise DictionaryError(
+                    path,
+                    line,
+                    f"the alias *{event.anchor} is inside the value it names, a loop",
+                    "an alias may only repeat a value that is complete before it",
+                )
+            add(*sizes.get(event.anchor or "", (1, 0)), line)

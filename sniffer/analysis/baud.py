@@ -99,6 +99,8 @@ def estimate_baud(samplerate: float, levels: Sequence[bytes]) -> BaudGuess | Non
     if count:
         bit = total / count
     measured = samplerate / bit
+    if measured < 1:  # pulses a second long or more: no UART line (and no LineSettings)
+        return None
     nearest = min(COMMON_BAUDS, key=lambda b: abs(b - measured))
     common = abs(nearest - measured) <= SNAP * nearest
     baud = nearest if common else round(measured)

@@ -34,11 +34,16 @@ from pathlib import Path
 from sniffer.errors import CaptureError
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
-from sniffer.sources.zipscan import Archive, ArchiveError
+from sniffer.sources.zipscan import Archive, ArchiveError, MemberTooLargeError
 
 READ_BLOCK = 1 << 22  # sample bytes decoded per step
 MIN_SAMPLES_PER_BIT = 3.0
-MAX_SAMPLERATE = 1e12
+# A character is held whole while it is decoded: 12 bits of this many samples at most
+# (1 GHz sampling of a 300 baud line is 3.3 million samples per bit).
+MAX_SAMPLES_PER_BIT = 4_000_000
+MAX_SAMPLERATE = 1e10  # 10 GHz; the fastest logic analysers sample at a few GHz
+LOWEST_BAUD = 300  # the slowest standard baud rate the line estimate considers
+MAX_METADATA = 1 << 20  # bytes; sigrok writes a few hundred
 ESTIMATE_SAMPLES = 1 << 22  # samples a line estimate looks at
 _RATE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgG]?)(?:[hH][zZ])?\s*$")
 _RATE_UNITS = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9}
@@ -68,7 +73,14 @@ def parse_samplerate(text: str) -> float | None:
 
 
 def _read_metadata(path: Path, archive: Archive) -> SigrokMetadata:
-    text = archive.read("metadata").decode("utf-8", errors="replace")
+    try:
+        raw = archive.read("metadata", MAX_METADATA)
+    except MemberTooLargeError as exc:
+        raise CaptureError(
+            f"{path}: {exc}; sigrok writes a metadata member of a few hundred bytes: "
+            "this is not a sigrok session, or a damaged one (open it in PulseView)"
+        ) from None
+    text = raw.decode("utf-8", errors="replace")
     parser = configparser.ConfigParser(interpolation=None, strict=False)
     try:
         parser.read_string(text)
@@ -83,7 +95,8 @@ def _read_metadata(path: Path, archive: Archive) -> SigrokMetadata:
     rate = parse_samplerate(device.get("samplerate", ""))
     if rate is None:
         raise CaptureError(
-            f"{path}: sigrok metadata has no usable samplerate ({device.get('samplerate')!r})"
+            f"{path}: sigrok metadata has no usable samplerate ({device.get('samplerate')!r}); "
+            f"expected a rate such as '1 MHz', above 0 and at most {MAX_SAMPLERATE / 1e9:g} GHz"
         )
     unitsize_text = device.get("unitsize", "1").strip()
     unitsize = int(unitsize_text) if _decimal(unitsize_text) else 0
@@ -308,6 +321,12 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
     numbers = _choose_probes(path, meta, options)
     line = options.line(None)
     notes: list[str] = []
+    if options.baud is None and meta.samplerate < MIN_SAMPLES_PER_BIT * LOWEST_BAUD:
+        raise CaptureError(
+            f"{path}: {meta.samplerate:g} samples/s is too slow for any standard baud rate "
+            f"({LOWEST_BAUD} baud needs {MIN_SAMPLES_PER_BIT * LOWEST_BAUD:g}); check the "
+            "samplerate in the session's metadata, or give the line's --baud"
+        )
     if options.baud is None and options.estimator is not None:  # measure it, say the choice
         levels = bit_levels(
             path, meta.unitsize, meta.members, numbers, options.invert, ESTIMATE_SAMPLES
@@ -320,6 +339,13 @@ def open_sigrok(path: Path, options: ReadOptions) -> Capture:
         raise CaptureError(
             f"{path}: {meta.samplerate:g} samples/s is too slow for {line.baud} baud "
             f"(needs {MIN_SAMPLES_PER_BIT:g} samples per bit)"
+        )
+    if meta.samplerate / line.baud > MAX_SAMPLES_PER_BIT:
+        raise CaptureError(
+            f"{path}: {meta.samplerate:g} samples/s at {line.baud} baud is "
+            f"{meta.samplerate / line.baud:,.0f} samples per bit, over the limit of "
+            f"{MAX_SAMPLES_PER_BIT:,}; check --baud, or resample the capture to a lower rate "
+            "(sigrok-cli or PulseView)"
         )
     for token, number in zip(options.probes, numbers, strict=False):
         if text := ambiguity(token, number, meta.probes):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,13 @@ from dissectors.dictionary import (
     load_dictionary,
 )
 from dissectors.dictionary.bus import load_bus
-from dissectors.dictionary.limits import MAX_DEPTH, MAX_DIGITS, check_yaml, load_toml
+from dissectors.dictionary.limits import (
+    MAX_DEPTH,
+    MAX_DIGITS,
+    MAX_EXPANDED,
+    check_yaml,
+    load_toml,
+)
 from sniffer.cli import main
 
 
@@ -35,6 +42,25 @@ def billion_laughs(levels: int = 7) -> str:
         "  sensors:",
         "  - {name: t, address: 1}",
     ]
+    return "\n".join(lines) + "\n"
+
+
+def long_aliases(length: int = 3_500_000, aliases: int = 100) -> str:
+    """A Home Assistant file with one long sensor name and `aliases` more sensors named
+    by an alias of it (issue 30, item 8: 3.5 MB that `dict check` passed and `dict show`
+    took 42 s and 768 MB to print)."""
+    lines = [
+        "modbus:",
+        "- name: hub",
+        "  type: tcp",
+        "  host: h",
+        "  port: 502",
+        "  sensors:",
+        "  - name: &long " + "x" * length,
+        "    address: 0",
+    ]
+    for k in range(aliases):
+        lines += ["  - name: *long", f"    address: {k + 1}"]
     return "\n".join(lines) + "\n"
 
 
@@ -65,6 +91,42 @@ def test_yaml_alias_inside_its_own_value_is_a_loop(tmp_path: Path) -> None:
         import_home_assistant(path)
     assert caught.value.line == 3
     assert "loop" in caught.value.message
+
+
+def test_aliases_of_a_long_string_are_refused_by_their_characters(tmp_path: Path) -> None:
+    path = write(tmp_path, "long.yaml", long_aliases())
+    with pytest.raises(DictionaryError) as caught:
+        import_home_assistant(path)
+    error = caught.value
+    assert error.path == str(path)
+    # 3.5 million characters at line 7, as many again at each alias from line 9 on: the
+    # fourth alias makes 17.5 million, over 16 Mi
+    assert error.line == 9 + 2 * 3
+    assert f"more than {MAX_EXPANDED:,} characters" in error.message
+    assert "alias" in error.fix
+
+
+def test_aliases_of_a_long_string_are_refused_in_bounded_memory(tmp_path: Path) -> None:
+    # the check costs the file, not what it expands to: a generous bound of 4x the text
+    path = write(tmp_path, "long.yaml", long_aliases())
+    tracemalloc.start()
+    try:
+        with pytest.raises(DictionaryError):
+            import_home_assistant(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 * 4 * 3_500_000  # characters of up to 4 bytes in a Python str
+
+
+def test_the_character_limit_counts_what_anchors_hold() -> None:
+    # nested collections: an alias of a list costs every string inside it
+    half = "x" * (MAX_EXPANDED // 16)
+    within = f"a: &a [{half}, {half}]\n" + "".join(f"{key}: *a\n" for key in "bcdefg")
+    check_yaml("ok.yaml", within)  # 7 x 2 Mi characters (and 7 keys): 14 Mi of 16 Mi
+    with pytest.raises(DictionaryError) as caught:
+        check_yaml("big.yaml", within + "h: *a\n")  # 16 Mi and 8 characters of keys
+    assert caught.value.line == 8
 
 
 def test_small_aliases_stay_allowed() -> None:
@@ -167,12 +229,13 @@ def test_oversized_file_is_refused_before_parsing(tmp_path: Path) -> None:
     assert "over the limit" in caught.value.message
 
 
-@pytest.mark.parametrize("name", ["deep.toml", "deep.yaml", "laughs.yaml"])
+@pytest.mark.parametrize("name", ["deep.toml", "deep.yaml", "laughs.yaml", "long.yaml"])
 def test_dict_check_reports_each_bad_file_and_exits_1(tmp_path: Path, name: str) -> None:
     texts = {
         "deep.toml": DICT_HEAD + "x = " + "[" * 2000 + "]" * 2000 + "\n",
         "deep.yaml": "modbus: " + "[" * 2000 + "]" * 2000 + "\n",
         "laughs.yaml": billion_laughs(),
+        "long.yaml": long_aliases(),
     }
     path = write(tmp_path, name, texts[name])
     out, err = io.StringIO(), io.StringIO()

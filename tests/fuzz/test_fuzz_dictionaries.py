@@ -43,11 +43,21 @@ def _read(files: list[Path]) -> list[bytes]:
     return [p.read_bytes() for p in files]
 
 
+# issue 30, item 8 in small: one long string named again and again by an alias
+LONG_ALIASES = (
+    b"modbus:\n- name: hub\n  type: tcp\n  host: h\n  port: 502\n  sensors:\n"
+    + b"  - {name: &long "
+    + b"x" * 4000
+    + b", address: 0}\n"
+    + b"".join(b"  - {name: *long, address: %d}\n" % k for k in range(1, 40))
+)
+
 READERS = {
     "toml": (load_dictionary, _read(sorted(DEVICES.glob("*.toml")))[:1]
              + _read([DICTIONARIES / "every_type.toml"])),
     "bus": (load_bus, _read([DICTIONARIES / "bus.toml"])),
-    "yaml": (import_home_assistant, _read(sorted(DICTIONARIES.glob("home_assistant*.yaml")))),
+    "yaml": (import_home_assistant,
+             [*_read(sorted(DICTIONARIES.glob("home_assistant*.yaml"))), LONG_ALIASES]),
     "csv": (import_csv, _read(sorted(DICTIONARIES.glob("*.csv")))),
 }  # fmt: skip
 SUFFIX = {"toml": ".toml", "bus": ".toml", "yaml": ".yaml", "csv": ".csv"}
