@@ -227,3 +227,23 @@ def test_hostile_mqtt_messages_are_refused_and_counted() -> None:
         "time",
         "sequence",
     }
+
+
+def test_a_retransmission_after_the_fin_is_no_reassembly_error(tmp_path: Path) -> None:
+    """The FIN takes a sequence number but delivers no byte: a retransmission of the
+    bytes before it was compared one byte off and reported as a reassembly error (found
+    by test_fuzz_net's repeated-and-reordered property)."""
+    conv = Conversation()
+    packets = conv.handshake()
+    second = mbap_frame(2, read_request(3))
+    packets += [conv.client(mbap_frame(1, read_request(0)))]
+    again = conv.segment(True, second)
+    packets += [conv.client(second), conv.client(b"", TCP_FIN | TCP_ACK), again]
+    path = tmp_path / "fin.pcap"
+    path.write_bytes(pcap(LINKTYPE_ETHERNET, [(T0 + k * 0.01, p) for k, p in enumerate(packets)]))
+    chunks = _net_read(path)
+    assert not [c for c in chunks if c.event == "reassembly error"]
+    assert (
+        b"".join(c.data for c in chunks if c.channel == 0)
+        == mbap_frame(1, read_request(0)) + second
+    )
