@@ -111,7 +111,7 @@ def test_damaged_sidecars_list_every_row_as_without_one(bench: Bench) -> None:
     # given() inside, with the module fixture: one bench for every example
     seeds = [bench.good]
 
-    @budget(150)
+    @budget(80)
     @given(mutated(seeds))
     @example(_later_block_flip(bench.good))
     def run(damaged: bytes) -> None:
