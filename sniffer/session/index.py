@@ -703,7 +703,10 @@ def _header(
     says."""
     if handle.read(len(MAGIC)) != MAGIC:
         return None
-    size, crc = _PREFIX.unpack(handle.read(_PREFIX.size))
+    prefix = handle.read(_PREFIX.size)
+    if len(prefix) != _PREFIX.size:
+        return None  # cut inside the header's length and CRC (#30, found by tests/fuzz)
+    size, crc = _PREFIX.unpack(prefix)
     if size > 1 << 30:
         return None
     blob = handle.read(size)

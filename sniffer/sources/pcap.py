@@ -708,17 +708,27 @@ class _Section:
         # section's interface described alike goes on in the same channel
         self.described: dict[tuple[str, bytes], list[int]] = {}
         self.in_section: set[int] = set()  # channels of the current section
+        # how many of each description's channels the current section has taken: they
+        # are taken in order, so the next free one is found without a scan (#30.7)
+        self.taken: dict[tuple[str, bytes], int] = {}
         self.left_out = 0  # interfaces past MAX_INTERFACES
+        self.no_line = options.line(None)  # the line of an interface that is not read
 
     def new_section(self) -> None:
         self.current = []
         self.in_section = set()
+        self.taken = {}
 
     def add(self, block: _Block) -> _Interface:
         order, body = block.order, block.body
         key = (order, bytes(body))
         same = self.described.get(key, []) if len(body) >= 8 else []
-        free = next((ch for ch in same if ch not in self.in_section), None)
+        # a section takes a description's channels first to last (a new channel is added
+        # to the list only once the section took all of them): the next is the free one
+        taken = self.taken.get(key, 0)
+        free = same[taken] if taken < len(same) else None
+        if len(body) >= 8:
+            self.taken[key] = taken + 1
         if free is not None:  # the same interface as in an earlier section (see above)
             linktype, _reserved, snaplen = struct.unpack_from(order + "HHI", body)
             iface = self._interface(linktype, snaplen, _options(body, 8, order), order, free)
@@ -733,14 +743,14 @@ class _Section:
                     f"{channel + 1}th; modscope reads {MAX_INTERFACES} interfaces at most, "
                     "the packets of the others are skipped"
                 )
-            iface = _Interface(-1, channel, self.options.line(None), f"interface {channel}")
+            iface = _Interface(-1, channel, self.no_line, f"interface {channel}")
             iface.warned = True
         elif len(body) < 8:
             self.warnings.append(
                 f"corrupt interface description at byte offset {block.offset}; "
                 "its packets are skipped"
             )
-            iface = _Interface(-1, channel, self.options.line(None), f"interface {channel}")
+            iface = _Interface(-1, channel, self.no_line, f"interface {channel}")
         else:
             linktype, _reserved, snaplen = struct.unpack_from(order + "HHI", body)
             iface = self._interface(linktype, snaplen, _options(body, 8, order), order, channel)
@@ -989,7 +999,7 @@ def _bulk_blocks(
     rx_start = RTAC_DATA_RX_START
     # the compiled walk over data records (sniffer.core), given the section's interfaces
     fast = core.FAST
-    fast_ifaces: list[tuple[int, int, int, int] | None] = _fast_interfaces(section)
+    fast_ifaces = _FastInterfaces(section)
     # the batch being gathered
     parts: list[bytes] = []
     ends: array[int] = array("q")
@@ -1018,13 +1028,13 @@ def _bulk_blocks(
             if parts:
                 yield batch()
             return None if base + pos == size else (base + pos, order)
-        if fast is not None and base + pos:
+        if fast is not None and base + pos and fast_ifaces.usable:
             # the compiled copy of the data packet branch below, up to the first block it
             # does not take (that block is then looked at here, as without it)
             pos, cut, b_index, direction_value, b_bytes, b_first, data, e, ts, te = (
                 fast.bulk_epbs(
-                    view[:end], pos, size - base, order == ">", fast_ifaces, b_index, int(b_dir),
-                    b_bytes, b_first,
+                    view[:end], pos, size - base, order == ">", fast_ifaces.entries, b_index,
+                    int(b_dir), b_bytes, b_first,
                 )
             )  # fmt: skip
             if e:
@@ -1129,33 +1139,62 @@ def _bulk_blocks(
         pos += total
         if not (yield from _one_block(block, section, decoder, info, warnings)):
             return None
-        if block_type in (BLOCK_SHB, BLOCK_IDB):
+        if block_type == BLOCK_SHB:
             directions.clear()
-            fast_ifaces = _fast_interfaces(section)
+            fast_ifaces = _FastInterfaces(section)
+        elif block_type == BLOCK_IDB:
+            directions.clear()
+            fast_ifaces.add(section.current[-1])
 
 
 _DIRECTIONS = tuple(sorted(Direction))  # by value: 0, 1, 2
 
 
-def _fast_interfaces(section: _Section) -> list[tuple[int, int, int, int] | None]:
-    """What the compiled walk needs of each interface of the section: ticks per second,
-    offset seconds, role and the length of the header before the bytes read of those of
-    a link type in `PLAIN_HEADER` (None for the others, and where those numbers are out
-    of the range it computes times for exactly)."""
-    out: list[tuple[int, int, int, int] | None] = []
-    for iface in section.current:
-        skip = PLAIN_HEADER.get(iface.linktype, -1)
-        fits = (
-            skip >= 0
-            and 0 < iface.ticks_per_second <= 1 << 62
-            and abs(iface.offset_seconds) < 1 << 53
-        )
-        out.append(
-            (iface.ticks_per_second, iface.offset_seconds, int(iface.note.role), skip)
-            if fits
-            else None
-        )
-    return out
+# interface entries past which the compiled walk is left out: it reads its list anew on
+# each call, so a section of 40,000 interface descriptions (all but 128 of them unread,
+# see MAX_INTERFACES) would cost 40,000 entries per block (#30.7); such a section is
+# read by the Python walk, which gives the same chunks
+FAST_INTERFACES = 1024
+
+
+class _FastInterfaces:
+    """What the compiled walk needs of each interface of the section, by index
+    (`_fast_interface`), kept one entry at a time as interfaces are described and without
+    the Nones at its end (an index past the list is left to the Python walk, as a None).
+    `usable`: short enough for the compiled walk (FAST_INTERFACES)."""
+
+    def __init__(self, section: _Section) -> None:
+        self.entries: list[tuple[int, int, int, int] | None] = []
+        self.nones = 0  # Nones described after the last entry
+        for iface in section.current:
+            self.add(iface)
+
+    def add(self, iface: _Interface) -> None:
+        entry = _fast_interface(iface)
+        if entry is None:
+            self.nones += 1
+            return
+        self.entries.extend([None] * self.nones)
+        self.nones = 0
+        self.entries.append(entry)
+
+    @property
+    def usable(self) -> bool:
+        return len(self.entries) <= FAST_INTERFACES
+
+
+def _fast_interface(iface: _Interface) -> tuple[int, int, int, int] | None:
+    """What the compiled walk needs of an interface: ticks per second, offset seconds,
+    role and the length of the header before the bytes read of one of a link type in
+    `PLAIN_HEADER` (None for the others, and where those numbers are out of the range it
+    computes times for exactly)."""
+    skip = PLAIN_HEADER.get(iface.linktype, -1)
+    fits = (
+        skip >= 0 and 0 < iface.ticks_per_second <= 1 << 62 and abs(iface.offset_seconds) < 1 << 53
+    )
+    if not fits:
+        return None
+    return (iface.ticks_per_second, iface.offset_seconds, int(iface.note.role), skip)
 
 
 def _packet_block(

@@ -84,6 +84,9 @@ class TcpHalf:
     retransmitted: int = 0  # bytes dropped as already delivered
     conflicts: int = 0  # retransmissions whose bytes differed from those delivered
     recent: bytearray = field(default_factory=bytearray)  # the last bytes delivered
+    # the stream position just past `recent`'s last byte: a FIN takes a sequence number
+    # and no byte, so `position` may be past it (#30, found by tests/fuzz)
+    recent_end: int = 0
     gaps: int = 0
     gap_bytes: int = 0
 
@@ -100,6 +103,8 @@ class TcpHalf:
             seq = (seq + 1) % SEQ_MOD
             self.next = seq
             self.position = 0
+            self.recent.clear()
+            self.recent_end = 0
             note = "accepted (SYN ACK)" if seg.flags & TCP_ACK else "opened (SYN)"
             out.append(Piece(t, event=CONNECTION, note=note))
         if seg.flags & TCP_RST:
@@ -196,6 +201,7 @@ class TcpHalf:
             recent += data
             if len(recent) > 2 * RECENT:
                 del recent[:-RECENT]
+            self.recent_end = self.position
         if missing:
             out.append(
                 Piece(t, event=GAP, note=f"{missing} bytes cut off by the capture's snap length")
@@ -203,6 +209,7 @@ class TcpHalf:
             self.gaps += 1
             self.gap_bytes += missing
             self._advance(missing)
+            self.recent.clear()  # bytes before a gap are not compared with those after it
         if fin and not self.closed:
             self.closed = True
             self._advance(1)
@@ -213,8 +220,10 @@ class TcpHalf:
         """A retransmission of bytes that began `old` bytes before the next expected:
         a `REASSEMBLY` event when they differ from those delivered (module doc)."""
         recent = self.recent
-        start = len(recent) - old  # where `again` begins in `recent`
-        if start < 0 or not again:
+        # where `again` begins in `recent`: `old` bytes before the next expected byte,
+        # which may be past the last byte delivered (a FIN)
+        start = len(recent) - (self.recent_end - (self.position - old))
+        if start < 0 or start >= len(recent) or not again:
             return []  # older than the bytes kept: not compared
         first = bytes(recent[start : start + len(again)])
         if first == again[: len(first)]:
@@ -257,6 +266,7 @@ class TcpHalf:
         self.gap_bytes += size
         out = [Piece(t, event=GAP, note=f"{size} bytes missing from the capture; {why}")]
         self._advance(size)
+        self.recent.clear()  # bytes before a gap are not compared with those after it
         self.hole_since = None
         out.extend(self._drain(t))
         return out
