@@ -32,10 +32,11 @@ import re
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
-from sniffer.sources.logs.base import TextFile
+from sniffer.sources.logs.base import Spill, TextFile
 
 SALEAE = "saleae"
 
@@ -130,15 +131,19 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     """Open a Saleae Async Serial CSV export.
 
     The file is read line by line, never whole: a first pass finds the analysers (the
-    channels) and the warnings, the chunks come from a second pass as they are consumed."""
+    channels) and the warnings and keeps the rows on disk (`Spill`, about 50 bytes a
+    row); the chunks come from them as they are consumed (or, without room for them,
+    from a second pass over the file)."""
     # UTF-8, a byte that is not read as U+FFFD; lines cut at LF, or CR without any LF
     text = replace(TextFile.survey(path, ()), encoding="utf-8", errors="replace")
     warnings: list[str] = []
     where = str(path)
     names: dict[str, int] = {}
     found = False
-    for _ in _rows(text, names, where, warnings):
+    spill = Spill(_pack_row, _Row)
+    for row in _rows(text, names, where, warnings):
         found = True
+        spill.add(row)
     line = options.line(None)
     channels: dict[int, str] = {}
     directions: dict[int, Direction] = {}
@@ -170,10 +175,17 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     )
     if labels == Labels.NONE:
         directions = dict.fromkeys(directions, Direction.UNKNOWN)
-    # the second pass: the same rows, their warnings already said
-    rows = _rows(text, dict(names), where, [])
+    # the rows kept from the first pass, or (without room for them) a second pass over
+    # the file: the same rows, their warnings already said
+    rows = spill.replay()
+    if rows is None:
+        rows = _rows(text, dict(names), where, [])
     chunks = _chunks(rows, line, directions)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
+
+
+def _pack_row(row: _Row) -> tuple[Any, ...]:
+    return (row.number, row.channel, row.start, row.duration, row.value, row.errors)
 
 
 def _rows(text: TextFile, names: dict[str, int], where: str, warnings: list[str]) -> Iterator[_Row]:

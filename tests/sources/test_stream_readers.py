@@ -24,7 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sniffer.cli import main
-from sniffer.sources import hexdump
+from sniffer.sources import hexdump, open_capture
 from sniffer.sources.logs import base as logs_base
 from sniffer.sources.logs.base import split_lines
 
@@ -331,3 +331,78 @@ if __name__ == "__main__":
             print(f'    "{capture.parent.name}/{capture.name}": "{_digest(capture)}",')
     else:
         MAKERS[sys.argv[1]](Path(sys.argv[3]), int(float(sys.argv[2]) * 1e6))
+
+
+# ---------------------------------------------------------------- damaged lines
+
+_FIELD = "x" * 200_000  # over the csv module's field limit (131,072 characters)
+
+
+@pytest.mark.parametrize(
+    ("text", "line"),
+    [
+        # Logic 2 table: a field over the limit, a stray CR inside a row
+        (f'name,type,start_time,duration,data,error\n"M","data",0.1,0.0005,"{_FIELD}",\n', 2),
+        ('name,type,start_time,duration,data,error\n"M","data",0.1,0.0005,0x0\r1,\n', 2),
+        # early Logic 2, the same
+        (f'Time [s],Analyzer Name,Decoded Protocol Result\n0.1,Async Serial,"{_FIELD}"\n', 2),
+        ("Time [s],Analyzer Name,Decoded Protocol Result\n0.1,Async\rSerial,0x01\n", 2),
+        # Logic 1: the value column takes whatever it holds
+        (f"Time [s],Value,Parity Error,Framing Error\n0.1,{_FIELD},,\n", 2),
+    ],
+)
+def test_a_damaged_saleae_row_is_a_warning_naming_its_line(
+    text: str, line: int, tmp_path: Path
+) -> None:
+    path = tmp_path / "export.csv"
+    path.write_text(text)
+    with path.open("a") as out:  # a good row after the bad one: read, not lost
+        out.write('"M","data",0.3,0.0005,0x03,\n' if text.startswith("name") else "0.3,x,0x03\n")
+    capture = open_capture(path)
+    chunks = list(capture.chunks())
+    assert capture.info.format == "saleae"
+    assert any(w.startswith(f"{path} line {line}: ") for w in capture.warnings), capture.warnings
+    assert all(len(w) < 300 for w in capture.warnings)
+    assert chunks  # the rows around it are read
+
+
+def test_a_log_line_of_100_000_bytes_and_a_stray_cr_are_read(tmp_path: Path) -> None:
+    path = tmp_path / "esp.log"
+    big = ":".join(["0A"] * 100_000)
+    path.write_text(
+        "[12:00:00.000][D][uart_debug:158]: >>> 01:03:00:00:00:02:C4:0B\n"
+        f"[12:00:00.100][D][uart_debug:158]: <<< {big}\n"
+        "[12:00:00.200][D][uart_debug:158]: >>> 01:03\r:00:00:00:02:C4:0B\n"
+        "[12:00:00.300][D][uart_debug:158]: >>> 01:03:00:00:00:02:C4:0B\n"
+    )
+    capture = open_capture(path)
+    data = [c.data for c in capture.chunks() if c.data]
+    # the CR stays inside its line (no line cut in two, no number shifted)
+    assert data[1] == b"\x0a" * 100_000 and len(data) == 4
+    assert data[2] == data[3] == data[0] and capture.warnings == []
+
+
+def _read_all(path: Path) -> tuple[object, list[object], list[str]]:
+    capture = open_capture(path)
+    return capture.info, list(capture.chunks()), capture.warnings
+
+
+@pytest.mark.parametrize("name", [p.name for p in sorted(CAPTURES.glob("logs/*"))])
+def test_without_room_for_the_spill_the_file_is_parsed_again_alike(
+    name: str, tmp_path: Path
+) -> None:
+    path = CAPTURES / "logs" / name
+    kept = _read_all(path)
+
+    def no_room(*args: object, **kwargs: object) -> object:
+        raise OSError(28, "No space left on device")
+
+    with mock.patch("tempfile.TemporaryFile", no_room):
+        again = _read_all(path)
+    assert again == kept
+    # a spill past its size limit is dropped too
+    with (
+        mock.patch.object(logs_base, "SPILL_LIMIT", 10),
+        mock.patch.object(logs_base, "SPILL_BATCH", 1),
+    ):
+        assert _read_all(path) == kept

@@ -39,6 +39,7 @@ from sniffer.sources.logs.base import (
     numbered,
     parse_stamp,
     record_chunks,
+    record_spill,
     route,
     split_lines,
 )
@@ -101,16 +102,19 @@ def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
     """Open a text log of format `kind` (one of LOG_FORMATS).
 
     The file is read line by line, never whole: a first pass gathers the warnings, what
-    the file says about itself and what routing needs (`Summary`); the chunks come from a
-    second pass, as they are consumed. Memory stays a few blocks and lines whatever the
-    file's size; the warnings are kept (one per unreadable line)."""
+    the file says about itself and what routing needs (`Summary`), and keeps the records
+    on disk (`Spill`); the chunks come from them, as they are consumed (or, without the
+    spill, from a second pass over the file). Memory stays a few blocks and lines
+    whatever the file's size; the warnings are kept (one per unreadable line)."""
     text = TextFile.survey(path)
     parse = STREAMS[kind]
     where = str(path)
     parsed = ParsedLog()
     summary = Summary()
+    spill = record_spill()
     for record in parse(text.lines, where, parsed):
         summary.add(record)
+        spill.add(record)
     line = options.line(parsed.line)
     stamps, resolution = summary.stamps()
     warnings = list(parsed.warnings)
@@ -134,11 +138,13 @@ def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
     )
 
     def records() -> Iterator[LogRecord]:
-        lines: Lines = text.lines
-        if parsed.reverse:
-            total = text.count()
-            lines = partial(text.lines_reversed, total)
-        for record in parse(lines, where, parsed.again()):
+        spilled = spill.replay(parsed.reverse)
+        if spilled is None:  # no spill: the file is parsed again
+            lines: Lines = text.lines
+            if parsed.reverse:
+                lines = partial(text.lines_reversed, text.count())
+            spilled = parse(lines, where, parsed.again())
+        for record in spilled:
             yield routing.adjust(record)
 
     chunks = record_chunks(records(), line, where, warnings, routing.channel)

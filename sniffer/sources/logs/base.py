@@ -11,16 +11,19 @@ file's order; `t_end` is the printed time. Nothing here raises on content.
 from __future__ import annotations
 
 import codecs
+import marshal
 import re
+import tempfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO, Generic, TypeVar
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.sources.net.carrier import MBAP_CARRIERS, MODBUS_TCP, ChannelLabel, Votes
 
+T = TypeVar("T")
 DAY = 86_400.0
 ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 HEX2 = re.compile(r"^[0-9A-Fa-f]{2}$")
@@ -348,6 +351,113 @@ class ParsedLog:
         if text:
             kind = kind or event_kind(text)
             self.records.append(LogRecord(b"", number, stamp, Direction.UNKNOWN, kind, text, conn))
+
+
+SPILL_BATCH = 4096  # records written to the spill at a time
+SPILL_LIMIT = 1 << 30  # bytes a spill may take on disk; past that the file is parsed again
+_DIRECTIONS = {int(d): d for d in Direction}
+
+
+class Spill(Generic[T]):
+    """A first pass's items kept on disk for the second pass, so that it does not parse
+    the file again: an unnamed temporary file (gone when closed, or when the program
+    ends), written a batch at a time as tuples (`pack`, read back by `unpack`); a log
+    record takes about 70 bytes, a third of the size of an ESPHome log. When it cannot be
+    written (no room, no temporary folder) or would pass `SPILL_LIMIT` it is dropped, and
+    `replay` gives None: the file is parsed again."""
+
+    def __init__(self, pack: Callable[[T], tuple[Any, ...]], unpack: Callable[..., T]) -> None:
+        self._pack, self._unpack = pack, unpack
+        self._batch: list[tuple[Any, ...]] = []
+        self._offsets: list[int] = []
+        self._file: BinaryIO | None
+        try:
+            self._file = tempfile.TemporaryFile()  # noqa: SIM115 (closed by replay or drop)
+        except OSError:
+            self._file = None
+
+    def add(self, item: T) -> None:
+        if self._file is None:
+            return
+        self._batch.append(self._pack(item))
+        if len(self._batch) >= SPILL_BATCH:
+            self._write()
+
+    def _write(self) -> None:
+        if self._file is None:
+            return
+        try:
+            self._offsets.append(self._file.tell())
+            marshal.dump(self._batch, self._file)
+            if self._file.tell() > SPILL_LIMIT:
+                self.drop()
+        except OSError:
+            self.drop()
+        self._batch = []
+
+    def drop(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def replay(self, reverse: bool = False) -> Iterator[T] | None:
+        """The items in the order they were added (or the last first), once; None when
+        the spill was dropped."""
+        if self._batch:
+            self._write()
+        if self._file is None:
+            return None
+        return self._items(self._file, reverse)
+
+    def _items(self, handle: BinaryIO, reverse: bool) -> Iterator[T]:
+        unpack = self._unpack
+        try:
+            handle.flush()
+            for offset in reversed(self._offsets) if reverse else self._offsets:
+                handle.seek(offset)
+                batch = marshal.load(handle)
+                for fields in reversed(batch) if reverse else batch:
+                    yield unpack(*fields)
+        finally:
+            self.drop()
+
+
+def _pack_record(record: LogRecord) -> tuple[Any, ...]:
+    stamp = record.stamp
+    return (
+        record.data,
+        record.line,
+        None if stamp is None else (stamp.seconds, stamp.resolution, stamp.dated, stamp.end),
+        int(record.direction),
+        record.event,
+        record.note,
+        record.conn,
+    )
+
+
+def _unpack_record(
+    data: bytes,
+    line: int,
+    stamp: tuple[float, float, bool, int] | None,
+    direction: int,
+    event: str,
+    note: str,
+    conn: str,
+) -> LogRecord:
+    return LogRecord(
+        data,
+        line,
+        None if stamp is None else Stamped(*stamp),
+        _DIRECTIONS[direction],
+        event,
+        note,
+        conn,
+    )
+
+
+def record_spill() -> Spill[LogRecord]:
+    """A spill of log records."""
+    return Spill(_pack_record, _unpack_record)
 
 
 Parser = Callable[[Lines, str, ParsedLog], Iterator[LogRecord]]
