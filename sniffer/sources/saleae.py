@@ -131,7 +131,7 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     """Open a Saleae Async Serial CSV export.
 
     The file is read line by line, never whole: a first pass finds the analysers (the
-    channels) and the warnings and keeps the rows on disk (`Spill`, about 50 bytes a
+    channels) and the warnings and keeps the rows on disk (`Spill`, about 40 bytes a
     row); the chunks come from them as they are consumed (or, without room for them,
     from a second pass over the file)."""
     # UTF-8, a byte that is not read as U+FFFD; lines cut at LF, or CR without any LF

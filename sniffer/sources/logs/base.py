@@ -362,7 +362,7 @@ class Spill(Generic[T]):
     """A first pass's items kept on disk for the second pass, so that it does not parse
     the file again: an unnamed temporary file (gone when closed, or when the program
     ends), written a batch at a time as tuples (`pack`, read back by `unpack`); a log
-    record takes about 70 bytes, a third of the size of an ESPHome log. When it cannot be
+    record takes about 60 bytes, half the size of its ESPHome log line. When it cannot be
     written (no room, no temporary folder) or would pass `SPILL_LIMIT` it is dropped, and
     `replay` gives None: the file is parsed again."""
 
