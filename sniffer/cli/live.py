@@ -409,6 +409,10 @@ def stream(
         summary.write()
     check_reader(capture)
     if capture.failure is not None:
+        if capture.notify is not None:
+            # the recording stopped (a full disk): its one line was said as it happened;
+            # the status is record's for the same stop
+            return 2
         raise UsageError(capture.failure)
     if getattr(capture.reader, "trouble", False):  # a watcher: reads lost, bad messages
         return 1

@@ -25,7 +25,7 @@ character time per byte, as raw bytes do.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
@@ -88,19 +88,69 @@ def parse_time(text: str) -> float | None:
 # ---------------------------------------------------------------- socat
 
 
-def _read_text(path: Path) -> str:
-    return path.read_bytes().decode("latin-1")
+# the files are read a block at a time, never whole: as Latin-1 (every byte one
+# character, so a line's length is its length in bytes) and cut where `str.splitlines`
+# cuts (LF, CR, CR LF, VT, FF, FS, GS, RS, NEL)
+_BLOCK = 1 << 20
+_ENDS = ("\r\n", "\n", "\r", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85")
 
 
-def _socat_microsecond_bug(text: str) -> bool:
-    fractions = [m[8] for m in SOCAT_HEADER.finditer(text) if m[8]]
-    nine = [f for f in fractions if len(f) == 9]
-    return bool(nine) and len(nine) == len(fractions) and all(f.startswith("000") for f in nine)
+def _lines(path: Path) -> Iterator[str]:
+    """The file's lines with their line ends (`str.splitlines(keepends=True)` of the
+    whole text), read a block at a time."""
+    rest = ""
+    with path.open("rb") as handle:
+        while block := handle.read(_BLOCK):
+            lines = (rest + block.decode("latin-1")).splitlines(keepends=True)
+            rest = lines.pop()
+            if rest.endswith(_ENDS) and not rest.endswith("\r"):
+                lines.append(rest)  # complete (a CR may yet be followed by its LF)
+                rest = ""
+            yield from lines
+    if rest:
+        yield rest
+
+
+def _bare(line: str) -> str:
+    """A line without its line end (as `str.splitlines()` gives it)."""
+    for end in _ENDS:
+        if line.endswith(end):
+            return line[: -len(end)]
+    return line
+
+
+def _pieces(path: Path) -> Iterator[str]:
+    """The file's text in pieces of about a block, each ending at an LF (where a
+    multi-line regular expression's `^` matches at the next piece's start)."""
+    rest = ""
+    with path.open("rb") as handle:
+        while block := handle.read(_BLOCK):
+            text = rest + block.decode("latin-1")
+            cut = text.rfind("\n") + 1
+            rest = text[cut:]
+            if cut:
+                yield text[:cut]
+    if rest:
+        yield rest
+
+
+def _socat_microsecond_bug(path: Path) -> bool:
+    nine = other = 0
+    for piece in _pieces(path):
+        for match in SOCAT_HEADER.finditer(piece):
+            digits = match[8]
+            if not digits:
+                continue
+            if len(digits) == 9 and digits.startswith("000"):
+                nine += 1
+            else:
+                other += 1
+    return bool(nine) and not other
 
 
 def open_socat(path: Path, options: ReadOptions) -> Capture:
     """Open a `socat -x -v` log."""
-    text = _read_text(path)
+    micro_bug = _socat_microsecond_bug(path)
     line = options.line(None)
     # both directions pass through socat in turn: one stream, `>`/`<` as labels
     info = SourceInfo(
@@ -113,7 +163,7 @@ def open_socat(path: Path, options: ReadOptions) -> Capture:
         labels=Labels.HINT,
     )
     warnings: list[str] = []
-    chunks = _socat_chunks(text, _socat_microsecond_bug(text), warnings)
+    chunks = _socat_chunks(_lines(path), micro_bug, warnings)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
@@ -127,7 +177,7 @@ class _SocatRecord:
     data: bytearray
 
 
-def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[Chunk]:
+def _socat_chunks(lines: Iterable[str], micro_bug: bool, warnings: list[str]) -> Iterator[Chunk]:
     record: _SocatRecord | None = None
     offset = 0
 
@@ -146,7 +196,7 @@ def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[C
             direction=Direction.MASTER if master else Direction.SLAVE,
         )
 
-    for number, raw_line in enumerate(text.splitlines(keepends=True), start=1):
+    for number, raw_line in enumerate(lines, start=1):
         line_offset = offset
         offset += len(raw_line)
         line = raw_line.rstrip("\r\n")
@@ -194,36 +244,32 @@ def _socat_chunks(text: str, micro_bug: bool, warnings: list[str]) -> Iterator[C
 _DIRECTIONS = {"O": Direction.MASTER, "I": Direction.SLAVE}
 
 
-def _has_directions(text: str) -> bool:
-    return any(
-        _DIRECTION.match(line.strip()) and not _OFFSET.match(line) for line in text.splitlines()
-    )
-
-
-def _packet_times(text: str) -> tuple[Stamp, float]:
-    """What the packet times are: print times with their coarsest resolution, or none."""
+def _survey(lines: Iterable[str]) -> tuple[bool, Stamp, float]:
+    """Whether the text between packets gives directions (`I`, `O`), and what the packet
+    times are: print times with their coarsest resolution, or none."""
+    directions = False
     stamps, resolution = Stamp.NONE, 0.0
-    for raw_line in text.splitlines():
+    for text_line in lines:
+        raw_line = _bare(text_line)
         rest = raw_line.strip()
         if not rest or rest.startswith("#") or _OFFSET.match(raw_line):
             continue
         if direction := _DIRECTION.match(rest):
+            directions = True
             rest = direction[2].strip()
         if parse_time(rest) is None:
             continue
         fraction = _TIME_FRACTION.match(rest)
         stamps = Stamp.PRINT
         resolution = max(resolution, 10.0 ** -len(fraction[1]) if fraction else 1.0)
-    return stamps, resolution
+    return directions, stamps, resolution
 
 
 def open_hexdump(path: Path, options: ReadOptions) -> Capture:
     """Open a text2pcap-style hex dump."""
-    text = _read_text(path)
     line = options.line(None)
-    directions = _has_directions(text)
     # O and I lines are one logger's sends and receives in turn: one stream, labelled
-    stamps, resolution = _packet_times(text)
+    directions, stamps, resolution = _survey(_lines(path))
     info = SourceInfo(
         path=str(path),
         format="hexdump",
@@ -234,7 +280,8 @@ def open_hexdump(path: Path, options: ReadOptions) -> Capture:
         labels=Labels.HINT if directions else Labels.NONE,
     )
     warnings: list[str] = []
-    return Capture(info=info, _chunks=_hexdump_chunks(text, line, warnings), warnings=warnings)
+    chunks = _hexdump_chunks(_lines(path), line, warnings)
+    return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
 def _line_bytes(rest: str) -> bytes:
@@ -256,7 +303,9 @@ class _Packet:
     direction: str
 
 
-def _hexdump_chunks(text: str, line: LineSettings, warnings: list[str]) -> Iterator[Chunk]:
+def _hexdump_chunks(
+    lines: Iterable[str], line: LineSettings, warnings: list[str]
+) -> Iterator[Chunk]:
     packet: _Packet | None = None
     t_prev = 0.0
     pending_time: float | None = None
@@ -276,7 +325,7 @@ def _hexdump_chunks(text: str, line: LineSettings, warnings: list[str]) -> Itera
         yield Chunk(data=bytes(p.data), t_end=t, t_start=t_start, direction=direction)
 
     offset = 0
-    for number, raw_line in enumerate(text.splitlines(keepends=True), start=1):
+    for number, raw_line in enumerate(lines, start=1):
         line_offset = offset
         offset += len(raw_line)
         stripped = raw_line.strip()

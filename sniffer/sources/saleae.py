@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import csv
 import re
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
 from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.logs.base import Spill, TextFile
 
 SALEAE = "saleae"
 
@@ -126,23 +128,22 @@ def _error_events(text: str) -> tuple[str, ...]:
 
 
 def open_saleae(path: Path, options: ReadOptions) -> Capture:
-    """Open a Saleae Async Serial CSV export."""
-    text = path.read_bytes().decode("utf-8", errors="replace").lstrip("\ufeff")
-    lines = _lines(text)
+    """Open a Saleae Async Serial CSV export.
+
+    The file is read line by line, never whole: a first pass finds the analysers (the
+    channels) and the warnings and keeps the rows on disk (`Spill`, about 40 bytes a
+    row); the chunks come from them as they are consumed (or, without room for them,
+    from a second pass over the file)."""
+    # UTF-8, a byte that is not read as U+FFFD; lines cut at LF, or CR without any LF
+    text = replace(TextFile.survey(path, ()), encoding="utf-8", errors="replace")
     warnings: list[str] = []
     where = str(path)
-    header = _header(lines[0]) if lines else ()
     names: dict[str, int] = {}
-    parsed: list[_Row] = []
-    for number, text_line in enumerate(lines[1:], start=2):
-        if not text_line.strip():
-            continue
-        row = _cells(header, text_line, number, where, warnings)
-        if row is None:
-            continue
-        item = _row(header, row, number, names, where, warnings)
-        if item is not None:
-            parsed.append(item)
+    found = False
+    spill = Spill(_pack_row, _Row)
+    for row in _rows(text, names, where, warnings):
+        found = True
+        spill.add(row)
     line = options.line(None)
     channels: dict[int, str] = {}
     directions: dict[int, Direction] = {}
@@ -159,7 +160,7 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     labels = Labels.CERTAIN if known and len(known) == len(directions) else Labels.NONE
     if not channels:
         channels = {0: "Saleae async serial"}
-    if not parsed:
+    if not found:
         warnings.append(f"{where}: no bytes found in this Saleae export")
     info = SourceInfo(
         path=where,
@@ -174,16 +175,36 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     )
     if labels == Labels.NONE:
         directions = dict.fromkeys(directions, Direction.UNKNOWN)
-    chunks = _chunks(parsed, line, directions)
+    # the rows kept from the first pass, or (without room for them) a second pass over
+    # the file: the same rows, their warnings already said
+    rows = spill.replay()
+    if rows is None:
+        rows = _rows(text, dict(names), where, [])
+    chunks = _chunks(rows, line, directions)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
-def _lines(text: str) -> list[str]:
-    """The file's lines: cut at LF (a CR before it dropped), or at CR in a file with no
-    LF at all; a CR inside a line stays in its row."""
-    if "\n" not in text:
-        return text.split("\r") if text else []
-    return [line[:-1] if line.endswith("\r") else line for line in text.split("\n")]
+def _pack_row(row: _Row) -> tuple[Any, ...]:
+    return (row.number, row.channel, row.start, row.duration, row.value, row.errors)
+
+
+def _rows(text: TextFile, names: dict[str, int], where: str, warnings: list[str]) -> Iterator[_Row]:
+    """The file's rows that read as bytes, in file order; each analyser's name gets its
+    channel in `names` as it first appears, each row that does not read a warning."""
+    lines = text.lines()
+    first = next(lines, None)
+    if first is None:
+        return
+    header = _header(first[1].lstrip("\ufeff"))
+    for number, text_line in lines:
+        if not text_line.strip():
+            continue
+        row = _cells(header, text_line, number, where, warnings)
+        if row is None:
+            continue
+        item = _row(header, row, number, names, where, warnings)
+        if item is not None:
+            yield item
 
 
 def _cells(
@@ -266,7 +287,7 @@ def _row(
 
 
 def _chunks(
-    rows: list[_Row], line: LineSettings, directions: dict[int, Direction]
+    rows: Iterable[_Row], line: LineSettings, directions: dict[int, Direction]
 ) -> Iterator[Chunk]:
     char = line.char_time
     for row in rows:

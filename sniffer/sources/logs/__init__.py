@@ -17,24 +17,31 @@ The format is recognised from the content (`sniff_log`), never from the file's n
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 from pathlib import Path
 
 from sniffer.model import Labels, SourceInfo
 from sniffer.sources.base import Capture, ReadOptions
 from sniffer.sources.logs.base import (
     ANSI,
+    Lines,
     LogRecord,
     ParsedLog,
+    Parser,
     Stamped,
+    Summary,
+    TextFile,
+    collect,
     decode_head,
     decode_text,
     hex_tokens,
+    numbered,
     parse_stamp,
     record_chunks,
+    record_spill,
     route,
     split_lines,
-    stamps_of,
 )
 from sniffer.sources.logs.cas import CAS, parse_cas
 from sniffer.sources.logs.cas import FRAME as CAS_FRAME
@@ -67,9 +74,7 @@ __all__ = [
 
 LOG_FORMATS = (ESPHOME, PYMODBUS, LIBMODBUS, EVCC, MODBUSTOOLS, CAS, MONITOR)
 
-Parser = Callable[[Sequence[str], str], ParsedLog]
-
-PARSERS: dict[str, Parser] = {
+STREAMS: dict[str, Parser] = {
     ESPHOME: parse_esphome,
     PYMODBUS: parse_pymodbus,
     LIBMODBUS: parse_libmodbus,
@@ -77,6 +82,10 @@ PARSERS: dict[str, Parser] = {
     MODBUSTOOLS: parse_modbustools,
     CAS: parse_cas,
     MONITOR: parse_monitor,
+}
+# each format's whole parse of lines held in memory (`collect`)
+PARSERS: dict[str, Callable[[Sequence[str], str], ParsedLog]] = {
+    kind: partial(collect, parse) for kind, parse in STREAMS.items()
 }
 FORMAT_NAMES = {
     ESPHOME: "ESPHome uart_debug",
@@ -90,18 +99,28 @@ FORMAT_NAMES = {
 
 
 def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
-    """Open a text log of format `kind` (one of LOG_FORMATS)."""
-    raw = path.read_bytes()
-    text = decode_text(raw)
-    if text is None:
-        text = raw.decode("latin-1")
-    parsed = PARSERS[kind](split_lines(text), str(path))
+    """Open a text log of format `kind` (one of LOG_FORMATS).
+
+    The file is read line by line, never whole: a first pass gathers the warnings, what
+    the file says about itself and what routing needs (`Summary`), and keeps the records
+    on disk (`Spill`); the chunks come from them, as they are consumed (or, without the
+    spill, from a second pass over the file). Memory stays a few blocks and lines
+    whatever the file's size; the warnings are kept (one per unreadable line)."""
+    text = TextFile.survey(path)
+    parse = STREAMS[kind]
+    where = str(path)
+    parsed = ParsedLog()
+    summary = Summary()
+    spill = record_spill()
+    for record in parse(text.lines, where, parsed):
+        summary.add(record)
+        spill.add(record)
     line = options.line(parsed.line)
-    stamps, resolution = stamps_of(parsed.records)
+    stamps, resolution = summary.stamps()
     warnings = list(parsed.warnings)
-    if not any(r.data for r in parsed.records):
+    if not summary.data:
         warnings.append(f"{path}: no bytes found in this {FORMAT_NAMES[kind]} log")
-    routing = route(parsed, FORMAT_NAMES[kind])
+    routing = route(parsed, summary, FORMAT_NAMES[kind])
     info = SourceInfo(
         path=str(path),
         format=kind,
@@ -117,7 +136,18 @@ def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
         notes=(*parsed.notes, *routing.notes),
         network=routing.network,
     )
-    chunks = record_chunks(routing.records, line, str(path), warnings, routing.channel)
+
+    def records() -> Iterator[LogRecord]:
+        spilled = spill.replay(parsed.reverse)
+        if spilled is None:  # no spill: the file is parsed again
+            lines: Lines = text.lines
+            if parsed.reverse:
+                lines = partial(text.lines_reversed, text.count())
+            spilled = parse(lines, where, parsed.again())
+        for record in spilled:
+            yield routing.adjust(record)
+
+    chunks = record_chunks(records(), line, where, warnings, routing.channel)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
@@ -173,8 +203,8 @@ def sniff_log(head: bytes) -> str | None:
         if kind is not None:
             scores[kind] += 1
         elif line.strip():
-            parsed = parse_monitor([line], "")
-            if parsed.records and len(parsed.records[0].data) >= 3:
+            records = list(parse_monitor(numbered([line]), "", ParsedLog()))
+            if records and len(records[0].data) >= 3:
                 scores[MONITOR] += 1
             elif not BLOCK_HEADER.search(line):
                 other += 1

@@ -10,14 +10,20 @@ file's order; `t_end` is the printed time. Nothing here raises on content.
 
 from __future__ import annotations
 
+import codecs
+import marshal
 import re
-from collections.abc import Callable, Iterator, Sequence
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime
+from pathlib import Path
+from typing import Any, BinaryIO, Generic, TypeVar
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
 from sniffer.sources.net.carrier import MBAP_CARRIERS, MODBUS_TCP, ChannelLabel, Votes
 
+T = TypeVar("T")
 DAY = 86_400.0
 ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 HEX2 = re.compile(r"^[0-9A-Fa-f]{2}$")
@@ -46,6 +52,135 @@ def decode_head(head: bytes) -> str | None:
         if text.count("\ufffd") <= 2:
             return text
     return None
+
+
+# ---------------------------------------------------------------- the file, line by line
+
+BLOCK = 1 << 20  # bytes read at a time
+Lines = Callable[[], Iterator[tuple[int, str]]]
+"""A file's numbered lines, from the start again at each call (a reader may go over the
+file more than once: what it decides from the whole file first, then its records)."""
+
+
+def numbered(lines: Iterable[str]) -> Lines:
+    """`Lines` over lines held in memory, numbered from 1."""
+    return lambda: enumerate(lines, start=1)
+
+
+@dataclass(frozen=True, slots=True)
+class TextFile:
+    """A text file read line by line, never whole: its encoding (as `decode_text` would
+    choose for the whole file: UTF-8, else GBK, else Latin-1, which takes any byte; a file
+    with a NUL byte is Latin-1) and where its lines end (LF, or CR in a file without any
+    LF), both found by one pass over the file. Lines are as `split_lines` cuts them.
+    Memory: a block of `BLOCK` bytes and the longest line."""
+
+    path: Path
+    encoding: str
+    cut: bytes
+    size: int
+    errors: str = "strict"  # how a byte the encoding does not take is read
+
+    @classmethod
+    def survey(cls, path: Path, encodings: Sequence[str] = ("utf-8", "gbk")) -> TextFile:
+        """The file's encoding (the first of `encodings` the whole file decodes as,
+        else Latin-1) and line ends."""
+        nul = has_lf = False
+        size = 0
+        first = codecs.getincrementaldecoder(encodings[0])() if encodings else None
+        with path.open("rb") as handle:
+            while block := handle.read(BLOCK):
+                size += len(block)
+                nul = nul or b"\0" in block
+                has_lf = has_lf or b"\n" in block
+                if first is not None and not nul and not _decodes(first, block, False):
+                    first = None
+        encoding = "latin-1"
+        if not nul and first is not None and _decodes(first, b"", True):
+            encoding = encodings[0]
+        elif not nul:
+            encoding = next((n for n in encodings[1:] if _whole_decodes(path, n)), encoding)
+        return cls(path, encoding, b"\n" if has_lf else b"\r", size)
+
+    def lines(self) -> Iterator[tuple[int, str]]:
+        """The numbered lines, from the first."""
+        number = 0
+        with self.path.open("rb") as handle:
+            for raw in self._raw_lines(handle):
+                number += 1
+                yield number, raw.decode(self.encoding, self.errors)
+
+    def count(self) -> int:
+        """How many lines `lines` gives."""
+        with self.path.open("rb") as handle:
+            return sum(1 for _ in self._raw_lines(handle))
+
+    def _raw_lines(self, handle: BinaryIO) -> Iterator[bytes]:
+        if self.cut == b"\n":
+            for raw in handle:
+                if raw.endswith(b"\n"):
+                    raw = raw[:-1]
+                yield raw[:-1] if raw.endswith(b"\r") else raw
+            return
+        # no LF in the file: lines end at CR, and a file ending with CR has an empty last
+        # line (as `split_lines` has it)
+        rest = b""
+        seen = False
+        while block := handle.read(BLOCK):
+            seen = True
+            parts = (rest + block).split(b"\r")
+            rest = parts.pop()
+            yield from parts
+        if seen:
+            yield rest
+
+    def lines_reversed(self, total: int) -> Iterator[tuple[int, str]]:
+        """The numbered lines from the last to the first (`total`: how many there are),
+        read backwards a block at a time."""
+        number = total + 1
+        for raw in self._raw_reversed():
+            number -= 1
+            yield number, raw.decode(self.encoding, self.errors)
+
+    def _raw_reversed(self) -> Iterator[bytes]:
+        with self.path.open("rb") as handle:
+            end = handle.seek(0, 2)
+            if end == 0:
+                return
+            pos, rest, last = end, b"", True
+            while pos > 0:
+                step = min(BLOCK, pos)
+                pos -= step
+                handle.seek(pos)
+                parts = (handle.read(step) + rest).split(self.cut)
+                rest = parts[0]
+                for part in reversed(parts[1:]):
+                    if last and self.cut == b"\n" and part == b"":
+                        last = False
+                        continue  # the LF that ends the file starts no line
+                    last = False
+                    yield self._trim(part)
+            yield self._trim(rest)
+
+    def _trim(self, raw: bytes) -> bytes:
+        return raw[:-1] if self.cut == b"\n" and raw.endswith(b"\r") else raw
+
+
+def _decodes(decoder: codecs.IncrementalDecoder, block: bytes, final: bool) -> bool:
+    try:
+        decoder.decode(block, final)
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+def _whole_decodes(path: Path, encoding: str) -> bool:
+    decoder = codecs.getincrementaldecoder(encoding)()
+    with path.open("rb") as handle:
+        while block := handle.read(BLOCK):
+            if not _decodes(decoder, block, False):
+                return False
+    return _decodes(decoder, b"", True)
 
 
 def split_lines(text: str) -> list[str]:
@@ -93,9 +228,13 @@ def _fraction(digits: str | None) -> tuple[float, float]:
     return int(digits) / 10 ** len(digits), 10.0 ** -len(digits)
 
 
+_LEAD = re.compile(r"\s*(\[)?\s*")
+_CLOSE = re.compile(r"\s*\]")
+
+
 def parse_stamp(text: str, pos: int = 0) -> Stamped | None:
     """The time at `pos` in `text` (optionally in brackets), or None. Forms: see _TIME_PATTERNS."""
-    lead = re.compile(r"\s*(\[)?\s*").match(text, pos)
+    lead = _LEAD.match(text, pos)
     start = lead.end() if lead else pos
     bracket = bool(lead and lead[1])
     for index, pattern in enumerate(_TIME_PATTERNS):
@@ -104,7 +243,7 @@ def parse_stamp(text: str, pos: int = 0) -> Stamped | None:
             continue
         end = match.end()
         if bracket:
-            close = re.compile(r"\s*\]").match(text, end)
+            close = _CLOSE.match(text, end)
             if close is None:
                 return None
             end = close.end()
@@ -171,7 +310,14 @@ class ParsedLog:
     `client` names the logging program and `servers` what each connection (`conn`) talks
     to, for the channel labels of a Modbus TCP log; `server_port` is the port the file
     names (or 502 when it says Modbus TCP), which tips an undecided connection to Modbus
-    TCP. `notes` are what the reader decided (a reversed order, a side not logged)."""
+    TCP. `notes` are what the reader decided (a reversed order, a side not logged).
+
+    A parser is a generator over the file's lines (`Parser`): it puts each line's records
+    in `records` and hands them on (`flush`) as it goes, so a file of any size is read in
+    the memory of a few lines. What a parser decides from the whole file before its
+    records (hex or decimal, a client's log or a server's) it keeps in `surveyed`, so that
+    a second pass (`again`) need not decide it anew; `reverse` says the records are in
+    time order read from the last line to the first (CAS Modbus Scanner)."""
 
     records: list[LogRecord] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
@@ -182,6 +328,19 @@ class ParsedLog:
     client: str = ""
     servers: dict[str, str] = field(default_factory=dict)
     server_port: int = 0
+    surveyed: dict[str, bool] = field(default_factory=dict)
+    reverse: bool = False
+
+    def flush(self) -> Iterator[LogRecord]:
+        """The records found since the last call, handed on and forgotten."""
+        if self.records:
+            yield from self.records
+            self.records.clear()
+
+    def again(self) -> ParsedLog:
+        """A copy for a second pass over the file: what was decided, no records, warnings
+        or notes (the first pass has them)."""
+        return replace(self, records=[], warnings=[], notes=[], servers=dict(self.servers))
 
     def event(
         self, number: int, stamp: Stamped | None, text: str, conn: str = "", kind: str = ""
@@ -194,17 +353,140 @@ class ParsedLog:
             self.records.append(LogRecord(b"", number, stamp, Direction.UNKNOWN, kind, text, conn))
 
 
-def stamps_of(records: Sequence[LogRecord]) -> tuple[Stamp, float]:
+SPILL_BATCH = 4096  # records written to the spill at a time
+SPILL_LIMIT = 1 << 30  # bytes a spill may take on disk; past that the file is parsed again
+_DIRECTIONS = {int(d): d for d in Direction}
+
+
+class Spill(Generic[T]):
+    """A first pass's items kept on disk for the second pass, so that it does not parse
+    the file again: an unnamed temporary file (gone when closed, or when the program
+    ends), written a batch at a time as tuples (`pack`, read back by `unpack`); a log
+    record takes about 60 bytes, half the size of its ESPHome log line. When it cannot be
+    written (no room, no temporary folder) or would pass `SPILL_LIMIT` it is dropped, and
+    `replay` gives None: the file is parsed again."""
+
+    def __init__(self, pack: Callable[[T], tuple[Any, ...]], unpack: Callable[..., T]) -> None:
+        self._pack, self._unpack = pack, unpack
+        self._batch: list[tuple[Any, ...]] = []
+        self._offsets: list[int] = []
+        self._file: BinaryIO | None
+        try:
+            self._file = tempfile.TemporaryFile()  # noqa: SIM115 (closed by replay or drop)
+        except OSError:
+            self._file = None
+
+    def add(self, item: T) -> None:
+        if self._file is None:
+            return
+        self._batch.append(self._pack(item))
+        if len(self._batch) >= SPILL_BATCH:
+            self._write()
+
+    def _write(self) -> None:
+        if self._file is None:
+            return
+        try:
+            self._offsets.append(self._file.tell())
+            marshal.dump(self._batch, self._file)
+            if self._file.tell() > SPILL_LIMIT:
+                self.drop()
+        except OSError:
+            self.drop()
+        self._batch = []
+
+    def drop(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def replay(self, reverse: bool = False) -> Iterator[T] | None:
+        """The items in the order they were added (or the last first), once; None when
+        the spill was dropped."""
+        if self._batch:
+            self._write()
+        if self._file is None:
+            return None
+        return self._items(self._file, reverse)
+
+    def _items(self, handle: BinaryIO, reverse: bool) -> Iterator[T]:
+        unpack = self._unpack
+        try:
+            handle.flush()
+            for offset in reversed(self._offsets) if reverse else self._offsets:
+                handle.seek(offset)
+                batch = marshal.load(handle)
+                for fields in reversed(batch) if reverse else batch:
+                    yield unpack(*fields)
+        finally:
+            self.drop()
+
+
+def _pack_record(record: LogRecord) -> tuple[Any, ...]:
+    stamp = record.stamp
+    return (
+        record.data,
+        record.line,
+        None if stamp is None else (stamp.seconds, stamp.resolution, stamp.dated, stamp.end),
+        int(record.direction),
+        record.event,
+        record.note,
+        record.conn,
+    )
+
+
+def _unpack_record(
+    data: bytes,
+    line: int,
+    stamp: tuple[float, float, bool, int] | None,
+    direction: int,
+    event: str,
+    note: str,
+    conn: str,
+) -> LogRecord:
+    return LogRecord(
+        data,
+        line,
+        None if stamp is None else Stamped(*stamp),
+        _DIRECTIONS[direction],
+        event,
+        note,
+        conn,
+    )
+
+
+def record_spill() -> Spill[LogRecord]:
+    """A spill of log records."""
+    return Spill(_pack_record, _unpack_record)
+
+
+Parser = Callable[[Lines, str, ParsedLog], Iterator[LogRecord]]
+"""A format's parser: `parse(lines, where, parsed)` yields the records of `lines` (a
+file named `where`), putting warnings and what it learns of the file in `parsed`."""
+
+
+def collect(parse: Parser, lines: Sequence[str], where: str) -> ParsedLog:
+    """The whole parse of lines held in memory: the records in `records`."""
+    parsed = ParsedLog()
+    records = list(parse(numbered(lines), where, parsed))
+    parsed.records = records
+    return parsed
+
+
+def stamps_of(records: Iterable[LogRecord]) -> tuple[Stamp, float]:
     """What the records' times mean: print times with the coarsest resolution any line
     has, or none."""
-    stamped = [r.stamp for r in records if r.stamp is not None]
-    if not stamped:
+    resolution: float | None = None
+    for record in records:
+        if record.stamp is not None:
+            resolution = max(resolution or 0.0, record.stamp.resolution)
+    if resolution is None:
         return Stamp.NONE, 0.0
-    return Stamp.PRINT, max(s.resolution for s in stamped)
+    return Stamp.PRINT, resolution
 
 
 def record_chunks(
-    records: Sequence[LogRecord],
+    records: Iterable[LogRecord],
     line: LineSettings,
     where: str,
     warnings: list[str],
@@ -276,59 +558,93 @@ def _event_time(record: LogRecord, t_prev: float | None, day_offset: float) -> f
 MAX_PAIRS = 128  # channel pairs: the frame store keeps a channel number in one byte
 
 
+@dataclass
+class Summary:
+    """What a first pass over a log's records found, in the memory of a few counters per
+    connection: how many records, whether any has bytes, the times' meaning, and each
+    connection's evidence for `route` (its carrier votes; whether its frames read as a
+    client's or a server's)."""
+
+    count: int = 0
+    data: bool = False
+    resolution: float | None = None
+    conns: dict[str, Votes] = field(default_factory=dict)
+    sides: dict[str, list[int]] = field(default_factory=dict)  # conn: [agree, disagree]
+
+    def add(self, record: LogRecord) -> None:
+        self.count += 1
+        if record.stamp is not None:
+            self.resolution = max(self.resolution or 0.0, record.stamp.resolution)
+        if record.event or not record.data:
+            return
+        self.data = True
+        votes = self.conns.get(record.conn)
+        if votes is None:
+            votes = self.conns[record.conn] = Votes()
+            self.sides[record.conn] = [0, 0]
+        votes.add(record.data)
+        if record.direction != Direction.UNKNOWN:
+            request = _request_like(record.data)
+            if request is not None:
+                self.sides[record.conn][request != (record.direction == Direction.MASTER)] += 1
+
+    def stamps(self) -> tuple[Stamp, float]:
+        """What the records' times mean (as `stamps_of`)."""
+        if self.resolution is None:
+            return Stamp.NONE, 0.0
+        return Stamp.PRINT, self.resolution
+
+
 @dataclass(frozen=True, slots=True)
 class Routing:
-    """Where each record goes: the channel table, the records (directions swapped where a
-    connection's content shows the log was a server's), whether any connection carries
-    Modbus TCP (`network`: framed by MBAP headers, paired by transaction id), and what to
-    tell the user."""
+    """Where each record goes: the channel table, how a record is read (`adjust`: its
+    direction swapped where a connection's content shows the log was a server's, an
+    event's set to its channel's), whether any connection carries Modbus TCP (`network`:
+    framed by MBAP headers, paired by transaction id), and what to tell the user."""
 
     channels: dict[int, str]
-    records: list[LogRecord]
     network: bool
     channel: Callable[[LogRecord], int]
+    adjust: Callable[[LogRecord], LogRecord]
     notes: tuple[str, ...] = ()
 
 
-def route(parsed: ParsedLog, name: str) -> Routing:
+def route(parsed: ParsedLog, summary: Summary, name: str) -> Routing:
     """The channels of a parsed log. A log whose connections carry RTU or ASCII frames is
     one serial stream on channel 0. A log with Modbus TCP frames (an MBAP header, no
     check) gets a pair of channels per connection (`conn`): `2k` for what the client sends,
     `2k + 1` for what the server sends, labelled as network captures are
     (`sniffer.sources.net.carrier`); its frames are framed by their MBAP length and paired
     by transaction id. Whether a connection carries Modbus TCP is decided by its bytes,
-    as for a network capture (`Votes`), with the port the file names as the tie-break."""
-    records = parsed.records
-    conns: list[str] = []
-    votes: dict[str, Votes] = {}
-    for record in records:
-        if record.event or not record.data:
-            continue
-        if record.conn not in votes:
-            conns.append(record.conn)
-            votes[record.conn] = Votes()
-        votes[record.conn].add(record.data)
+    as for a network capture (`Votes`), with the port the file names as the tie-break.
+    `summary` is what a pass over the records found (`Summary`)."""
+    conns = list(summary.conns)
+    votes = summary.conns
     carriers = {c: votes[c].verdict("tcp", parsed.server_port, final=True) for c in conns}
     if not any(carrier in MBAP_CARRIERS for carrier in carriers.values()):
         label = parsed.channel_label or name
-        return Routing({0: label}, list(records), False, lambda record: 0)
+        return Routing({0: label}, False, lambda record: 0, lambda record: record)
     pairs = {conn: min(k, MAX_PAIRS - 1) for k, conn in enumerate(conns)}
-    swapped = {c for c in conns if carriers[c] == MODBUS_TCP and _server_side(records, c)}
+    # a connection reads as a server's log when what it sent reads as answers and what
+    # it received as requests more often than the other way
+    swapped = {
+        c for c in conns if carriers[c] == MODBUS_TCP and summary.sides[c][1] > summary.sides[c][0]
+    }
     notes = tuple(
         f"the frames of {_conn_name(parsed, c)} read as a server's log: what it sent are "
         "answers, what it received requests; they are read so"
         for c in swapped
     )
+
     # an event goes on its connection's client channel, whose direction it carries:
     # a channel's first chunk gives the channel its direction
-    records = [
-        replace(r, direction=Direction.MASTER)
-        if r.event
-        else replace(r, direction=_flip(r.direction))
-        if r.conn in swapped
-        else r
-        for r in records
-    ]
+    def adjust(record: LogRecord) -> LogRecord:
+        if record.event:
+            return replace(record, direction=Direction.MASTER)
+        if record.conn in swapped:
+            return replace(record, direction=_flip(record.direction))
+        return record
+
     channels: dict[int, str] = {}
     client = _token(parsed.client or "client")
     for conn, k in pairs.items():
@@ -346,7 +662,7 @@ def route(parsed: ParsedLog, name: str) -> Routing:
         k = pairs.get(record.conn, 0)
         return 2 * k + (1 if record.direction == Direction.SLAVE else 0)
 
-    return Routing(channels, records, True, channel, notes)
+    return Routing(channels, True, channel, adjust, notes)
 
 
 def _flip(direction: Direction) -> Direction:
@@ -374,20 +690,3 @@ def _request_like(frame: bytes) -> bool | None:
     if frame[8] == len(frame) - 9:
         return False
     return True if len(frame) == 12 else None
-
-
-def _server_side(records: Sequence[LogRecord], conn: str) -> bool:
-    """Whether a connection's content says the log was taken by the server: what it sent
-    reads as answers and what it received as requests, more often than the other way."""
-    agree = disagree = 0
-    for record in records:
-        if record.conn != conn or record.event or record.direction == Direction.UNKNOWN:
-            continue
-        request = _request_like(record.data)
-        if request is None:
-            continue
-        if request == (record.direction == Direction.MASTER):
-            agree += 1
-        else:
-            disagree += 1
-    return disagree > agree

@@ -17,12 +17,19 @@ Print time, whole seconds (resolution 1 s), no date. Other lines are events.
 
 from __future__ import annotations
 
-import itertools
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, DAY, LogRecord, ParsedLog, hex_tokens, parse_stamp
+from sniffer.sources.logs.base import (
+    ANSI,
+    DAY,
+    Lines,
+    LogRecord,
+    ParsedLog,
+    hex_tokens,
+    parse_stamp,
+)
 
 CAS = "cas"
 
@@ -33,10 +40,13 @@ FRAME = re.compile(
 )
 
 
-def parse_cas(lines: Sequence[str], where: str) -> ParsedLog:
-    parsed = ParsedLog(labels=Labels.HINT, client="CAS_Modbus_Scanner")
+def parse_cas(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    parsed.labels = Labels.HINT
+    parsed.client = "CAS_Modbus_Scanner"
     parsed.channel_label = "CAS Modbus Scanner (=> Poll: sent, <= Response: received)"
-    for number, raw_line in enumerate(lines, start=1):
+    order = _Order()
+    for number, raw_line in lines():
+        yield from order.watch(parsed.flush())
         match = LINE.match(ANSI.sub("", raw_line))
         if match is None:
             continue
@@ -54,34 +64,51 @@ def parse_cas(lines: Sequence[str], where: str) -> ParsedLog:
             continue
         direction = Direction.MASTER if frame["sent"] else Direction.SLAVE
         parsed.records.append(LogRecord(data, number, stamp, direction))
-    if _newest_first(parsed.records):
-        parsed.records.reverse()
+    yield from order.watch(parsed.flush())
+    if order.newest_first():
+        parsed.reverse = True
         parsed.notes.append(
             f"{where}: CAS Modbus Scanner writes the newest line first; its "
-            f"{len(parsed.records)} line(s) are read from the last to the first, in time order"
+            f"{order.count} line(s) are read from the last to the first, in time order"
         )
-    return parsed
 
 
-def _newest_first(records: Sequence[LogRecord]) -> bool:
-    """Whether the times fall down the file more often than they rise (a fall of more
-    than half a day is midnight passed the other way); with no step either way, whether
-    the first frame is a response and the last one a poll."""
-    times = [r.stamp.seconds for r in records if r.stamp is not None]
-    falls = rises = 0
-    for before, after in itertools.pairwise(times):
-        step = after - before
-        if step > DAY / 2:
-            step -= DAY
-        elif step < -DAY / 2:
-            step += DAY
-        falls += step < 0
-        rises += step > 0
-    if falls != rises:
-        return falls > rises
-    frames = [r for r in records if r.data]
-    return (
-        len(frames) >= 2
-        and frames[0].direction == Direction.SLAVE
-        and frames[-1].direction == Direction.MASTER
-    )
+class _Order:
+    """Whether the records run newest first, told as they pass (`watch`): the times
+    fall down the file more often than they rise (a fall of more than half a day is
+    midnight passed the other way); with no step either way, the first frame is a
+    response and the last one a poll."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.falls = self.rises = 0
+        self.before: float | None = None
+        self.frames = 0
+        self.first: Direction | None = None
+        self.last: Direction | None = None
+
+    def watch(self, records: Iterator[LogRecord]) -> Iterator[LogRecord]:
+        for record in records:
+            self.count += 1
+            if record.stamp is not None:
+                after = record.stamp.seconds
+                if self.before is not None:
+                    step = after - self.before
+                    if step > DAY / 2:
+                        step -= DAY
+                    elif step < -DAY / 2:
+                        step += DAY
+                    self.falls += step < 0
+                    self.rises += step > 0
+                self.before = after
+            if record.data:
+                self.frames += 1
+                if self.first is None:
+                    self.first = record.direction
+                self.last = record.direction
+            yield record
+
+    def newest_first(self) -> bool:
+        if self.falls != self.rises:
+            return self.falls > self.rises
+        return self.frames >= 2 and self.first == Direction.SLAVE and self.last == Direction.MASTER

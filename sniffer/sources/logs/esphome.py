@@ -11,10 +11,10 @@ or binary (`0b00000001 (0x01)`). Print time, 1 s (`[12:34:56]`) or 1 ms
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, HEX2, LogRecord, ParsedLog, Stamped, parse_stamp
+from sniffer.sources.logs.base import ANSI, HEX2, Lines, LogRecord, ParsedLog, parse_stamp
 
 ESPHOME = "esphome"
 
@@ -73,19 +73,23 @@ def _esp_tokens(body: str) -> list[str]:
     return [t.strip() for t in tokens]
 
 
-def parse_esphome(lines: Sequence[str], where: str) -> ParsedLog:
-    found: list[tuple[int, Stamped | None, str, str]] = []
-    for number, raw_line in enumerate(lines, start=1):
+def _found(lines: Lines) -> Iterator[tuple[int, str, str, str]]:
+    """The uart_debug lines: number, the line (without colour codes), arrow, bytes."""
+    for number, raw_line in lines():
         line = ANSI.sub("", raw_line)
         match = LINE.search(line)
-        if match is None:
-            continue
-        found.append((number, parse_stamp(line), match[1], match[2].rstrip()))
+        if match is not None:
+            yield number, line, match[1], match[2].rstrip()
+
+
+def _survey(lines: Lines, parsed: ParsedLog) -> None:
     # hex (`%02X`) or decimal, for the whole file (the setting is per device): a line with
     # a two-character token with a letter or a leading zero is hex, one with a token of one
     # or three digits decimal; the larger count wins (a cut line cannot turn the file)
     hex_lines = decimal_lines = 0
-    for _, _, _, body in found:
+    sent = False
+    for _, _, arrow, body in _found(lines):
+        sent = sent or arrow == ">>>"
         if body.startswith('"') or _ESP_BINARY.search(body):
             continue
         tokens = _esp_tokens(body)
@@ -93,18 +97,23 @@ def parse_esphome(lines: Sequence[str], where: str) -> ParsedLog:
             hex_lines += 1
         elif any(len(t) != 2 and _DEC.match(t) for t in tokens):
             decimal_lines += 1
-    decimal = decimal_lines > hex_lines
-    parsed = ParsedLog()
-    arrows = {arrow for _, _, arrow, _ in found}
+    parsed.surveyed["decimal"] = decimal_lines > hex_lines
+    parsed.surveyed["sent"] = sent
+
+
+def parse_esphome(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    if not parsed.surveyed:
+        _survey(lines, parsed)
+    decimal, sent_lines = parsed.surveyed["decimal"], parsed.surveyed["sent"]
     sent = Direction.MASTER
-    received = Direction.SLAVE if ">>>" in arrows else Direction.UNKNOWN
-    parsed.labels = Labels.HINT if ">>>" in arrows else Labels.NONE
+    received = Direction.SLAVE if sent_lines else Direction.UNKNOWN
+    parsed.labels = Labels.HINT if sent_lines else Labels.NONE
     parsed.channel_label = (
         "ESPHome uart_debug (>>> sent by ESPHome: master, <<< received)"
-        if ">>>" in arrows
+        if sent_lines
         else "ESPHome uart_debug (<<< only: listening, no direction)"
     )
-    for number, stamp, arrow, body in found:
+    for number, line, arrow, body in _found(lines):
         data: bytes | None
         if body.startswith('"'):
             data = _esp_string(body)
@@ -117,7 +126,7 @@ def parse_esphome(lines: Sequence[str], where: str) -> ParsedLog:
                 data = bytes(int(t) for t in tokens) if ok else None
             else:
                 ok = all(HEX2.match(t) for t in tokens)
-                data = bytes(int(t, 16) for t in tokens) if ok else None
+                data = bytes.fromhex("".join(tokens)) if ok else None
         if not data:
             parsed.warnings.append(
                 f"{where} line {number}: cannot read the bytes of this uart_debug line "
@@ -125,5 +134,4 @@ def parse_esphome(lines: Sequence[str], where: str) -> ParsedLog:
             )
             continue
         direction = sent if arrow == ">>>" else received
-        parsed.records.append(LogRecord(data, number, stamp, direction))
-    return parsed
+        yield LogRecord(data, number, parse_stamp(line), direction)

@@ -23,10 +23,10 @@ Each area is a connection: a Modbus TCP area gets its own pair of channels.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, LogRecord, ParsedLog, hex_tokens, parse_stamp
+from sniffer.sources.logs.base import ANSI, Lines, LogRecord, ParsedLog, hex_tokens, parse_stamp
 
 EVCC = "evcc"
 
@@ -103,10 +103,11 @@ def frame_bytes(body: str) -> bytes | None:
     return hex_tokens(body)
 
 
-def parse_evcc(lines: Sequence[str], where: str) -> ParsedLog:
-    parsed = ParsedLog(labels=Labels.HINT, client="evcc")
+def parse_evcc(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    parsed.labels, parsed.client = Labels.HINT, "evcc"
     parsed.channel_label = "evcc trace (send: evcc's requests, recv: answers)"
-    for number, raw_line in enumerate(lines, start=1):
+    for number, raw_line in lines():
+        yield from parsed.flush()
         match = LINE.search(ANSI.sub("", raw_line))
         if match is None:
             continue
@@ -129,4 +130,4 @@ def parse_evcc(lines: Sequence[str], where: str) -> ParsedLog:
         direction = Direction.MASTER if io[1].startswith("send") else Direction.SLAVE
         parsed.servers.setdefault(area, area)
         parsed.records.append(LogRecord(data, number, stamp, direction, conn=area))
-    return parsed
+    yield from parsed.flush()

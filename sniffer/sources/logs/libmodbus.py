@@ -17,10 +17,10 @@ are events.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels, LineSettings
-from sniffer.sources.logs.base import LogRecord, ParsedLog
+from sniffer.sources.logs.base import Lines, LogRecord, ParsedLog
 
 LIBMODBUS = "libmodbus"
 
@@ -37,20 +37,25 @@ _EVENT = re.compile(
 )
 
 
-def parse_libmodbus(lines: Sequence[str], where: str) -> ParsedLog:
-    text = "\n".join(lines)
-    server = "Waiting for an indication" in text and "Waiting for a confirmation" not in text
-    sent, received = (
-        (Direction.SLAVE, Direction.MASTER) if server else (Direction.MASTER, Direction.SLAVE)
-    )
-    parsed = ParsedLog(labels=Labels.HINT, client="client" if server else "libmodbus")
+def _survey(lines: Lines, parsed: ParsedLog, where: str) -> None:
+    """What the whole output says: a server's or a client's, mbpoll over TCP, the line."""
+    indication = confirmation = mbpoll_tcp = False
+    opening: re.Match[str] | None = None
+    for _, line in lines():
+        indication = indication or "Waiting for an indication" in line
+        confirmation = confirmation or "Waiting for a confirmation" in line
+        mbpoll_tcp = mbpoll_tcp or "Protocol configuration: ModBus TCP" in line
+        opening = opening or _OPENING.search(line)
+    server = indication and not confirmation
+    parsed.surveyed["server"] = server
+    parsed.labels, parsed.client = Labels.HINT, "client" if server else "libmodbus"
     if server:
         parsed.servers[""] = "libmodbus"
     role = "server" if server else "client"
     parsed.channel_label = f"libmodbus {role} debug ([..] sent, <..> received)"
-    if "Protocol configuration: ModBus TCP" in text:
+    if mbpoll_tcp:
         parsed.client, parsed.server_port = "mbpoll", 502
-    if opening := _OPENING.search(text):
+    if opening:
         try:
             parsed.line = LineSettings(
                 baud=int(opening[1]),
@@ -60,7 +65,17 @@ def parse_libmodbus(lines: Sequence[str], where: str) -> ParsedLog:
             )
         except ValueError as exc:
             parsed.warnings.append(f"{where}: the line settings it names are unusable: {exc}")
-    for number, line in enumerate(lines, start=1):
+
+
+def parse_libmodbus(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    if not parsed.surveyed:
+        _survey(lines, parsed, where)
+    server = parsed.surveyed["server"]
+    sent, received = (
+        (Direction.SLAVE, Direction.MASTER) if server else (Direction.MASTER, Direction.SLAVE)
+    )
+    for number, line in lines():
+        yield from parsed.flush()
         _names(parsed, line, server)
         if event := _EVENT.match(line.strip()):
             parsed.event(number, None, event[1])
@@ -83,7 +98,7 @@ def parse_libmodbus(lines: Sequence[str], where: str) -> ParsedLog:
             parsed.records.append(LogRecord(bytes(data), number, None, current))
         if event := _EVENT.match(line[run.end() :].strip()):
             parsed.event(number, None, event[1])  # stderr's line written into stdout's
-    return parsed
+    yield from parsed.flush()
 
 
 def _names(parsed: ParsedLog, line: str, server: bool) -> None:

@@ -20,10 +20,10 @@ connection, so a Modbus TCP log gets a pair of channels per device.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, HEX2, LogRecord, ParsedLog, parse_stamp
+from sniffer.sources.logs.base import ANSI, HEX2, Lines, LogRecord, ParsedLog, parse_stamp
 
 MODBUSTOOLS = "modbustools"
 
@@ -57,24 +57,31 @@ def frame_bytes(text: str) -> bytes | None:
     return bytes(out)
 
 
-def parse_modbustools(lines: Sequence[str], where: str) -> ParsedLog:
-    found: list[tuple[int, re.Match[str]]] = []
-    for number, raw_line in enumerate(lines, start=1):
+def _found(lines: Lines) -> Iterator[tuple[int, re.Match[str]]]:
+    for number, raw_line in lines():
         match = LINE.match(ANSI.sub("", raw_line))
         if match is not None:
-            found.append((number, match))
-    infos = [m["text"] for _, m in found if m["flag"] == "Info"]
-    server = any(_SERVER_INFO.match(t) for t in infos) and not any(
-        _CLIENT_INFO.match(t) for t in infos
-    )
+            yield number, match
+
+
+def parse_modbustools(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    if not parsed.surveyed:
+        serving = client = False
+        for _, match in _found(lines):
+            if match["flag"] == "Info":
+                serving = serving or bool(_SERVER_INFO.match(match["text"]))
+                client = client or bool(_CLIENT_INFO.match(match["text"]))
+        parsed.surveyed["server"] = serving and not client
+    server = parsed.surveyed["server"]
     sent, received = (
         (Direction.SLAVE, Direction.MASTER) if server else (Direction.MASTER, Direction.SLAVE)
     )
-    parsed = ParsedLog(labels=Labels.HINT, client="client" if server else "ModbusTools")
+    parsed.labels, parsed.client = Labels.HINT, "client" if server else "ModbusTools"
     role = "server" if server else "client"
     parsed.channel_label = f"ModbusTools {role} log (Tx sent, Rx received)"
     unread_time = False
-    for number, match in found:
+    for number, match in _found(lines):
+        yield from parsed.flush()
         stamp = parse_stamp(match["stamp"]) if match["stamp"].strip() else None
         if match["stamp"].strip() and stamp is None and not unread_time:
             unread_time = True
@@ -101,4 +108,4 @@ def parse_modbustools(lines: Sequence[str], where: str) -> ParsedLog:
         else:
             parsed.servers.setdefault(source, source)
         parsed.records.append(LogRecord(data, number, stamp, direction, conn=source))
-    return parsed
+    yield from parsed.flush()

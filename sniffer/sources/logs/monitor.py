@@ -10,10 +10,10 @@ sent (TX, written) is MASTER, what it received SLAVE. Print time.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, LogRecord, ParsedLog, Stamped, parse_stamp
+from sniffer.sources.logs.base import ANSI, Lines, LogRecord, ParsedLog, Stamped, parse_stamp
 
 MONITOR = "monitor"
 
@@ -41,8 +41,7 @@ def _hex_bytes(text: str) -> bytes | None:
     return None if match is None else bytes.fromhex(match[1])
 
 
-def parse_monitor(lines: Sequence[str], where: str) -> ParsedLog:
-    parsed = ParsedLog()
+def parse_monitor(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
     labelled = False
     block: tuple[int, Stamped | None, Direction] | None = None
     block_data = bytearray()
@@ -54,7 +53,8 @@ def parse_monitor(lines: Sequence[str], where: str) -> ParsedLog:
         block_data.clear()
         block = None
 
-    for number, raw_line in enumerate(lines, start=1):
+    for number, raw_line in lines():
+        yield from parsed.flush()
         line = ANSI.sub("", raw_line).rstrip()
         if not line.strip():
             close()
@@ -92,10 +92,10 @@ def parse_monitor(lines: Sequence[str], where: str) -> ParsedLog:
             labelled = True
         parsed.records.append(LogRecord(data, number, stamp, direction))
     close()
+    yield from parsed.flush()
     parsed.labels = Labels.HINT if labelled else Labels.NONE
     parsed.channel_label = (
         "serial monitor (TX/written: master, RX/read: answers)"
         if labelled
         else "serial monitor (no direction)"
     )
-    return parsed

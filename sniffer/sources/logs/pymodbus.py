@@ -26,10 +26,10 @@ is framed as Modbus TCP.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator
 
 from sniffer.model import Direction, Labels
-from sniffer.sources.logs.base import ANSI, LogRecord, ParsedLog, Stamped, parse_stamp
+from sniffer.sources.logs.base import ANSI, Lines, LogRecord, ParsedLog, Stamped, parse_stamp
 
 PYMODBUS = "pymodbus"
 
@@ -58,11 +58,23 @@ def _hexlified(text: str) -> bytes:
     return bytes(int(token, 16) for token in text.split())
 
 
-def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
-    text = "\n".join(lines)
+def _survey(lines: Lines, parsed: ParsedLog) -> None:
     # what pymodbus made of what it received: requests on a server, answers on a client
-    server = len(_DECODED_REQUEST.findall(text)) > len(_DECODED_RESPONSE.findall(text))
-    parsed = ParsedLog(labels=Labels.HINT, client="client" if server else "pymodbus")
+    requests = answers = 0
+    found_io = False
+    for _, line in lines():
+        requests += len(_DECODED_REQUEST.findall(line))
+        answers += len(_DECODED_RESPONSE.findall(line))
+        found_io = found_io or BYTES_LINE.search(line) is not None
+    parsed.surveyed["server"] = requests > answers
+    parsed.surveyed["found_io"] = found_io
+
+
+def parse_pymodbus(lines: Lines, where: str, parsed: ParsedLog) -> Iterator[LogRecord]:
+    if not parsed.surveyed:
+        _survey(lines, parsed)
+    server, found_io = parsed.surveyed["server"], parsed.surveyed["found_io"]
+    parsed.labels, parsed.client = Labels.HINT, "client" if server else "pymodbus"
     if server:
         parsed.servers[""] = "pymodbus"
         parsed.channel_label = "pymodbus server log (recv: requests, send: its answers)"
@@ -71,9 +83,13 @@ def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
     sent, received = (
         (Direction.SLAVE, Direction.MASTER) if server else (Direction.MASTER, Direction.SLAVE)
     )
-    found_io = any(BYTES_LINE.search(line) for line in lines)
+    data_found = echoed = False
     pending = b""  # a 3.8+ synchronous client's bytes held while a frame is incomplete
-    for number, raw_line in enumerate(lines, start=1):
+    for number, raw_line in lines():
+        for record in parsed.flush():
+            data_found = data_found or bool(record.data)
+            echoed = echoed or record.direction == Direction.MASTER
+            yield record
         line = ANSI.sub("", raw_line)
         if _REPEAT.search(line):
             parsed.warnings.append(
@@ -115,15 +131,17 @@ def parse_pymodbus(lines: Sequence[str], where: str) -> ParsedLog:
             pending = held
         elif not _WAITING.search(line):
             pending = b""  # a frame was decoded (or given up): the next buffer starts anew
-    if not found_io and any(r.data for r in parsed.records):
+    for record in parsed.flush():
+        data_found = data_found or bool(record.data)
+        echoed = echoed or record.direction == Direction.MASTER
+        yield record
+    if not found_io and data_found:
         parsed.channel_label = "pymodbus synchronous client log (Processing: answers)"
-        echoed = any(r.direction == Direction.MASTER for r in parsed.records)
         parsed.notes.append(
             f"{where}: a pymodbus synchronous client (3.8 and later) logs what it received "
             "(`Processing:`) but not what it sent: the requests are not in this log"
             + (", except those heard back as local echo" if echoed else "")
         )
-    return parsed
 
 
 def _bytes_line(
