@@ -67,7 +67,25 @@ def _valueless(raw: bytes, asked: bytes) -> bool:
     )
 
 
+_BIT_READS = (1, 2)
 _WRITES = (15, 16)
+
+
+def _bits_valueless(raw: bytes, asked: bytes) -> int | None:
+    """For `raw`, an RTU answer, and `asked`, its RTU request, an FC 1 or 2 read and its
+    well-formed answer (a byte count that is the bytes that follow and what the
+    quantity needs): the padding bits of its last data byte, which decide its one
+    problem that reads values (`dissectors.pdu.access.checked_values`); None for any
+    other pair. As for `_valueless`, such answers of a unit with no dictionary differ,
+    for the listings, only in their values and those bits."""
+    size = len(raw)
+    if size < 6 or raw[1] not in _BIT_READS or len(asked) < 8 or asked[1] != raw[1]:
+        return None
+    quantity = asked[4] << 8 | asked[5]
+    if not quantity or size != 5 + raw[2] or raw[2] != (quantity + 7) // 8:
+        return None
+    used = quantity % 8
+    return raw[-3] & (0xFF << used) & 0xFF if used else 0
 
 
 def _written(raw: bytes, asked: bytes) -> bool:
@@ -292,7 +310,9 @@ class Describer:
         `timed` are the row's own, its `dissection` and `registers` those of the answer
         whose bytes are the content's `raw`. So may the answers to FC 15 and 16 writes
         whose requests differ only in the values written (`_written`): the answer's own
-        bytes are in the key, and of the request what its description reads. For
+        bytes are in the key, and of the request what its description reads; and the
+        answers to FC 1 and 2 reads, as FC 3 and 4's, with their padding bits in the key
+        (`_bits_valueless`). For
         consumers that read no value (the text listing) or put the row's own bytes and
         values in (the JSONL listing and the Modbus/TCP export, which splice them into
         what they keep per content). On the
@@ -379,6 +399,11 @@ class Describer:
                     free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
                 elif _written(raw, asked):  # the values written are the request's
                     free = (raw, flags[i] & _KEPT_FLAGS, statuses[i], *_write_key(asked))
+                else:
+                    padding = _bits_valueless(raw, asked)
+                    if padding is not None:
+                        kept = flags[i] & _KEPT_FLAGS
+                        free = (raw[:3], len(raw), kept, statuses[i], asked, padding)
             if free is not None:
                 alike = valueless.get(free)
                 if alike is not None:

@@ -318,3 +318,32 @@ def test_answers_to_writes_of_other_values_share_a_content() -> None:
     assert free[13] is free[15] and free[13] is not free[1]
     every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
     assert every[1] is not every[3]  # a consumer of values gets the row's own content
+
+
+def bits(unit: int, fc: int, data: bytes) -> bytes:
+    return with_crc(bytes([unit, fc, len(data)]) + data)
+
+
+def test_answers_to_bit_reads_of_other_values_share_a_content() -> None:
+    """As answers to FC 3/4 reads: the answers to an FC 1 or 2 read of a unit without
+    dictionary that differ only in their values share one content for the listings and
+    the Modbus/TCP export, and their lines and packets are an uncached Describer's.
+    Not shared: an answer whose padding bits are set (a problem), another byte count."""
+    coils, inputs = read(9, 1, 10, 11), read(9, 2, 10, 8)
+    exchanges = [
+        (coils, bits(9, 1, b"\x05\x03"), 0.01),
+        (coils, bits(9, 1, b"\xff\x01"), 0.01),
+        (coils, bits(9, 1, b"\x05\x83"), 0.01),  # padding bits set
+        (coils, bits(9, 1, b"\x05"), 0.01),  # too few bytes
+        (inputs, bits(9, 2, b"\x01"), 0.01),
+        (inputs, bits(9, 2, b"\xfe"), 0.01),
+    ]
+    s = session(exchanges, bound=False)
+    same_as_uncached(s, shared_size=64)
+    d = Describer(s.store, s.annotator)
+    free = dict(d.contents(range(len(s.store)), values=False))
+    assert free[1] is free[3]
+    assert free[5] is not free[1] and free[7] is not free[1]
+    assert free[9] is free[11] and free[9] is not free[1]
+    every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
+    assert every[1] is not every[3]
