@@ -67,6 +67,50 @@ def _valueless(raw: bytes, asked: bytes) -> bool:
     )
 
 
+_BIT_READS = (1, 2)
+_WRITES = (15, 16)
+
+
+def _bits_valueless(raw: bytes, asked: bytes) -> int | None:
+    """For `raw`, an RTU answer, and `asked`, its RTU request, an FC 1 or 2 read and its
+    well-formed answer (a byte count that is the bytes that follow and what the
+    quantity needs): the padding bits of its last data byte, which decide its one
+    problem that reads values (`dissectors.pdu.access.checked_values`); None for any
+    other pair. As for `_valueless`, such answers of a unit with no dictionary differ,
+    for the listings, only in their values and those bits."""
+    size = len(raw)
+    if size < 6 or raw[1] not in _BIT_READS or len(asked) < 8 or asked[1] != raw[1]:
+        return None
+    quantity = asked[4] << 8 | asked[5]
+    if not quantity or size != 5 + raw[2] or raw[2] != (quantity + 7) // 8:
+        return None
+    used = quantity % 8
+    return raw[-3] & (0xFF << used) & 0xFF if used else 0
+
+
+def _written(raw: bytes, asked: bytes) -> bool:
+    """Whether `raw`, an RTU answer, and `asked`, its RTU request, are an FC 15 or 16
+    write of a well-formed request (a byte count that is the bytes that follow and what
+    the quantity needs) and its 8-byte answer echoing the request's unit, code, address
+    and quantity. For a unit with no dictionary (and not followed as SunSpec) such an
+    answer's description reads, of its request, only those and the request's byte count
+    and length (the values written are the request's own); of an FC 15 request also the
+    padding bits after the quantity, which a key holds with them (`_write_key`)."""
+    if len(raw) != 8 or raw[1] not in _WRITES or len(asked) < 9 or raw[:6] != asked[:6]:
+        return False
+    quantity = asked[4] << 8 | asked[5]
+    need = (quantity + 7) // 8 if raw[1] == 15 else 2 * quantity
+    return len(asked) == 9 + asked[6] and asked[6] == need
+
+
+def _write_key(asked: bytes) -> tuple[bytes, int, int]:
+    """What an FC 15/16 answer's description reads of its request (`_written`): the
+    request's head, length and, for FC 15, the padding bits of its last data byte."""
+    used = (asked[4] << 8 | asked[5]) % 8
+    padding = asked[-3] & (0xFF << used) & 0xFF if asked[1] == 15 and used else 0
+    return asked[:7], len(asked), padding
+
+
 def _explained(unit: int, asked_unit: int, bound: Container[int], sunspec: Container[int]) -> bool:
     """Whether an exception of `unit` to a request of `asked_unit` may be explained by
     its request (`Describer._content`: the problems of the request's registers), which
@@ -264,9 +308,14 @@ class Describer:
         dictionary may be given the content of another such answer that differs from it
         only in its values (`_valueless`): its name, summary, problems, label and
         `timed` are the row's own, its `dissection` and `registers` those of the answer
-        whose bytes are the content's `raw`. For consumers that read no value (the text
-        listing) or put the row's own bytes and values in (the JSONL listing and the
-        Modbus/TCP export, which splice them into what they keep per content). On the
+        whose bytes are the content's `raw`. So may the answers to FC 15 and 16 writes
+        whose requests differ only in the values written (`_written`): the answer's own
+        bytes are in the key, and of the request what its description reads; and the
+        answers to FC 1 and 2 reads, as FC 3 and 4's, with their padding bits in the key
+        (`_bits_valueless`). For
+        consumers that read no value (the text listing) or put the row's own bytes and
+        values in (the JSONL listing and the Modbus/TCP export, which splice them into
+        what they keep per content). On the
         100k-frame benchmark that leaves 3.3k contents to describe instead of 27k."""
         if type(self).shared is not Describer.shared or self.shared_size <= 0:
             for i in rows:  # a subclass's own contents (the live window's numbering)
@@ -345,9 +394,17 @@ class Describer:
                 and unit
                 and unit not in bound
                 and not (flags[i] | flags[partner]) & VALUED_FLAGS
-                and _valueless(raw, asked)
             ):
-                free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
+                if _valueless(raw, asked):
+                    free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
+                elif _written(raw, asked):  # the values written are the request's
+                    free = (raw, flags[i] & _KEPT_FLAGS, statuses[i], *_write_key(asked))
+                else:
+                    padding = _bits_valueless(raw, asked)
+                    if padding is not None:
+                        kept = flags[i] & _KEPT_FLAGS
+                        free = (raw[:3], len(raw), kept, statuses[i], asked, padding)
+            if free is not None:
                 alike = valueless.get(free)
                 if alike is not None:
                     self._hits += 1

@@ -277,3 +277,73 @@ def test_answers_that_differ_only_in_their_values_share_a_text_line() -> None:
     assert free[13] is not free[15]  # unit 3 has a dictionary: its values are named
     every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
     assert every[1] is not every[3] and every[1] is not None
+
+
+def write_many(unit: int, fc: int, address: int, quantity: int, data: bytes) -> bytes:
+    head = struct.pack(">BBHHB", unit, fc, address, quantity, len(data))
+    return with_crc(head + data)
+
+
+def written(unit: int, fc: int, address: int, quantity: int) -> bytes:
+    return with_crc(struct.pack(">BBHH", unit, fc, address, quantity))
+
+
+def test_answers_to_writes_of_other_values_share_a_content() -> None:
+    """The answers to FC 15 and 16 writes of a unit without dictionary that differ only
+    in the values written share one content for consumers that read no value (the
+    listings, the Modbus/TCP export): fresh values in every write no longer make every
+    answer a content to describe. The lines and packets are an uncached Describer's.
+    Not shared: an FC 15 write whose padding bits differ (a problem of the write), a
+    write whose byte count is not its quantity's, another quantity."""
+    ok16 = written(9, 16, 100, 2)
+    ok15 = written(9, 15, 10, 3)
+    exchanges = [
+        (write_many(9, 16, 100, 2, b"\x00\x01\x00\x02"), ok16, 0.01),
+        (write_many(9, 16, 100, 2, b"\x12\x34\x56\x78"), ok16, 0.01),
+        (write_many(9, 15, 10, 3, b"\x05"), ok15, 0.01),
+        (write_many(9, 15, 10, 3, b"\x02"), ok15, 0.01),
+        (write_many(9, 15, 10, 3, b"\xf2"), ok15, 0.01),  # padding bits set
+        (write_many(9, 16, 100, 2, b"\x00\x01\x00\x02\x00\x03"), ok16, 0.01),  # count
+        (write_many(9, 16, 100, 1, b"\x00\x01"), written(9, 16, 100, 1), 0.01),
+        (write_many(9, 16, 100, 1, b"\x00\x07"), written(9, 16, 100, 1), 0.01),
+    ]
+    s = session(exchanges, bound=False)
+    same_as_uncached(s, shared_size=64)
+    d = Describer(s.store, s.annotator)
+    free = dict(d.contents(range(len(s.store)), values=False))
+    assert free[1] is free[3]  # FC 16, other values
+    assert free[5] is free[7]  # FC 15, other values
+    assert free[9] is not free[5]  # FC 15 with its padding bits set
+    assert free[11] is not free[1]  # a byte count that is not the quantity's
+    assert free[13] is free[15] and free[13] is not free[1]
+    every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
+    assert every[1] is not every[3]  # a consumer of values gets the row's own content
+
+
+def bits(unit: int, fc: int, data: bytes) -> bytes:
+    return with_crc(bytes([unit, fc, len(data)]) + data)
+
+
+def test_answers_to_bit_reads_of_other_values_share_a_content() -> None:
+    """As answers to FC 3/4 reads: the answers to an FC 1 or 2 read of a unit without
+    dictionary that differ only in their values share one content for the listings and
+    the Modbus/TCP export, and their lines and packets are an uncached Describer's.
+    Not shared: an answer whose padding bits are set (a problem), another byte count."""
+    coils, inputs = read(9, 1, 10, 11), read(9, 2, 10, 8)
+    exchanges = [
+        (coils, bits(9, 1, b"\x05\x03"), 0.01),
+        (coils, bits(9, 1, b"\xff\x01"), 0.01),
+        (coils, bits(9, 1, b"\x05\x83"), 0.01),  # padding bits set
+        (coils, bits(9, 1, b"\x05"), 0.01),  # too few bytes
+        (inputs, bits(9, 2, b"\x01"), 0.01),
+        (inputs, bits(9, 2, b"\xfe"), 0.01),
+    ]
+    s = session(exchanges, bound=False)
+    same_as_uncached(s, shared_size=64)
+    d = Describer(s.store, s.annotator)
+    free = dict(d.contents(range(len(s.store)), values=False))
+    assert free[1] is free[3]
+    assert free[5] is not free[1] and free[7] is not free[1]
+    assert free[9] is free[11] and free[9] is not free[1]
+    every = dict(Describer(s.store, s.annotator).contents(range(len(s.store))))
+    assert every[1] is not every[3]
