@@ -65,6 +65,12 @@ def test_serve_runs_the_tui_command_for_each_visitor(
     capture = tmp_path / "bus log.pcapng"
     capture.write_bytes(DEMO_CAPTURE.read_bytes() if DEMO_CAPTURE.exists() else b"\x01\x03")
     argv = ["serve", str(capture), "--port", "9001", "--baud", "9600", "--unit", "3=rvs-dn"]
+    # serve marks its own environment for the apps it starts; run in this process, that
+    # mark must not outlive the test (it would make every later TUI test a served visitor,
+    # whose exports are downloads and whose recordings need --export-dir)
+    for name in (serve.SERVED_ENV, serve.EXPORT_DIR_ENV):
+        monkeypatch.setenv(name, "")
+        monkeypatch.delenv(name)
     assert main(argv) == 0
     # a textual_serve without its page on disk (this stand-in): its own page is used
     assert made["options"].pop("templates_path") == Path("templates")
