@@ -84,9 +84,10 @@ class SmallDisk:
     (measured on disk at each write), as a small disk does; a write may take part of a
     block before it fails, as a real one does."""
 
-    def __init__(self, folder: Path, capacity: int) -> None:
+    def __init__(self, folder: Path, capacity: int, error: int = errno.ENOSPC) -> None:
         self.folder = folder
         self.capacity = capacity
+        self.error = error  # what a full one says (EDQUOT: a quota)
 
     def used(self) -> int:
         return sum(f.stat().st_size for f in self.folder.iterdir() if f.is_file())
@@ -99,7 +100,7 @@ class SmallDisk:
             def write(self, data: memoryview | bytes) -> int:
                 room = disk.capacity - disk.used()
                 if room <= 0:
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                    raise OSError(disk.error, os.strerror(disk.error))
                 return raw.write(bytes(data[:room]))  # part of it, when that is all
 
             def __getattr__(self, name: str) -> object:
