@@ -361,21 +361,25 @@ def _on(what: str, where: str) -> str:
 
 class _Staged:
     """Where a file's header is built: its blocks are held until `commit` writes them to
-    the file in one write (whole or not at all), then writes go straight through."""
+    the file in one write (whole or not at all); then `write` and `flush` are the file's
+    own (no extra call per block)."""
 
     def __init__(self) -> None:
         self.held = bytearray()
-        self.target: BinaryIO | None = None
+        self.write: Callable[[bytes], int] = self._hold
+        self.flush: Callable[[], None] = self._nothing
 
-    def write(self, data: bytes) -> int:
-        if self.target is None:
-            self.held += data
-            return len(data)
-        return self.target.write(data)
+    def _hold(self, data: bytes) -> int:
+        self.held += data
+        return len(data)
 
-    def flush(self) -> None:
-        if self.target is not None:
-            self.target.flush()
+    def _nothing(self) -> None:
+        pass
+
+    def commit(self, target: BinaryIO) -> None:
+        target.write(bytes(self.held))
+        target.flush()
+        self.write, self.flush = target.write, target.flush
 
 
 class Recorder:
@@ -414,7 +418,7 @@ class Recorder:
         self._file_t0 = 0.0
         self._number = 0
         self._last_end: dict[int, float] = {}
-        self._now: float | None = None  # the newest time written: the last words' date
+        self._now: float | None = None  # the time of the last block tried: the last words' date
         # the last words: on each interface a capture-data-lost record with its comment,
         # then capture-complete; held back under a size limit, and in the reserve
         record = len(rtac_record(0.0, b""))
@@ -506,9 +510,7 @@ class Recorder:
         """The header in one write (whole or not at all); then the file takes packets."""
         assert self._staged is not None and self._handle is not None
         staged, writer, interfaces = self._staged
-        self._handle.write(bytes(staged.held))
-        self._handle.flush()
-        staged.target = self._handle
+        staged.commit(self._handle)
         self._staged = None
         self._writer, self._interfaces = writer, interfaces
 
@@ -612,7 +614,7 @@ class Recorder:
             raise RecordError(self.stopped)
         if self._writer is None:
             raise RecordError(f"{self.path}: the recording is closed")
-        self._now = chunk.t_end if self._now is None else max(self._now, chunk.t_end)
+        self._now = chunk.t_end  # the block being written: if it does not fit, the stop's time
         if self.ring.active and self._due(chunk.t_end):
             self._open_next(chunk.t_end)
         assert self._writer is not None
