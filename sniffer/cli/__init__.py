@@ -3,10 +3,10 @@
 exit status; the options several commands share are in `options`. Nothing outside this
 package imports it.
 
-Exit status: 0 done, 1 done with findings (`dict check` found bad files), 2 a user
-error (printed as one line: a missing file, a bad option, a port that refuses its
-settings), 70 a bug in modscope (EX_SOFTWARE: the traceback is printed with a request
-to report it), 130 interrupted.
+Exit status: 0 done, 1 done with findings (`dict check` found bad files; a recording
+stopped by a full disk, `sniffer.live.recorder`), 2 a user error (printed as one line:
+a missing file, a bad option, a port that refuses its settings), 70 a bug in modscope
+(EX_SOFTWARE: the traceback is printed with a request to report it), 130 interrupted.
 """
 
 from __future__ import annotations

@@ -382,7 +382,9 @@ def stream(
 
     try:
         with stop_requests() as stop:
-            while capture.running and not stop.is_set():
+            # the ports, not the recording: a recording stopped by a full disk said so
+            # once, and the listing (and MQTT) go on
+            while capture.reader.running and not stop.is_set():
                 if end is not None and time.monotonic() >= end:
                     break
                 if selection is not None and selection.done:
@@ -408,11 +410,12 @@ def stream(
     if summary is not None:
         summary.write()
     check_reader(capture)
+    recorder = capture.recorder
+    if capture.failure is not None and recorder is not None and recorder.stopped is not None:
+        # the recording stopped (a full disk): its one line was said as it happened; the
+        # status is record's for the same stop (1)
+        return recorder.status
     if capture.failure is not None:
-        if capture.notify is not None:
-            # the recording stopped (a full disk): its one line was said as it happened;
-            # the status is record's for the same stop
-            return 2
         raise UsageError(capture.failure)
     if getattr(capture.reader, "trouble", False):  # a watcher: reads lost, bad messages
         return 1

@@ -166,7 +166,9 @@ EXIT_STATUS = (
     (
         "1",
         "done with findings: a capture read with warnings (truncated, a damaged record; the "
-        "rows before and after the damage are there), or dict check found bad files",
+        "rows before and after the damage are there), dict check found bad files, or a "
+        "recording (record, live -w) stopped by a full disk or the file size limit, its one "
+        "line naming the file and the free space, the file ending with a record saying so",
     ),
     (
         "2",

@@ -115,7 +115,9 @@ def cmd_record(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     err.write(f"modscope: {status(capture)}{_published(publisher)}\n")
     check_reader(capture)
     if recorder.stopped is not None:
-        return 2  # a full disk or a closed pipe: said once already, as it happened
+        # said once already, as it happened: 1 for a full disk (the file ends with a
+        # record saying so), 0 for a closed pipe (its reader took what it wanted)
+        return recorder.status
     if capture.failure is not None:
         raise UsageError(capture.failure)
     return 0

@@ -347,8 +347,12 @@ class LiveCapture:
                     if chunk.event and self.session is None:
                         self._report(event_text(chunk))
             except RecordError as exc:
+                # the ports go on being read for the listing and MQTT: the recording's
+                # feed lets go, so nothing piles up in it or counts as lost
+                self.reader.detach(feed)
                 self.failure = str(exc)
-                self._report(f"error: {exc}")
+                piped = recorder.stopped is not None and not recorder.status  # a closed pipe
+                self._report(str(exc) if piped else f"error: {exc}")
                 return
             if feed.lost_bytes > lost and self.session is not None:
                 self._report(

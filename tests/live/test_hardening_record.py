@@ -1,6 +1,7 @@
 """A full disk while recording (issue #30, item 5): `modscope record -w` under a real file
-size limit (RLIMIT_FSIZE, EFBIG from the kernel) stops with one line naming the file, no
-traceback, and a file that reads back whole to its last block; a ring buffer on a disk
+size limit (RLIMIT_FSIZE) stops with one line naming the file and the limit, exit status
+1, no traceback, and a file that reads back whole to its last block, then says why it
+ends (the last bytes under the limit were kept for that); a ring buffer on a disk
 that fills (ENOSPC from a file wrapper that counts the folder's real bytes) frees its
 oldest file and goes on; `record -w - | head` blames the pipe, not the disk."""
 
@@ -28,6 +29,7 @@ MODSCOPE = str(Path(sys.executable).with_name("modscope"))
 FRAME = with_crc(bytes.fromhex("010300000005"))
 T0 = 1_750_000_000.0
 LIMIT = 4096  # bytes: the file size limit of the recording process
+RESERVE = 4096  # bytes: the hidden file that holds a recording's last room (a disk counts it)
 
 
 def _limit_file_size() -> None:
@@ -56,18 +58,25 @@ def test_record_at_the_file_size_limit_stops_with_one_line(tmp_path: Path) -> No
             if proc.poll() is None:
                 proc.terminate()
             _out, err = proc.communicate(timeout=10)
-    assert proc.returncode == 2, err
+    assert proc.returncode == 1, err
     assert "Traceback" not in err and "bug" not in err
     errors = [line for line in err.splitlines() if "error" in line]
-    assert len(errors) == 1 and str(path) in errors[0] and "size limit" in errors[0], err
+    assert len(errors) == 1 and str(path) in errors[0], err
+    assert "the size limit (4,096 bytes)" in errors[0], err
     size = path.stat().st_size
     assert 0 < size <= LIMIT
     capture = open_capture(path)
-    data = [c.data for c in capture.chunks() if not c.event]
+    chunks = list(capture.chunks())
+    data = [c.data for c in chunks if not c.event]
     # whole frames only (a loaded machine may read two or more in one read)
     joined = b"".join(data)
     assert data and joined == FRAME * (len(joined) // len(FRAME))
     assert capture.warnings == []  # whole blocks to the end: no truncated block
+    last = [c for c in chunks if c.event and c.event != "capture complete"][-1]
+    assert (last.event, last.note) == (
+        "recording stopped",
+        "the file reached the size limit (4,096 bytes)",
+    )
 
 
 class SmallDisk:
@@ -75,9 +84,10 @@ class SmallDisk:
     (measured on disk at each write), as a small disk does; a write may take part of a
     block before it fails, as a real one does."""
 
-    def __init__(self, folder: Path, capacity: int) -> None:
+    def __init__(self, folder: Path, capacity: int, error: int = errno.ENOSPC) -> None:
         self.folder = folder
         self.capacity = capacity
+        self.error = error  # what a full one says (EDQUOT: a quota)
 
     def used(self) -> int:
         return sum(f.stat().st_size for f in self.folder.iterdir() if f.is_file())
@@ -90,7 +100,7 @@ class SmallDisk:
             def write(self, data: memoryview | bytes) -> int:
                 room = disk.capacity - disk.used()
                 if room <= 0:
-                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                    raise OSError(disk.error, os.strerror(disk.error))
                 return raw.write(bytes(data[:room]))  # part of it, when that is all
 
             def __getattr__(self, name: str) -> object:
@@ -100,7 +110,7 @@ class SmallDisk:
 
 
 def test_a_ring_on_a_full_disk_frees_its_oldest_file_and_goes_on(tmp_path: Path) -> None:
-    disk = SmallDisk(tmp_path, 9000)
+    disk = SmallDisk(tmp_path, 9000 + RESERVE)
     rec = Recorder(
         tmp_path / "bus.pcapng",
         [PortSpec("/dev/ttyUSB0", LINE)],
@@ -113,7 +123,7 @@ def test_a_ring_on_a_full_disk_frees_its_oldest_file_and_goes_on(tmp_path: Path)
     assert rec.stopped is None and rec.freed  # it went on, by freeing the oldest files
     assert all(not f.exists() for f in rec.freed)
     files = sorted(tmp_path.glob("bus_*.pcapng"))
-    assert files == rec.files and disk.used() <= 9000
+    assert files == rec.files and disk.used() <= 9000 + RESERVE
     numbers = [int(f.name.split("_")[1]) for f in files]
     assert numbers == list(range(numbers[0], numbers[0] + len(files)))
     newest = [c for c in open_capture(files[-1]).chunks() if c.data][-1]
@@ -123,7 +133,7 @@ def test_a_ring_on_a_full_disk_frees_its_oldest_file_and_goes_on(tmp_path: Path)
 
 
 def test_one_file_on_a_full_disk_stops_once_and_ends_on_a_whole_block(tmp_path: Path) -> None:
-    disk = SmallDisk(tmp_path, 2500)
+    disk = SmallDisk(tmp_path, 2500 + RESERVE)
     rec = Recorder(tmp_path / "bus.pcapng", [PortSpec("/dev/ttyUSB0", LINE)], opener=disk.open)
     written = 0
     try:
