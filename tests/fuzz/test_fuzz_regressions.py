@@ -13,6 +13,7 @@ import pytest
 from sniffer.model import Chunk
 from sniffer.sources import ReadOptions, open_capture
 from sniffer.sources.linktypes import LINKTYPE_USER0
+from sniffer.sources.logs.base import MAX_LINE
 from sniffer.sources.reads import batching
 from tests.fuzz.harness import CAPTURES
 from tests.fuzz.test_fuzz_sources import read_and_frame
@@ -180,6 +181,37 @@ def test_a_stray_cr_in_a_saleae_csv_is_no_traceback(tmp_path: Path) -> None:
     path = tmp_path / "cr.csv"
     path.write_bytes(b"\n".join(lines))
     read_and_frame(path, ReadOptions())
+
+
+LONG_LINE_SEEDS = {
+    "esphome.log": (
+        CAPTURES / "logs" / "esphome_hex_ms.log",
+        b"[12:00:00.000][D][uart_debug]: >>> ",
+    ),
+    "saleae.csv": (SALEAE, b'"Master","data",0.5,0.001,0x'),
+    "socat.log": (CAPTURES / "hexdump" / "socat_modbus.log", b" 01 03 "),
+    "text2pcap.txt": (CAPTURES / "hexdump" / "text2pcap_modbus.txt", b"000010 "),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LONG_LINE_SEEDS))
+def test_a_line_past_1_mib_is_skipped_and_told(tmp_path: Path, name: str) -> None:
+    """#30.8: a line past `MAX_LINE` (1 MiB) was held whole (a 200 MB line took 620 MB);
+    it is read on in pieces, skipped, and told once with its line, length and start."""
+    seed, start = LONG_LINE_SEEDS[name]
+    lines = seed.read_bytes().split(b"\n")
+    line = start + b"0A " * (MAX_LINE // 3 + 1)
+    lines.insert(6, line)
+    path = tmp_path / name
+    path.write_bytes(b"\n".join(lines))
+    read_and_frame(path, ReadOptions())
+    capture = open_capture(path)
+    assert sum(len(c.data) for c in capture.chunks()) > 0
+    told = [w for w in capture.warnings if "without a line end" in w]
+    assert told == [
+        f"{path} line 7: {len(line):,} bytes without a line end, more than the "
+        f"{MAX_LINE:,} a line may hold; the line is skipped (it starts {line[:40].decode()!r})"
+    ]
 
 
 # -- MQTT messages -----------------------------------------------------------------------
