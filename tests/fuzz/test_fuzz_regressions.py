@@ -4,6 +4,7 @@ promised. Plain tests, not marked `fuzz`: they run with the suite, in a few seco
 
 from __future__ import annotations
 
+import signal
 import struct
 import time
 from pathlib import Path
@@ -15,7 +16,7 @@ from sniffer.sources import ReadOptions, open_capture
 from sniffer.sources.linktypes import LINKTYPE_USER0
 from sniffer.sources.logs.base import MAX_LINE
 from sniffer.sources.reads import batching
-from tests.fuzz.harness import CAPTURES
+from tests.fuzz.harness import CAPTURES, HangError, no_hang
 from tests.fuzz.test_fuzz_sources import read_and_frame
 from tests.support.gateway import mbap_frame, read_answer, read_request
 from tests.support.netbuild import TCP_ACK, TCP_FIN, TCP_RST, Conversation, pcap
@@ -207,10 +208,10 @@ def test_a_line_past_1_mib_is_skipped_and_told(tmp_path: Path, name: str) -> Non
     read_and_frame(path, ReadOptions())
     capture = open_capture(path)
     assert sum(len(c.data) for c in capture.chunks()) > 0
-    told = [w for w in capture.warnings if "without a line end" in w]
+    told = [w for w in capture.warnings if "a line may hold" in w]
     assert told == [
-        f"{path} line 7: {len(line):,} bytes without a line end, more than the "
-        f"{MAX_LINE:,} a line may hold; the line is skipped (it starts {line[:40].decode()!r})"
+        f"{path} line 7: a line of {len(line):,} bytes, more than the {MAX_LINE:,} a line "
+        f"may hold; the line is skipped (it starts {line[:40].decode()!r})"
     ]
 
 
@@ -279,3 +280,26 @@ def test_a_retransmission_after_the_fin_is_no_reassembly_error(tmp_path: Path) -
         b"".join(c.data for c in chunks if c.channel == 0)
         == mbap_frame(1, read_request(0)) + second
     )
+
+
+# -- the harness -------------------------------------------------------------------------
+
+
+def test_the_hang_limit_is_cpu_time_and_leaves_the_test_timeout_armed() -> None:
+    """`no_hang` stops an example that spins past its CPU time, whatever the load (a
+    machine at load 17 stretched the wall-clock time of the slowest Saleae examples 13
+    times), and no longer cancels the real-time timer pytest-timeout arms for the whole
+    test (it set and then cleared `ITIMER_REAL` itself)."""
+    arm = signal.getitimer(signal.ITIMER_REAL)[0] == 0  # (pytest-timeout may have armed it)
+    if arm:
+        signal.setitimer(signal.ITIMER_REAL, 600)
+    try:
+        with pytest.raises(HangError), no_hang(0.2):
+            while True:
+                pass
+        with no_hang(0.2):
+            time.sleep(0.3)  # waiting spends no CPU time: not a hang by this limit
+        assert signal.getitimer(signal.ITIMER_REAL)[0] > 0
+    finally:
+        if arm:
+            signal.setitimer(signal.ITIMER_REAL, 0)

@@ -75,8 +75,8 @@ def long_line(where: str, number: int, length: int, head: str) -> str:
     writes such a line, so it is damage (a file of binary junk, a line end lost); its
     first characters and its length are said, not its text."""
     return (
-        f"{where} line {number}: {length:,} bytes without a line end, more than the "
-        f"{MAX_LINE:,} a line may hold; the line is skipped (it starts {head!r})"
+        f"{where} line {number}: a line of {length:,} bytes, more than the {MAX_LINE:,} a "
+        f"line may hold; the line is skipped (it starts {head!r})"
     )
 
 
