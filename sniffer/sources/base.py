@@ -3,7 +3,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+import re
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
@@ -14,6 +15,94 @@ from sniffer.model import Chunk, LineSettings, SourceInfo
 # pcapng can hold; `Capture` gives such a record the time of the one before.
 MAX_TIME = 1e10
 MAX_CHANNEL = 255  # the frame store keeps a channel in one byte
+
+
+# Warnings a reader keeps of one kind (`warning_kind`), and the kinds it tells apart; past
+# these, a warning is counted, not kept (`Warnings`)
+WARNINGS_PER_KIND = 20
+WARNING_KINDS = 100
+# what differs between two warnings of one kind: numbers (a line, an offset, a length, a
+# time: digits, their commas and points; hex `0x1f` as a whole), and a quoted excerpt of
+# the file (as `!r` writes it: from the first quote to the last)
+_NUMBERS = b"0123456789,."
+_HEX = re.compile(r"0[xX][0-9A-Fa-f]+")
+_OTHER_KIND = b"\0other"
+
+
+def warning_kind(text: str) -> bytes:
+    """What a warning says without its numbers and quoted excerpts: `x.log line 7: cannot
+    read '0Z' as hex bytes` and `x.log line 9: cannot read '1' as hex bytes` are one
+    kind. Cheap (a microsecond; a regular expression only for hex numbers): a file may
+    hold millions of warnings."""
+    if "0x" in text or "0X" in text:
+        text = _HEX.sub("#", text)
+    raw = text.encode("utf-8", "surrogatepass").translate(None, _NUMBERS)
+    single, double = raw.find(b"'"), raw.find(b'"')
+    if single < 0 and double < 0:
+        return raw
+    first = single if double < 0 or 0 <= single < double else double
+    return raw[:first] + raw[max(raw.rfind(b"'"), raw.rfind(b'"')) + 1 :]
+
+
+class Warnings(list[str]):
+    """A reader's warnings, in memory bounded whatever the file holds: the first
+    `WARNINGS_PER_KIND` of each kind (`warning_kind`; past `WARNING_KINDS` kinds, the
+    others are one kind) are kept as they come, the rest counted. `close` says each
+    count once, in one line after the others, with the last warning counted (so a file
+    of ten million unreadable lines gives 20 warnings and one line `and 9,999,980 more
+    like it ...`, not ten million). A plain list of warnings can be bounded the same way
+    afterwards (`bound`)."""
+
+    def __init__(self, items: Iterable[str] = ()) -> None:
+        super().__init__()
+        self._seen: dict[bytes, int] = {}  # kind: how many
+        self._last: dict[bytes, str] = {}  # kind: the last warning counted, not kept
+        self._told: dict[bytes, int] = {}  # kind: where its count is said (an index)
+        self.extend(items)
+
+    def append(self, text: str, /) -> None:
+        kind = warning_kind(text)
+        seen = self._seen.get(kind)
+        if seen is None:
+            if len(self._seen) >= WARNING_KINDS:
+                kind = _OTHER_KIND
+            seen = self._seen.get(kind, 0)
+        seen += 1
+        self._seen[kind] = seen
+        if seen <= WARNINGS_PER_KIND:
+            super().append(text)
+        else:
+            self._last[kind] = text
+
+    def extend(self, items: Iterable[str], /) -> None:
+        for text in items:
+            self.append(text)
+
+    def close(self) -> None:
+        """Say how many warnings of each kind were counted, not kept: a line each, after
+        the others (a count said before is brought up to date in place)."""
+        for kind, last in self._last.items():
+            more = self._seen[kind] - WARNINGS_PER_KIND
+            told = (
+                f"and {more:,} more warning(s) like it, not shown (the first "
+                f"{WARNINGS_PER_KIND} of each kind are); the last: {last}"
+            )
+            if kind in self._told:
+                self[self._told[kind]] = told
+            else:
+                self._told[kind] = len(self)
+                super().append(told)
+
+    @classmethod
+    def bound(cls, items: list[str]) -> None:
+        """Bound a plain list of warnings in place (as if it had been `Warnings`)."""
+        if isinstance(items, Warnings):
+            items.close()
+            return
+        bounded = cls(items)
+        if len(bounded) < len(items):
+            bounded.close()
+            items[:] = bounded
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +166,9 @@ class Capture:
     `warnings` holds every warning: those known when the file was opened (also in
     `info.warnings`) and those found while `chunks()` is consumed (a truncated record is
     only found at the end), so read it after iterating. Every warning names the file
-    (`path: ...`, added here for readers that leave it out). `data_bytes` counts the
+    (`path: ...`, added here for readers that leave it out). Warnings of one kind past
+    the first `WARNINGS_PER_KIND` are counted, in one line at the end (`Warnings`: a
+    reader that keeps its warnings in one holds them in bounded memory). `data_bytes` counts the
     bytes the chunks carried; a file that gave none gets a warning saying so, and
     `empty` is then true: nothing in it was usable.
     """
@@ -123,6 +214,7 @@ class Capture:
                     "the bus (pcapng, pcap, sigrok .sr, hex dump or raw bytes)"
                 )
         finally:
+            Warnings.bound(self.warnings)
             self._name_warnings()
 
     @staticmethod

@@ -20,6 +20,11 @@ a space instead of `T`, an optional UTC offset; none means local time),
 `2024/05/01 12:00:00.5`, a time of day `12:00:00.5` (seconds since midnight), and
 plain seconds `1714564800.5`. Packets without a time follow the previous one by one
 character time per byte, as raw bytes do.
+
+Both are read a block at a time. A line longer than `MAX_LINE` (1 MiB; no dump writes
+one) is read on to its end unkept and skipped with a warning giving its line, length and
+first characters: in a socat log it is a line that holds no bytes (a record missing them
+says so), in a text2pcap dump text between packets (it ends the packet before it).
 """
 
 from __future__ import annotations
@@ -31,8 +36,10 @@ from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.base import Capture, ReadOptions, Warnings
 from sniffer.sources.detect import SOCAT_HEADER
+from sniffer.sources.logs import base as logs_base
+from sniffer.sources.logs.base import LONG_HEAD, LongLine
 
 _HEX_RUN = re.compile(r"^ ((?:[0-9A-Fa-f]{2} )*[0-9A-Fa-f]{2})(?: |$)")
 _OFFSET = re.compile(r"^[\s>]*([0-9A-Fa-f]{3,})(?:[:\s]|$)(.*)$")
@@ -90,15 +97,28 @@ def parse_time(text: str) -> float | None:
 
 # the files are read a block at a time, never whole: as Latin-1 (every byte one
 # character, so a line's length is its length in bytes) and cut where `str.splitlines`
-# cuts (LF, CR, CR LF, VT, FF, FS, GS, RS, NEL)
+# cuts (LF, CR, CR LF, VT, FF, FS, GS, RS, NEL); a line past MAX_LINE bytes is read on
+# to its end unkept and skipped, with a warning (`long_line`)
 _BLOCK = 1 << 20
 _ENDS = ("\r\n", "\n", "\r", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85")
 
 
-def _lines(path: Path) -> Iterator[str]:
+def _lines(path: Path, warnings: list[str] | None = None) -> Iterator[tuple[int, str]]:
     """The file's lines with their line ends (`str.splitlines(keepends=True)` of the
-    whole text), read a block at a time."""
+    whole text), read a block at a time, each with its length: a line longer than
+    `MAX_LINE` is given as "" with its length (line end included), and told in
+    `warnings`."""
+    limit = logs_base.MAX_LINE
     rest = ""
+    long: LongLine | None = None  # the start of a long line read on; the end of it in `rest`
+    number = 0
+
+    def told(line: LongLine, end: str) -> tuple[int, str]:
+        if warnings is not None:
+            head = line.head.decode("latin-1")
+            warnings.append(logs_base.long_line(str(path), number, line.length, head))
+        return line.length + len(end), ""
+
     with path.open("rb") as handle:
         while block := handle.read(_BLOCK):
             lines = (rest + block.decode("latin-1")).splitlines(keepends=True)
@@ -106,9 +126,34 @@ def _lines(path: Path) -> Iterator[str]:
             if rest.endswith(_ENDS) and not rest.endswith("\r"):
                 lines.append(rest)  # complete (a CR may yet be followed by its LF)
                 rest = ""
-            yield from lines
-    if rest:
-        yield rest
+            for line in lines:
+                number += 1
+                bare = _bare(line)
+                if long is not None:
+                    long = LongLine(long.length + len(bare), long.head)
+                    yield told(long, line[len(bare) :])
+                    long = None
+                elif len(bare) > limit:
+                    head = bare[:LONG_HEAD].encode("latin-1")
+                    yield told(LongLine(len(bare), head), line[len(bare) :])
+                else:
+                    yield len(line), line
+            if long is None and len(rest) - rest.endswith("\r") > limit:
+                long = LongLine(0, rest[:LONG_HEAD].encode("latin-1"))
+            if long is not None:  # keep the last character: a CR may be followed by LF
+                long = LongLine(long.length + len(rest) - 1, long.head)
+                rest = rest[-1:]
+    if long is not None:
+        number += 1
+        bare = _bare(rest)
+        yield told(LongLine(long.length + len(bare), long.head), rest[len(bare) :])
+    elif rest:
+        number += 1
+        bare = _bare(rest)
+        if len(bare) > limit:
+            yield told(LongLine(len(bare), bare[:LONG_HEAD].encode("latin-1")), rest[len(bare) :])
+        else:
+            yield len(rest), rest
 
 
 def _bare(line: str) -> str:
@@ -121,15 +166,27 @@ def _bare(line: str) -> str:
 
 def _pieces(path: Path) -> Iterator[str]:
     """The file's text in pieces of about a block, each ending at an LF (where a
-    multi-line regular expression's `^` matches at the next piece's start)."""
+    multi-line regular expression's `^` matches at the next piece's start). A stretch of
+    more than `MAX_LINE` bytes without an LF is left out, up to its LF (no socat header
+    is that long; `_lines` skips such a line)."""
+    limit = logs_base.MAX_LINE
     rest = ""
+    skip = False  # leaving out a stretch without an LF, up to its LF
     with path.open("rb") as handle:
         while block := handle.read(_BLOCK):
             text = rest + block.decode("latin-1")
+            if skip:
+                end = text.find("\n")
+                if end < 0:
+                    rest = ""
+                    continue
+                skip, text = False, text[end + 1 :]
             cut = text.rfind("\n") + 1
             rest = text[cut:]
             if cut:
                 yield text[:cut]
+            if len(rest) > limit:
+                skip, rest = True, ""
     if rest:
         yield rest
 
@@ -162,8 +219,8 @@ def open_socat(path: Path, options: ReadOptions) -> Capture:
         resolution=1e-6,
         labels=Labels.HINT,
     )
-    warnings: list[str] = []
-    chunks = _socat_chunks(_lines(path), micro_bug, warnings)
+    warnings = Warnings()
+    chunks = _socat_chunks(_lines(path, warnings), micro_bug, warnings)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
@@ -177,7 +234,9 @@ class _SocatRecord:
     data: bytearray
 
 
-def _socat_chunks(lines: Iterable[str], micro_bug: bool, warnings: list[str]) -> Iterator[Chunk]:
+def _socat_chunks(
+    lines: Iterable[tuple[int, str]], micro_bug: bool, warnings: list[str]
+) -> Iterator[Chunk]:
     record: _SocatRecord | None = None
     offset = 0
 
@@ -196,10 +255,10 @@ def _socat_chunks(lines: Iterable[str], micro_bug: bool, warnings: list[str]) ->
             direction=Direction.MASTER if master else Direction.SLAVE,
         )
 
-    for number, raw_line in enumerate(lines, start=1):
+    for number, (size, raw_line) in enumerate(lines, start=1):
         line_offset = offset
-        offset += len(raw_line)
-        line = raw_line.rstrip("\r\n")
+        offset += size
+        line = raw_line.rstrip("\r\n")  # "" for a line past MAX_LINE: nothing readable
         header = SOCAT_HEADER.match(line)
         if header:
             if record is not None:
@@ -244,12 +303,12 @@ def _socat_chunks(lines: Iterable[str], micro_bug: bool, warnings: list[str]) ->
 _DIRECTIONS = {"O": Direction.MASTER, "I": Direction.SLAVE}
 
 
-def _survey(lines: Iterable[str]) -> tuple[bool, Stamp, float]:
+def _survey(lines: Iterable[tuple[int, str]]) -> tuple[bool, Stamp, float]:
     """Whether the text between packets gives directions (`I`, `O`), and what the packet
     times are: print times with their coarsest resolution, or none."""
     directions = False
     stamps, resolution = Stamp.NONE, 0.0
-    for text_line in lines:
+    for _, text_line in lines:
         raw_line = _bare(text_line)
         rest = raw_line.strip()
         if not rest or rest.startswith("#") or _OFFSET.match(raw_line):
@@ -279,8 +338,8 @@ def open_hexdump(path: Path, options: ReadOptions) -> Capture:
         resolution=resolution,
         labels=Labels.HINT if directions else Labels.NONE,
     )
-    warnings: list[str] = []
-    chunks = _hexdump_chunks(_lines(path), line, warnings)
+    warnings = Warnings()
+    chunks = _hexdump_chunks(_lines(path, warnings), line, warnings)
     return Capture(info=info, _chunks=chunks, warnings=warnings)
 
 
@@ -304,7 +363,7 @@ class _Packet:
 
 
 def _hexdump_chunks(
-    lines: Iterable[str], line: LineSettings, warnings: list[str]
+    lines: Iterable[tuple[int, str]], line: LineSettings, warnings: list[str]
 ) -> Iterator[Chunk]:
     packet: _Packet | None = None
     t_prev = 0.0
@@ -325,10 +384,12 @@ def _hexdump_chunks(
         yield Chunk(data=bytes(p.data), t_end=t, t_start=t_start, direction=direction)
 
     offset = 0
-    for number, raw_line in enumerate(lines, start=1):
+    for number, (size, raw_line) in enumerate(lines, start=1):
         line_offset = offset
-        offset += len(raw_line)
+        offset += size
         stripped = raw_line.strip()
+        if not stripped and not raw_line and size:
+            stripped = "\0"  # a line past MAX_LINE, skipped: text between packets, unread
         if not stripped or stripped.startswith("#"):
             continue
         match = _OFFSET.match(raw_line.rstrip("\r\n"))

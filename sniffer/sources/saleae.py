@@ -16,7 +16,8 @@ the hex in brackets is the value).
 Rows are read line by line, not by a CSV parser: a value may be a lone `"` (the byte
 0x22 in the ASCII radices) or a stray CR, and a damaged file may hold a line longer than
 any CSV field limit; such a row is read or becomes a warning naming its line, never an
-error for the whole file. A file whose lines end with CR alone is read too.
+error for the whole file; a line past `MAX_LINE` (1 MiB) is skipped unread, its warning
+giving its length and first characters. A file whose lines end with CR alone is read too.
 
 Each byte is one chunk with exact times (`Stamp.EXACT`): `t_start` the byte's start,
 `t_end` its start plus its duration (or one character time when the export has none).
@@ -35,7 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, SourceInfo, Stamp
-from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.base import Capture, ReadOptions, Warnings
 from sniffer.sources.logs.base import Spill, TextFile
 
 SALEAE = "saleae"
@@ -134,9 +135,10 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
     channels) and the warnings and keeps the rows on disk (`Spill`, about 40 bytes a
     row); the chunks come from them as they are consumed (or, without room for them,
     from a second pass over the file)."""
-    # UTF-8, a byte that is not read as U+FFFD; lines cut at LF, or CR without any LF
-    text = replace(TextFile.survey(path, ()), encoding="utf-8", errors="replace")
-    warnings: list[str] = []
+    # UTF-8, a byte that is not read as U+FFFD; lines cut at LF, or CR without any LF;
+    # a line past MAX_LINE is skipped with a warning
+    warnings = Warnings()
+    text = replace(TextFile.survey(path, (), warnings), encoding="utf-8", errors="replace")
     where = str(path)
     names: dict[str, int] = {}
     found = False
@@ -162,6 +164,7 @@ def open_saleae(path: Path, options: ReadOptions) -> Capture:
         channels = {0: "Saleae async serial"}
     if not found:
         warnings.append(f"{where}: no bytes found in this Saleae export")
+    warnings.close()
     info = SourceInfo(
         path=where,
         format=SALEAE,
@@ -196,6 +199,8 @@ def _rows(text: TextFile, names: dict[str, int], where: str, warnings: list[str]
     if first is None:
         return
     header = _header(first[1].lstrip("\ufeff"))
+    if not first[1]:  # a header line past MAX_LINE: its columns as recognition read them
+        header = _header(_first_line(text.path).lstrip("\ufeff"))
     for number, text_line in lines:
         if not text_line.strip():
             continue
@@ -205,6 +210,13 @@ def _rows(text: TextFile, names: dict[str, int], where: str, warnings: list[str]
         item = _row(header, row, number, names, where, warnings)
         if item is not None:
             yield item
+
+
+def _first_line(path: Path) -> str:
+    """The start of the file's first line (4 KiB at most), as `sniff_saleae` reads it."""
+    with path.open("rb") as handle:
+        head = handle.read(4096)
+    return re.split(rb"[\r\n]", head, maxsplit=1)[0].decode("utf-8", "replace")
 
 
 def _cells(

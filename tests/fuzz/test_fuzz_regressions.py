@@ -4,6 +4,7 @@ promised. Plain tests, not marked `fuzz`: they run with the suite, in a few seco
 
 from __future__ import annotations
 
+import signal
 import struct
 import time
 from pathlib import Path
@@ -13,8 +14,9 @@ import pytest
 from sniffer.model import Chunk
 from sniffer.sources import ReadOptions, open_capture
 from sniffer.sources.linktypes import LINKTYPE_USER0
+from sniffer.sources.logs.base import MAX_LINE
 from sniffer.sources.reads import batching
-from tests.fuzz.harness import CAPTURES
+from tests.fuzz.harness import CAPTURES, HangError, no_hang
 from tests.fuzz.test_fuzz_sources import read_and_frame
 from tests.support.gateway import mbap_frame, read_answer, read_request
 from tests.support.netbuild import TCP_ACK, TCP_FIN, TCP_RST, Conversation, pcap
@@ -182,6 +184,37 @@ def test_a_stray_cr_in_a_saleae_csv_is_no_traceback(tmp_path: Path) -> None:
     read_and_frame(path, ReadOptions())
 
 
+LONG_LINE_SEEDS = {
+    "esphome.log": (
+        CAPTURES / "logs" / "esphome_hex_ms.log",
+        b"[12:00:00.000][D][uart_debug]: >>> ",
+    ),
+    "saleae.csv": (SALEAE, b'"Master","data",0.5,0.001,0x'),
+    "socat.log": (CAPTURES / "hexdump" / "socat_modbus.log", b" 01 03 "),
+    "text2pcap.txt": (CAPTURES / "hexdump" / "text2pcap_modbus.txt", b"000010 "),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LONG_LINE_SEEDS))
+def test_a_line_past_1_mib_is_skipped_and_told(tmp_path: Path, name: str) -> None:
+    """#30.8: a line past `MAX_LINE` (1 MiB) was held whole (a 200 MB line took 620 MB);
+    it is read on in pieces, skipped, and told once with its line, length and start."""
+    seed, start = LONG_LINE_SEEDS[name]
+    lines = seed.read_bytes().split(b"\n")
+    line = start + b"0A " * (MAX_LINE // 3 + 1)
+    lines.insert(6, line)
+    path = tmp_path / name
+    path.write_bytes(b"\n".join(lines))
+    read_and_frame(path, ReadOptions())
+    capture = open_capture(path)
+    assert sum(len(c.data) for c in capture.chunks()) > 0
+    told = [w for w in capture.warnings if "a line may hold" in w]
+    assert told == [
+        f"{path} line 7: a line of {len(line):,} bytes, more than the {MAX_LINE:,} a line "
+        f"may hold; the line is skipped (it starts {line[:40].decode()!r})"
+    ]
+
+
 # -- MQTT messages -----------------------------------------------------------------------
 
 
@@ -247,3 +280,26 @@ def test_a_retransmission_after_the_fin_is_no_reassembly_error(tmp_path: Path) -
         b"".join(c.data for c in chunks if c.channel == 0)
         == mbap_frame(1, read_request(0)) + second
     )
+
+
+# -- the harness -------------------------------------------------------------------------
+
+
+def test_the_hang_limit_is_cpu_time_and_leaves_the_test_timeout_armed() -> None:
+    """`no_hang` stops an example that spins past its CPU time, whatever the load (a
+    machine at load 17 stretched the wall-clock time of the slowest Saleae examples 13
+    times), and no longer cancels the real-time timer pytest-timeout arms for the whole
+    test (it set and then cleared `ITIMER_REAL` itself)."""
+    arm = signal.getitimer(signal.ITIMER_REAL)[0] == 0  # (pytest-timeout may have armed it)
+    if arm:
+        signal.setitimer(signal.ITIMER_REAL, 600)
+    try:
+        with pytest.raises(HangError), no_hang(0.2):
+            while True:
+                pass
+        with no_hang(0.2):
+            time.sleep(0.3)  # waiting spends no CPU time: not a hang by this limit
+        assert signal.getitimer(signal.ITIMER_REAL)[0] > 0
+    finally:
+        if arm:
+            signal.setitimer(signal.ITIMER_REAL, 0)

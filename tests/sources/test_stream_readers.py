@@ -317,7 +317,8 @@ def test_hexdump_lines_are_the_whole_texts_lines(raw: bytes, block: int) -> None
         path = Path(folder) / "f.txt"
         path.write_bytes(raw)
         with mock.patch.object(hexdump, "_BLOCK", block):
-            assert list(hexdump._lines(path)) == raw.decode("latin-1").splitlines(keepends=True)
+            lines = raw.decode("latin-1").splitlines(keepends=True)
+            assert list(hexdump._lines(path)) == [(len(line), line) for line in lines]
             pieces = list(hexdump._pieces(path))
             assert "".join(pieces) == raw.decode("latin-1")
             assert all(piece.endswith("\n") for piece in pieces[:-1])

@@ -9,8 +9,11 @@ chunk per logged line or block, `t_end` = the printed time; event lines (errors 
 notices the program printed) become event chunks. A serial log is one stream on channel
 0; a log of Modbus TCP frames gets a pair of channels per connection and is framed as
 Modbus TCP (`base.route`). A line the reader cannot use becomes a warning naming the
-file and line number; nothing here raises on content. Files without any time get
-synthetic times (one character time per byte, increasing), and say so (`Stamp.NONE`).
+file and line number (past 20 of a kind, a count: `sniffer.sources.base.Warnings`); a
+line longer than `base.MAX_LINE` bytes is read on to its end unkept and skipped, with a
+warning giving its length and first characters; nothing here raises on content. Files
+without any time get synthetic times (one character time per byte, increasing), and say
+so (`Stamp.NONE`).
 
 The format is recognised from the content (`sniff_log`), never from the file's name.
 """
@@ -22,7 +25,7 @@ from functools import partial
 from pathlib import Path
 
 from sniffer.model import Labels, SourceInfo
-from sniffer.sources.base import Capture, ReadOptions
+from sniffer.sources.base import Capture, ReadOptions, Warnings
 from sniffer.sources.logs.base import (
     ANSI,
     Lines,
@@ -105,11 +108,13 @@ def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
     the file says about itself and what routing needs (`Summary`), and keeps the records
     on disk (`Spill`); the chunks come from them, as they are consumed (or, without the
     spill, from a second pass over the file). Memory stays a few blocks and lines
-    whatever the file's size; the warnings are kept (one per unreadable line)."""
-    text = TextFile.survey(path)
+    whatever the file's size (a line past `MAX_LINE` is skipped with a warning), and the
+    warnings a few of each kind (`Warnings`: the rest are counted)."""
     parse = STREAMS[kind]
     where = str(path)
     parsed = ParsedLog()
+    warnings = parsed.warnings
+    text = TextFile.survey(path, warnings=warnings)
     summary = Summary()
     spill = record_spill()
     for record in parse(text.lines, where, parsed):
@@ -117,9 +122,9 @@ def open_log(path: Path, options: ReadOptions, kind: str) -> Capture:
         spill.add(record)
     line = options.line(parsed.line)
     stamps, resolution = summary.stamps()
-    warnings = list(parsed.warnings)
     if not summary.data:
         warnings.append(f"{path}: no bytes found in this {FORMAT_NAMES[kind]} log")
+    Warnings.bound(warnings)
     routing = route(parsed, summary, FORMAT_NAMES[kind])
     info = SourceInfo(
         path=str(path),

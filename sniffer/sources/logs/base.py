@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, BinaryIO, Generic, TypeVar
 
 from sniffer.model import Chunk, Direction, Labels, LineSettings, Stamp
+from sniffer.sources.base import Warnings
 from sniffer.sources.net.carrier import MBAP_CARRIERS, MODBUS_TCP, ChannelLabel, Votes
 
 T = TypeVar("T")
@@ -57,6 +58,8 @@ def decode_head(head: bytes) -> str | None:
 # ---------------------------------------------------------------- the file, line by line
 
 BLOCK = 1 << 20  # bytes read at a time
+MAX_LINE = 1 << 20  # bytes a line may hold (before its line end); a longer one is skipped
+LONG_HEAD = 40  # characters of a skipped line's start said in its warning
 Lines = Callable[[], Iterator[tuple[int, str]]]
 """A file's numbered lines, from the start again at each call (a reader may go over the
 file more than once: what it decides from the whole file first, then its records)."""
@@ -67,24 +70,54 @@ def numbered(lines: Iterable[str]) -> Lines:
     return lambda: enumerate(lines, start=1)
 
 
+def long_line(where: str, number: int, length: int, head: str) -> str:
+    """The warning for a line longer than `MAX_LINE` bytes, skipped: no log or export
+    writes such a line, so it is damage (a file of binary junk, a line end lost); its
+    first characters and its length are said, not its text."""
+    return (
+        f"{where} line {number}: a line of {length:,} bytes, more than the {MAX_LINE:,} a "
+        f"line may hold; the line is skipped (it starts {head!r})"
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class LongLine:
+    """A line longer than `MAX_LINE`, read on to its end in pieces and not kept: its
+    length in bytes (without its line end) and its first bytes."""
+
+    length: int
+    head: bytes
+
+
 @dataclass(frozen=True, slots=True)
 class TextFile:
     """A text file read line by line, never whole: its encoding (as `decode_text` would
     choose for the whole file: UTF-8, else GBK, else Latin-1, which takes any byte; a file
     with a NUL byte is Latin-1) and where its lines end (LF, or CR in a file without any
     LF), both found by one pass over the file. Lines are as `split_lines` cuts them.
-    Memory: a block of `BLOCK` bytes and the longest line."""
+
+    A line longer than `MAX_LINE` bytes is read on to its end a block at a time and not
+    kept: `lines` gives it as an empty line (nothing readable) and puts a warning
+    (`long_line`) in `warnings`, once however many times the file is read.
+    Memory: a block of `BLOCK` bytes and a line of at most `MAX_LINE`."""
 
     path: Path
     encoding: str
     cut: bytes
     size: int
     errors: str = "strict"  # how a byte the encoding does not take is read
+    warnings: list[str] = field(default_factory=list, compare=False)
+    said: list[int] = field(default_factory=lambda: [0], compare=False)  # the last long line told
 
     @classmethod
-    def survey(cls, path: Path, encodings: Sequence[str] = ("utf-8", "gbk")) -> TextFile:
+    def survey(
+        cls,
+        path: Path,
+        encodings: Sequence[str] = ("utf-8", "gbk"),
+        warnings: list[str] | None = None,
+    ) -> TextFile:
         """The file's encoding (the first of `encodings` the whole file decodes as,
-        else Latin-1) and line ends."""
+        else Latin-1) and line ends; `warnings` is where its long lines are told."""
         nul = has_lf = False
         size = 0
         first = codecs.getincrementaldecoder(encodings[0])() if encodings else None
@@ -100,7 +133,8 @@ class TextFile:
             encoding = encodings[0]
         elif not nul:
             encoding = next((n for n in encodings[1:] if _whole_decodes(path, n)), encoding)
-        return cls(path, encoding, b"\n" if has_lf else b"\r", size)
+        cut = b"\n" if has_lf else b"\r"
+        return cls(path, encoding, cut, size, warnings=[] if warnings is None else warnings)
 
     def lines(self) -> Iterator[tuple[int, str]]:
         """The numbered lines, from the first."""
@@ -108,16 +142,31 @@ class TextFile:
         with self.path.open("rb") as handle:
             for raw in self._raw_lines(handle):
                 number += 1
-                yield number, raw.decode(self.encoding, self.errors)
+                if isinstance(raw, LongLine):
+                    self._tell(number, raw)
+                    yield number, ""
+                else:
+                    yield number, raw.decode(self.encoding, self.errors)
+
+    def _tell(self, number: int, line: LongLine) -> None:
+        if number > self.said[0]:  # a later pass over the file told it already
+            self.said[0] = number
+            head = line.head.decode(self.encoding, "replace")
+            self.warnings.append(long_line(str(self.path), number, line.length, head))
 
     def count(self) -> int:
         """How many lines `lines` gives."""
         with self.path.open("rb") as handle:
             return sum(1 for _ in self._raw_lines(handle))
 
-    def _raw_lines(self, handle: BinaryIO) -> Iterator[bytes]:
+    def _raw_lines(self, handle: BinaryIO) -> Iterator[bytes | LongLine]:
+        limit = MAX_LINE
         if self.cut == b"\n":
-            for raw in handle:
+            read = handle.readline
+            while raw := read(limit + 1):
+                if len(raw) > limit and not raw.endswith(b"\n"):
+                    yield _read_on(read, raw)
+                    continue
                 if raw.endswith(b"\n"):
                     raw = raw[:-1]
                 yield raw[:-1] if raw.endswith(b"\r") else raw
@@ -125,45 +174,97 @@ class TextFile:
         # no LF in the file: lines end at CR, and a file ending with CR has an empty last
         # line (as `split_lines` has it)
         rest = b""
+        long: LongLine | None = None  # the start of a long line read on
         seen = False
         while block := handle.read(BLOCK):
             seen = True
+            if long is not None:
+                end = block.find(b"\r")
+                if end < 0:
+                    long = LongLine(long.length + len(block), long.head)
+                    continue
+                yield LongLine(long.length + end, long.head)
+                long, block = None, block[end + 1 :]
             parts = (rest + block).split(b"\r")
             rest = parts.pop()
-            yield from parts
-        if seen:
-            yield rest
+            for part in parts:
+                yield part if len(part) <= limit else LongLine(len(part), part[:LONG_HEAD])
+            if len(rest) > limit:
+                long, rest = LongLine(len(rest), rest[:LONG_HEAD]), b""
+        if long is not None:
+            yield long
+        elif seen:
+            yield rest if len(rest) <= limit else LongLine(len(rest), rest[:LONG_HEAD])
 
     def lines_reversed(self, total: int) -> Iterator[tuple[int, str]]:
         """The numbered lines from the last to the first (`total`: how many there are),
-        read backwards a block at a time."""
+        read backwards a block at a time (a long line as in `lines`)."""
         number = total + 1
         for raw in self._raw_reversed():
             number -= 1
-            yield number, raw.decode(self.encoding, self.errors)
+            if isinstance(raw, LongLine):
+                self._tell(number, raw)
+                yield number, ""
+            else:
+                yield number, raw.decode(self.encoding, self.errors)
 
-    def _raw_reversed(self) -> Iterator[bytes]:
+    def _raw_reversed(self) -> Iterator[bytes | LongLine]:
+        limit, cut = MAX_LINE, self.cut
         with self.path.open("rb") as handle:
             end = handle.seek(0, 2)
             if end == 0:
                 return
             pos, rest, last = end, b"", True
+            long: LongLine | None = None  # the end of a long line, read back from its end
             while pos > 0:
                 step = min(BLOCK, pos)
                 pos -= step
                 handle.seek(pos)
-                parts = (handle.read(step) + rest).split(self.cut)
+                block = handle.read(step)
+                if long is not None:
+                    start = block.rfind(cut)
+                    piece = block[start + 1 :]
+                    long = LongLine(long.length + len(piece), (piece + long.head)[:LONG_HEAD])
+                    if start < 0:
+                        continue
+                    last = False
+                    yield long
+                    long, block = None, block[:start]
+                parts = (block + rest).split(cut)
                 rest = parts[0]
                 for part in reversed(parts[1:]):
-                    if last and self.cut == b"\n" and part == b"":
+                    if last and cut == b"\n" and part == b"":
                         last = False
                         continue  # the LF that ends the file starts no line
                     last = False
-                    yield self._trim(part)
-            yield self._trim(rest)
+                    yield self._trim(part) if len(part) <= limit else self._trim_long(part)
+                if len(rest) > limit:
+                    long, rest = LongLine(len(rest), rest[:LONG_HEAD]), b""
+            if long is not None:
+                yield long
+            else:
+                yield self._trim(rest) if len(rest) <= limit else self._trim_long(rest)
 
     def _trim(self, raw: bytes) -> bytes:
         return raw[:-1] if self.cut == b"\n" and raw.endswith(b"\r") else raw
+
+    @staticmethod
+    def _trim_long(raw: bytes) -> LongLine:
+        """A long line as `_raw_lines` gives it (a CR before its LF counts in its length)."""
+        return LongLine(len(raw), raw[:LONG_HEAD])
+
+
+def _read_on(read: Callable[[int], bytes], start: bytes) -> LongLine:
+    """A line longer than `MAX_LINE` whose first bytes are `start`, read on to its LF (or
+    the file's end) a block at a time."""
+    length = len(start)
+    piece = start
+    while not piece.endswith(b"\n"):
+        piece = read(BLOCK)
+        if not piece:
+            return LongLine(length, start[:LONG_HEAD])
+        length += len(piece)
+    return LongLine(length - 1, start[:LONG_HEAD])
 
 
 def _decodes(decoder: codecs.IncrementalDecoder, block: bytes, final: bool) -> bool:
@@ -320,7 +421,7 @@ class ParsedLog:
     time order read from the last line to the first (CAS Modbus Scanner)."""
 
     records: list[LogRecord] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=Warnings)
     notes: list[str] = field(default_factory=list)
     labels: Labels = Labels.NONE
     line: LineSettings | None = None
@@ -340,7 +441,7 @@ class ParsedLog:
     def again(self) -> ParsedLog:
         """A copy for a second pass over the file: what was decided, no records, warnings
         or notes (the first pass has them)."""
-        return replace(self, records=[], warnings=[], notes=[], servers=dict(self.servers))
+        return replace(self, records=[], warnings=Warnings(), notes=[], servers=dict(self.servers))
 
     def event(
         self, number: int, stamp: Stamped | None, text: str, conn: str = "", kind: str = ""
