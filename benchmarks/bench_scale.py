@@ -235,6 +235,16 @@ session.stats.bound()
 session.ingest(capture.chunks(), window=REPLAY_WINDOW)
 """
 
+# the same for callgrind: `ingest` refreshes the statistics every 0.25 s of wall time,
+# and under callgrind (tens of times slower, slower still on a loaded machine) those
+# refreshes grow with the load: 100k frames of the project's stream, same code, counted
+# 3,240 instructions a frame with them at load 30 and 2,333 without (2026-12-05).
+# Without them the count does not depend on the load (each window's refresh stays).
+#   valgrind --tool=callgrind python -c "$INDEX_COUNTED" FILE
+INDEX_COUNTED = INDEX_WINDOWED.replace(
+    "window=REPLAY_WINDOW)", 'window=REPLAY_WINDOW, every=float("inf"))'
+)
+
 
 @dataclass
 class MixResult:
