@@ -21,7 +21,9 @@ It writes (once; kept in DIR and reused while their frame count matches):
 
 Then it times each command as a whole process (median of --runs; the machine is shared
 and noisy, so judge the ratios), with its peak resident memory, and prints per-frame
-rates with start-up taken off: (frames - 10) / (time on N - time on 10).
+rates with start-up taken off: (frames - 10) / (time on N - time on 10); and the same in
+CPU time (user + system of each process, from wait4), which the load of a shared machine
+moves far less than the wall time (a process waiting for a CPU is not working).
 tshark runs as `tshark -n -r F -d rtacser.data,mbrtu` (plain summary, `-T fields`,
 `-T ek`) on the one-frame-per-packet file.
 """
@@ -125,6 +127,7 @@ def write_files(folder: Path, n: int) -> None:
 class Run:
     seconds: float
     rss_mb: float
+    cpu: float = 0.0  # median CPU seconds (user + system) of the process
 
 
 COLD = {**os.environ, "MODSCOPE_NO_INDEX": "1"}  # no sidecar index read or written
@@ -132,8 +135,11 @@ WARM = {k: v for k, v in os.environ.items() if k != "MODSCOPE_NO_INDEX"}
 
 
 def run(argv: list[str], runs: int, env: dict[str, str] | None = None) -> Run:
-    """Median wall time and the largest peak RSS of `runs` runs of `argv`."""
+    """Median wall time, median CPU time and the largest peak RSS of `runs` runs of
+    `argv`. The CPU time is the process's own (user + system, from wait4): on a machine
+    shared with other work it moves far less than the wall time, which waits for a CPU."""
     times: list[float] = []
+    cpus: list[float] = []
     rss = 0.0
     for _ in range(runs):
         t = time.perf_counter()
@@ -145,10 +151,11 @@ def run(argv: list[str], runs: int, env: dict[str, str] | None = None) -> Run:
             assert proc.stderr is not None
             err = proc.stderr.read()
         times.append(time.perf_counter() - t)
+        cpus.append(usage.ru_utime + usage.ru_stime)
         rss = max(rss, usage.ru_maxrss / 1024)
         if proc.returncode not in (0, 1):
             raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {err[-2000:]!r}")
-    return Run(statistics.median(times), rss)
+    return Run(statistics.median(times), rss, statistics.median(cpus))
 
 
 def modscope(*args: str) -> list[str]:
@@ -186,6 +193,11 @@ class Figure:
         """Frames a second with start-up taken off (time on n minus time on 10)."""
         return (self.n - SMALL) / max(self.big.seconds - self.small.seconds, 1e-6)
 
+    @property
+    def per_frame_cpu(self) -> float:
+        """The same in CPU time (user + system): what the machine's load moves least."""
+        return (self.n - SMALL) / max(self.big.cpu - self.small.cpu, 1e-6)
+
 
 def measure(
     label: str,
@@ -199,7 +211,7 @@ def measure(
     print(
         f"  {label:<44} {fig.big.seconds:8.2f} s {fig.whole:>11,.0f}/s whole "
         f"{fig.per_frame:>11,.0f}/s per frame  start {fig.small.seconds:.2f} s  "
-        f"peak {fig.big.rss_mb:6.0f} MB",
+        f"peak {fig.big.rss_mb:6.0f} MB  CPU {fig.per_frame_cpu:>11,.0f}/s per frame",
         flush=True,
     )
     return fig
@@ -223,6 +235,16 @@ session.stats.bound()
 session.ingest(capture.chunks(), window=REPLAY_WINDOW)
 """
 
+# the same for callgrind: `ingest` refreshes the statistics every 0.25 s of wall time,
+# and under callgrind (tens of times slower, slower still on a loaded machine) those
+# refreshes grow with the load: 100k frames of the project's stream, same code, counted
+# 3,240 instructions a frame with them at load 30 and 2,333 without (2026-12-05).
+# Without them the count does not depend on the load (each window's refresh stays).
+#   valgrind --tool=callgrind python -c "$INDEX_COUNTED" FILE
+INDEX_COUNTED = INDEX_WINDOWED.replace(
+    "window=REPLAY_WINDOW)", 'window=REPLAY_WINDOW, every=float("inf"))'
+)
+
 
 @dataclass
 class MixResult:
@@ -236,6 +258,10 @@ class MixResult:
 
 def _ratio(ours: Figure, theirs: Figure | None) -> float:
     return ours.per_frame / theirs.per_frame if theirs is not None else float("nan")
+
+
+def _cpu_ratio(ours: Figure, theirs: Figure | None) -> float:
+    return ours.per_frame_cpu / theirs.per_frame_cpu if theirs is not None else float("nan")
 
 
 def make_mix_files(folder: Path, mix: Mix, n: int) -> tuple[Path, Path]:
@@ -303,7 +329,8 @@ def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings
         )
         print(
             f"  => {_ratio(ix, ts):.1f}x tshark (reads as recorded), "
-            f"{_ratio(ix1, ts):.1f}x (frame per packet)",
+            f"{_ratio(ix1, ts):.1f}x (frame per packet); in CPU time "
+            f"{_cpu_ratio(ix, ts):.1f}x, {_cpu_ratio(ix1, ts):.1f}x",
             flush=True,
         )
     rows: dict[str, tuple[Figure, Figure | None]] = {}
@@ -383,6 +410,24 @@ def summarize(results: list[MixResult]) -> None:
     print(
         f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
         f"median {statistics.median(ratio):.2f}"
+    )
+    print("\nthe same in CPU time (user + system of each process; the load moves it least)")
+    for r in results:
+        print(
+            f"  {r.mix.name:<14} {r.reads.per_frame_cpu:>11,.0f} "
+            f"{_cpu_ratio(r.reads, r.tshark):>5.1f}x {r.one.per_frame_cpu:>11,.0f} "
+            f"{_cpu_ratio(r.one, r.tshark):>5.1f}x"
+        )
+    for label, pairs in (
+        ("replay --stats, reads as recorded", [(r.reads, r.tshark) for r in results]),
+        ("replay --stats, frame per packet", [(r.one, r.tshark) for r in results]),
+    ):
+        cpu = sorted(_cpu_ratio(ours, theirs) for ours, theirs in pairs)
+        print(f"  {label:<36} worst {cpu[0]:5.1f}x median {cpu[(len(cpu) - 1) // 2]:5.1f}x")
+    cpu_shape = [r.reads.per_frame_cpu / r.one.per_frame_cpu for r in results]
+    print(
+        f"  reads as recorded / frame per packet, per frame of CPU: worst {min(cpu_shape):.2f}, "
+        f"median {statistics.median(cpu_shape):.2f}"
     )
 
 

@@ -56,6 +56,20 @@ static int buf_grow(Buf *b, Py_ssize_t n) {
     return 0;
 }
 
+/* Room for at least `n` bytes in all (an empty buffer's first allocation, sized to what
+ * the caller expects to put): spares the doublings and their copies. */
+static int buf_reserve(Buf *b, Py_ssize_t n) {
+    if (n <= b->cap) return 0;
+    char *p = PyMem_Realloc(b->p, (size_t)n);
+    if (p == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    b->p = p;
+    b->cap = n;
+    return 0;
+}
+
 /* Inlined where it is called, so that the copy of a value of a size known there (an
  * 8-byte time or offset) is a move, not a call to memcpy: it runs for every column of
  * every packet and row. */
@@ -82,6 +96,9 @@ static void buf_free(Buf *b) {
 /* ---- CRC-16/MODBUS, table-driven ---------------------------------------------------- */
 
 static uint16_t crc_table[256];
+/* crc_slices[k][b]: the register after byte b then k zero bytes, from a zero register
+ * (crc_slices[0] is crc_table): the scan's check takes four bytes a step (crc16_4) */
+static uint16_t crc_slices[4][256];
 
 static void crc_init(void) {
     for (int i = 0; i < 256; i++) {
@@ -89,12 +106,34 @@ static void crc_init(void) {
         for (int j = 0; j < 8; j++) c = (c & 1) ? (uint16_t)((c >> 1) ^ 0xA001) : (uint16_t)(c >> 1);
         crc_table[i] = c;
     }
+    for (int i = 0; i < 256; i++) {
+        crc_slices[0][i] = crc_table[i];
+        for (int k = 1; k < 4; k++) {
+            uint16_t c = crc_slices[k - 1][i];
+            crc_slices[k][i] = (uint16_t)((c >> 8) ^ crc_table[c & 0xFF]);
+        }
+    }
 }
 
 static uint16_t crc16(const unsigned char *p, Py_ssize_t n) {
     uint16_t crc = 0xFFFF;
     for (Py_ssize_t i = 0; i < n; i++) crc = (uint16_t)((crc >> 8) ^ crc_table[(crc ^ p[i]) & 0xFF]);
     return crc;
+}
+
+/* crc16, four bytes a step: the same register (the framer's hot check; a frame's CRC is
+ * its dearest per-byte work). Two register bytes and two data bytes go through the four
+ * tables at once, so the steps do not wait on each other byte by byte. */
+static inline uint16_t crc16_4(const unsigned char *p, Py_ssize_t n) {
+    uint32_t crc = 0xFFFF;
+    Py_ssize_t i = 0;
+    for (; i + 4 <= n; i += 4) {
+        crc ^= (uint32_t)p[i] | (uint32_t)p[i + 1] << 8;
+        crc = (uint32_t)crc_slices[3][crc & 0xFF] ^ crc_slices[2][crc >> 8] ^
+              crc_slices[1][p[i + 2]] ^ crc_slices[0][p[i + 3]];
+    }
+    for (; i < n; i++) crc = (crc >> 8) ^ crc_table[(crc ^ p[i]) & 0xFF];
+    return (uint16_t)crc;
 }
 
 static PyObject *py_crc16(PyObject *self, PyObject *arg) {
@@ -560,6 +599,17 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
             goto done;
         }
     }
+    {
+        /* the row columns sized for a frame every 8 bytes to scan (most are longer;
+         * more grow by doubling): spares the doublings and their copies */
+        Py_ssize_t last = batch && count > k ? base + (Py_ssize_t)r_ends[count - 1] : end;
+        Py_ssize_t rows = last > pos ? (last - pos) / 8 + 16 : 16;
+        if (buf_reserve(&c_off, 8 * rows) < 0 || buf_reserve(&c_len, 2 * rows) < 0 ||
+            buf_reserve(&c_t, 8 * rows) < 0 || buf_reserve(&c_te, 8 * rows) < 0 ||
+            buf_reserve(&c_kind, rows) < 0 || buf_reserve(&c_unit, rows) < 0 ||
+            buf_reserve(&c_fc, rows) < 0 || buf_reserve(&c_pairs, 8 * rows) < 0)
+            goto done;
+    }
     /* the newest read when the call began, for frames that began in it */
     Span entry_spans[2] = {{cur_start, offset, cur_t0, last_end, 0.0},
                            {held_start, held_end, held_t0, held_t1, 0.0}};
@@ -626,7 +676,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     if (!final) break;
                 } else if (pos >= cur_start &&
                            (fc != pf || answer_pos[pf] < 0 || buf[pos + 2] == pl - 5) &&
-                           crc16(buf + pos, length) == 0) {
+                           crc16_4(buf + pos, length) == 0) {
                     double t0 = cur_t0 + (double)(pos - cur_start) * cur_rate;
                     double t1 = t0 + (double)length * cur_rate;
                     uint64_t o = (uint64_t)pos;
@@ -682,7 +732,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     stop = pos + length;
                     if (stop > end) {
                         if (!final) break;
-                    } else if (pos >= cur_start && crc16(buf + pos, length) == 0) {
+                    } else if (pos >= cur_start && crc16_4(buf + pos, length) == 0) {
                         Py_ssize_t ap = answer_pos[fc];
                         if (unit && ap == WALKED) { /* the answer's length needs Python */
                             slow = 1;
@@ -1358,6 +1408,30 @@ static PyObject *py_join_reads(PyObject *self, PyObject *arg) {
     Buf data = {0}, ends = {0}, starts = {0}, tends = {0};
     PyObject *result = NULL;
     int64_t before = 0;
+    {
+        /* the joined sizes first, so that each buffer is allocated once (a batch held is
+         * up to HOLD_BYTES of reads: doubling from 256 bytes copies it about once more) */
+        Py_ssize_t n_data = 0, n_reads = 0;
+        for (Py_ssize_t b = 0; b < PyList_GET_SIZE(arg); b++) {
+            PyObject *batch = PyList_GET_ITEM(arg, b);
+            PyObject *d = PyObject_GetAttrString(batch, "data");
+            PyObject *e = d != NULL ? PyObject_GetAttrString(batch, "ends") : NULL;
+            Py_ssize_t nd = d != NULL ? PyObject_Length(d) : -1;
+            Py_ssize_t ne = e != NULL ? PyObject_Length(e) : -1;
+            Py_XDECREF(d);
+            Py_XDECREF(e);
+            if (nd < 0 || ne < 0) {
+                PyErr_Clear(); /* the loop below says what is wrong */
+                n_data = n_reads = 0;
+                break;
+            }
+            n_data += nd;
+            n_reads += ne;
+        }
+        if (buf_reserve(&data, n_data) < 0 || buf_reserve(&ends, 8 * n_reads) < 0 ||
+            buf_reserve(&starts, 8 * n_reads) < 0 || buf_reserve(&tends, 8 * n_reads) < 0)
+            goto done;
+    }
     for (Py_ssize_t b = 0; b < PyList_GET_SIZE(arg); b++) {
         PyObject *batch = PyList_GET_ITEM(arg, b);
         static const char *names[4] = {"data", "ends", "t_starts", "t_ends"};

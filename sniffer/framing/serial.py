@@ -648,7 +648,7 @@ class RtuFramer(_Framer):
         out = self.out
         out.fill_channel = self.channel
         if len(out.flags) < len(out.t):
-            self.units_seen.update(out.unit[len(out.flags) :])
+            _add_units(self.units_seen, out.unit[len(out.flags) :].tobytes())
         out.sync()
         if self.pairs:
             if self.pair_inline:
@@ -742,6 +742,17 @@ class RtuFramer(_Framer):
             self.last_frame_end = t1
         self.flush()
         self.out.add_row(self.channel, start, end - start, t0, t1, kind, flags)
+
+
+def _add_units(seen: set[int], units: bytes) -> None:
+    """`seen.update(units)`, in passes over the bytes rather than a set insertion a row:
+    the units already seen are struck out at once, then each new one found (a bus has
+    few), so a batch of rows from known units costs one `translate`."""
+    rest = units.translate(None, bytes(seen))
+    while rest:
+        unit = rest[0]
+        seen.add(unit)
+        rest = rest.translate(None, bytes((unit,)))
 
 
 # the read the compiled fast paths get when no older read holds the scan's position

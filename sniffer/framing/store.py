@@ -129,7 +129,9 @@ class FrameStore:
         missing = n - len(self.status)
         if missing > 0:
             self.status.frombytes(bytes(missing))
-            self.partner.extend(_MINUS_ONES[:missing] if missing <= 4096 else [-1] * missing)
+            # -1 is all bits set in any byte order: bytes, not a list of ints (which the
+            # array converts one by one, an argument parse each, ~300 instructions a row)
+            self.partner.frombytes(_ALL_ONES * missing)
 
     def pair_rows(self, pairs: array[int]) -> None:
         """Record answered requests: `pairs` (int64) is flat, request row then answer row."""
@@ -230,4 +232,4 @@ COLUMNS: tuple[str, ...] = (
     "offset", "length", "t", "t_end", "kind", "unit", "fc", "flags", "channel", "partner", "status",
 )  # fmt: skip
 
-_MINUS_ONES = array("i", [-1] * 4096)
+_ALL_ONES = b"\xff" * array("i").itemsize  # NO_PARTNER (-1) in one partner cell

@@ -20,6 +20,7 @@ from array import array
 from fractions import Fraction
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -114,6 +115,53 @@ def test_crc16_matches_the_table_of_the_pure_core(compiled: ModuleType) -> None:
         data = bytes(rng.getrandbits(8) for _ in range(n))
         assert compiled.crc16(data) == crc16_py(data)
     assert compiled.crc16(with_crc(b"\x01\x03\x00\x00\x00\x02")) == 0
+
+
+def test_frames_of_every_length_are_checked_alike_by_either_core(
+    tmp_path: Path, compiled: ModuleType, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The compiled scan checks a frame's CRC four bytes a step, then the 0-3 left one by
+    one: FC 15 requests of every length from 10 to 255 bytes, each whole and then with
+    one byte changed, in reads of one frame (framed in the compiled scan) and in reads
+    cut across frames, give the rows of the pure core, which checks a byte a step; and
+    the compiled scan takes every whole one itself (a check it got wrong would send it
+    to the slow path, which would hide the error in the rows)."""
+    rng = random.Random(15)
+    whole: list[tuple[bytes, float]] = []
+    both: list[tuple[bytes, float]] = []
+    t = T0
+    for count in range(1, 247):
+        data = bytes(rng.getrandbits(8) for _ in range(count))
+        unit = 1 + count % 200  # never the unit of the request before, whose answer is due
+        frame = with_crc(struct.pack(">BBHHB", unit, 15, 0, 8 * count, count) + data)
+        hurt = bytearray(frame)
+        hurt[rng.randrange(len(frame))] ^= 1 << rng.randrange(8)
+        for sent, into in ((frame, (whole, both)), (bytes(hurt), (both,))):
+            t += len(sent) * LINE.char_time
+            for frames in into:
+                frames.append((sent, t))
+            t += LINE.t35 * 1.2
+    for name, frames, cuts in (("whole", whole, [0]), ("both", both, [0]), ("cut", both, [61, 7])):
+        path = tmp_path / f"{name}.pcapng"
+        _recording(path, _cut(frames, cuts, 0.0))
+        pure = _assert_same(path, compiled)
+        requests = [
+            i
+            for i in range(len(pure.store))
+            if pure.store.kind[i] == 1 and pure.store.fc[i] == 15 and not pure.store.flags[i] & 1
+        ]
+        assert len(requests) == len(whole)  # every whole frame, none changed, framed as good
+    stops: list[bool] = []
+    scan = framing.RtuFramer._fast_scan
+
+    def watched(self: framing.RtuFramer, *args: Any) -> tuple[bool, int, int, int]:
+        done = scan(self, *args)
+        stops.append(done[0])  # whether the compiled scan left a frame to Python
+        return done
+
+    monkeypatch.setattr(framing.RtuFramer, "_fast_scan", watched)
+    _ingest(tmp_path / "whole.pcapng", compiled)
+    assert stops and not any(stops)
 
 
 # -- traffic with everything the fast paths hand over to the slow path ---------------------

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from dissectors.checks import ascii_frame, crc16, with_crc
 from sniffer.framing.pipeline import Pipeline, frame_capture
+from sniffer.framing.serial import _add_units
 from sniffer.framing.store import FrameStore
 from sniffer.meaning.problems import check_text
 from sniffer.model import Chunk, Direction, LineSettings
@@ -431,3 +432,24 @@ def test_a_request_after_an_unanswered_one_is_not_taken_for_its_answer() -> None
         (nxt, Kind.REQUEST),
         (answer, Kind.RESPONSE),
     ]
+
+
+@settings(max_examples=200, deadline=None)
+@given(seen=st.sets(st.integers(0, 255)), units=st.binary(max_size=300))
+def test_units_seen_grow_as_a_set_update_would(seen: set[int], units: bytes) -> None:
+    """The framer adds the units of the rows its fast path appended by passes of
+    `translate` (sniffer.framing.serial._add_units): the same set as `update`."""
+    expected = seen | set(units)
+    _add_units(seen, units)
+    assert seen == expected
+
+
+def test_rows_appended_in_bulk_have_no_partner_and_no_status() -> None:
+    """`FrameStore.sync` completes rows a fast path appended: partner -1, status 0, in
+    runs of any length (the partner cells come from bytes, not a list of ints)."""
+    for n in (1, 4095, 4097, 70_000):
+        store = FrameStore()
+        store.t.frombytes(bytes(8 * n))
+        store.sync()
+        assert len(store.partner) == len(store.status) == len(store.flags) == n
+        assert store.partner.count(-1) == n and store.status.count(0) == n
