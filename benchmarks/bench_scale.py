@@ -2,12 +2,15 @@
 
 Run: python benchmarks/bench_scale.py [--frames N] [--runs R] [--dir DIR]
      python benchmarks/bench_scale.py --mixes N [--mix-frames F] [--seed S]
+     python benchmarks/bench_scale.py --mixes N --mix-listings F --only-export
 
 With --mixes N it measures N buses instead of the project's one stream
 (`benchmarks/mixes.py`: the project's stream, the bus of issue #29, then random buses the
 benchmark was not tuned on), each as `modscope record` writes it and one frame per
 packet, with tshark on the same frames, and prints each mix, then the worst and the
-median mix of every figure (the worst is the one to judge by).
+median mix of every figure (the worst is the one to judge by). With --only-export it
+times, of each mix, only `export -o x.pcapng` and tshark's plain summary on the
+--mix-listings frames (no index figures, no listings).
 
 It writes (once; kept in DIR and reused while their frame count matches):
 - `reads-N.pcapng`: N frames of a polling bus at 115200 8N1 as `modscope record` writes
@@ -250,14 +253,16 @@ INDEX_COUNTED = INDEX_WINDOWED.replace(
 class MixResult:
     mix: Mix
     frames: int
-    reads: Figure
-    one: Figure
+    reads: Figure | None  # None: not timed (--only-export)
+    one: Figure | None
     tshark: Figure | None
     listings: dict[str, tuple[Figure, Figure | None]]
 
 
-def _ratio(ours: Figure, theirs: Figure | None) -> float:
-    return ours.per_frame / theirs.per_frame if theirs is not None else float("nan")
+def _ratio(ours: Figure | None, theirs: Figure | None) -> float:
+    if ours is None or theirs is None:
+        return float("nan")
+    return ours.per_frame / theirs.per_frame
 
 
 def _cpu_ratio(ours: Figure, theirs: Figure | None) -> float:
@@ -296,11 +301,23 @@ def mix_of(name: str, seed: int) -> Mix:
     return random_mix(seed)
 
 
-def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings: int) -> MixResult:
+def measure_mix(
+    mix: Mix,
+    n: int,
+    folder: Path,
+    runs: int,
+    tshark: int,
+    listings: int,
+    only_export: bool = False,
+) -> MixResult:
     """The mix's figures: modscope on n frames, tshark on its first `tshark` frames (0:
     none). tshark's rate per frame falls as a file grows (its Modbus request tracking),
-    so a ratio to tshark on fewer frames than modscope read is, if anything, low."""
+    so a ratio to tshark on fewer frames than modscope read is, if anything, low.
+    `only_export`: the export of the `listings` frames and tshark's plain summary of
+    them, nothing else."""
     print(f"{mix.name}: {mix.describe()}", flush=True)
+    if only_export:
+        return _measure_export(mix, folder, runs, tshark, listings)
     reads, one = make_mix_files(folder, mix, n)
     reads10, one10 = make_mix_files(folder, mix, SMALL)
     ix = measure(
@@ -371,6 +388,38 @@ def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings
     return MixResult(mix, n, ix, ix1, ts, rows)
 
 
+def _export_figure(folder: Path, lreads: Path, reads10: Path, listings: int, runs: int) -> Figure:
+    out = folder / "out.pcapng"
+    fig = measure(
+        "export -o x.pcapng",
+        listings,
+        modscope("export", str(lreads), "-o", str(out)),
+        modscope("export", str(reads10), "-o", str(out)),
+        runs,
+    )
+    out.unlink(missing_ok=True)
+    return fig
+
+
+def _measure_export(mix: Mix, folder: Path, runs: int, tshark: int, listings: int) -> MixResult:
+    """`measure_mix` with `only_export`: tshark first, then the export, as there."""
+    lreads, lone = make_mix_files(folder, mix, listings)
+    reads10, one10 = make_mix_files(folder, mix, SMALL)
+    plain = None
+    if tshark:
+        plain = measure(
+            "tshark plain summary (listing frames)",
+            listings,
+            [*TSHARK, "-r", str(lone)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+    fig = _export_figure(folder, lreads, reads10, listings, runs)
+    if plain is not None:
+        print(f"  => {_ratio(fig, plain):.1f}x tshark's plain summary", flush=True)
+    return MixResult(mix, listings, None, None, None, {"export": (fig, plain)})
+
+
 def summarize(results: list[MixResult]) -> None:
     """Each mix's ratios, then the worst and the median mix of each figure."""
     figures: list[tuple[str, list[tuple[float, float, str]]]] = []
@@ -380,8 +429,16 @@ def summarize(results: list[MixResult]) -> None:
             (label, [(_ratio(ours, theirs), ours.per_frame, name) for ours, theirs, name in pick])
         )
 
-    add("replay --stats, reads as recorded", [(r.reads, r.tshark, r.mix.name) for r in results])
-    add("replay --stats, frame per packet", [(r.one, r.tshark, r.mix.name) for r in results])
+    indexed = [r for r in results if r.reads is not None and r.one is not None]
+    if indexed:
+        add(
+            "replay --stats, reads as recorded",
+            [(r.reads, r.tshark, r.mix.name) for r in indexed if r.reads is not None],
+        )
+        add(
+            "replay --stats, frame per packet",
+            [(r.one, r.tshark, r.mix.name) for r in indexed if r.one is not None],
+        )
     for key, label in (
         ("jsonl", "replay --format jsonl (vs -T ek)"),
         ("text", "replay --format text"),
@@ -391,8 +448,10 @@ def summarize(results: list[MixResult]) -> None:
         if pick:
             add(label, pick)
     print("\nper frame, start-up taken off; ratio = modscope / tshark on the same mix")
-    print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
-    for r in results:
+    if indexed:
+        print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
+    for r in indexed:
+        assert r.reads is not None and r.one is not None
         print(
             f"  {r.mix.name:<14} {r.reads.per_frame:>11,.0f} {_ratio(r.reads, r.tshark):>5.1f}x "
             f"{r.one.per_frame:>11,.0f} {_ratio(r.one, r.tshark):>5.1f}x  {r.mix.describe()}"
@@ -406,7 +465,9 @@ def summarize(results: list[MixResult]) -> None:
             f"  {label:<36} {worst[0]:5.1f}x {worst[1]:>10,.0f}/s {worst[2]:<7} "
             f"{median[0]:5.1f}x {median[1]:>10,.0f}/s {median[2]}"
         )
-    ratio = [r.reads.per_frame / r.one.per_frame for r in results]
+    ratio = [r.reads.per_frame / r.one.per_frame for r in indexed if r.reads and r.one]
+    if not ratio:
+        return
     print(
         f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
         f"median {statistics.median(ratio):.2f}"
@@ -442,6 +503,11 @@ def main() -> None:
     parser.add_argument("--no-tshark", action="store_true", help="time modscope only")
     parser.add_argument("--only-index", action="store_true", help="skip listings and export")
     parser.add_argument(
+        "--only-export",
+        action="store_true",
+        help="with --mixes and --mix-listings: time only the export (and tshark's plain summary)",
+    )
+    parser.add_argument(
         "--mixes", type=int, metavar="N", help="measure N bus mixes (benchmarks/mixes.py)"
     )
     parser.add_argument("--mix-frames", type=int, default=2_000_000, help="frames per mix")
@@ -469,12 +535,20 @@ def main() -> None:
     if args.write_mix is not None:
         write_mix(args.dir, mix_of(args.mix_name, args.seed), args.write_mix)
         return
+    if args.only_export and not (args.mixes is not None and args.mix_listings):
+        parser.error("--only-export needs --mixes N and --mix-listings F")
     if args.mixes is not None:
         print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f}")
-        print(
-            f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
-            f"{args.tshark_frames:,}), median of {args.runs}"
-        )
+        if args.only_export:
+            print(
+                f"{args.mixes} mixes, the export of {args.mix_listings:,} frames and tshark's "
+                f"plain summary of the same frames, median of {args.runs}"
+            )
+        else:
+            print(
+                f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
+                f"{args.tshark_frames:,}), median of {args.runs}"
+            )
         results = [
             measure_mix(
                 mix,
@@ -483,6 +557,7 @@ def main() -> None:
                 args.runs,
                 0 if args.no_tshark else args.tshark_frames,
                 args.mix_listings,
+                args.only_export,
             )
             for mix in mixes(args.mixes, args.seed)
         ]

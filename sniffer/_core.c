@@ -1751,6 +1751,25 @@ static int ex_in_any(PyObject *apart, unsigned unit) {
     return 0;
 }
 
+/* A block's time: `time_ticks(t, TICKS)` as PcapExporter._rows inlines it, high word
+ * first. */
+static void ex_time(double t, uint32_t words[2]) {
+    double whole = floor(t);
+    uint64_t ticks = (uint64_t)whole * 1000000000ull + (uint64_t)nearbyint((t - whole) * 1e9);
+    words[0] = (uint32_t)(ticks >> 32);
+    words[1] = (uint32_t)(ticks & 0xFFFFFFFFu);
+}
+
+/* Whether a padding bit of `last`, the last data byte of bits sent for `quantity`
+ * values, is set: the bits after the quantity (none when it is a multiple of 8). What
+ * the dissector says of them (dissectors/pdu/access.py: checked_values) is one problem
+ * whose text names the quantity only, "padding bits after N values are not zero", so
+ * the packets of two such frames differ only in their bytes when this is the same. */
+static unsigned ex_padded(unsigned last, Py_ssize_t quantity) {
+    unsigned used = (unsigned)(quantity % 8);
+    return used && (last & (0xFFu << used) & 0xFFu) ? 1 : 0;
+}
+
 /* The "W" key of an RTU row of a unit with no dictionary (not a SunSpec unit), none of
  * whose flags (nor its request's) is one of describe.py's VALUED_FLAGS: what decides its
  * Modbus/TCP packet (PcapExporter._tcp_packet) but for the bytes the splice puts in (its
@@ -1764,14 +1783,15 @@ static int ex_in_any(PyObject *apart, unsigned unit) {
  *    or 0000); FC 6's value is not checked;
  *  - FC 15, 16 requests whose byte count is the bytes that follow (and, for FC 15, what
  *    the quantity needs): quantity (its limits), byte count (checked against the
- *    quantity) and, for FC 15, the last byte (the padding bits after the quantity);
+ *    quantity) and, for FC 15, whether a padding bit after the quantity is set (in the
+ *    last byte: `ex_padded`);
  *  - FC 5, 6 echoes, byte for byte their request's: as their request;
  *  - FC 15, 16 answers (8 bytes) whose unit, code, address and quantity are their
  *    request's (the echo compares these): the quantity, the request's byte count and
  *    length (what parsing it reads; its values are not read);
  *  - FC 1-4 answers whose byte count is the bytes that follow and what the quantity
- *    asked needs (request: 8 bytes, same code): the byte count and, for bits, the last
- *    byte and the quantity (which of its bits are padding, which must be zero);
+ *    asked needs (request: 8 bytes, same code): the byte count and, for bits, the
+ *    quantity and whether a padding bit is set (`ex_padded`);
  *  - exceptions (5 bytes): the exception code, the request's code (another code than
  *    the answer's is a problem) and length.
  * Kind, flags, status, length, code and whether the unit is 0 are in every key.
@@ -1796,8 +1816,10 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
         } else if (FC_WRITE_MULTIPLE(code) && rn >= MULTIPLE_BASE &&
                    rn == MULTIPLE_BASE + r[MULTIPLE_COUNT_AT]) {
             int coils = FC_WRITE_COILS(code);
-            made = !coils || r[MULTIPLE_COUNT_AT] == ((r[4] << 8 | r[5]) + 7) / 8;
-            if (made && (buf_put(w, r + 4, 3) < 0 || (coils && buf_put(w, last, 1) < 0)))
+            Py_ssize_t asked = r[4] << 8 | r[5];
+            made = !coils || r[MULTIPLE_COUNT_AT] == (asked + 7) / 8;
+            if (made && (buf_put(w, r + 4, 3) < 0 ||
+                         (coils && ex_put_u8(w, ex_padded(*last, asked)) < 0)))
                 return -1;
         }
     } else if (code & EXCEPTION_BIT) {
@@ -1820,14 +1842,15 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
         made = qn == TABLE_REQUEST_LENGTH && q[1] == code && rn == READ_ANSWER_BASE + r[2] &&
                r[2] == need;
         if (made && (buf_put(w, r + 2, 1) < 0 ||
-                     (bits && (buf_put(w, last, 1) < 0 || buf_put(w, q + 4, 2) < 0))))
+                     (bits && (ex_put_u8(w, ex_padded(*last, quantity)) < 0 ||
+                               buf_put(w, q + 4, 2) < 0))))
             return -1;
     }
     return made;
 }
 
 /* export_rows(table, store, rows, notes, apart, bound, alike, slow, mode, valued, miss,
- *             limit) -> (blocks, rows, found, more)
+ *             limit, char, mbap) -> (blocks, rows, found, more)
  * PcapExporter.write's loop (sniffer/outputs/export.py) over up to `limit` rows taken from the
  * iterator `rows`: the enhanced packet blocks of the rows whose content key `table`
  * holds, made from its template as Python makes them (the time's ticks as time_ticks
@@ -1840,16 +1863,20 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
  * request may explain (a unit of `bound`, or a request of a SunSpec unit)) or
  * one whose packet says more than its content (the `slow` flag). `bound`: the units
  * with a dictionary (no "F" key); `mode`, `valued`: the flags of _MODE, VALUED_FLAGS.
+ * A packet's time is export.py's `packet_time`, made here from the store's `t` and
+ * `t_end`: the frame's end or, for an answer (not of the `mbap` flag), its start plus
+ * `char` a byte if that is earlier (nothing is kept per row for it).
  * `blocks` are the rows' blocks in order; `found` how many rows the table gave; `more`
  * False once `rows` is exhausted. */
 static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     PyObject *capsule, *store, *rows, *notes, *apart, *bound, *miss;
     int alike;
-    unsigned int slow, mode, valued;
+    unsigned int slow, mode, valued, mbap;
     Py_ssize_t limit;
-    if (!PyArg_ParseTuple(args, "OOOO!O!O!pIIIOn", &capsule, &store, &rows, &PyDict_Type,
+    double char_time;
+    if (!PyArg_ParseTuple(args, "OOOO!O!O!pIIIOndI", &capsule, &store, &rows, &PyDict_Type,
                           &notes, &PyTuple_Type, &apart, &PyDict_Type, &bound, &alike, &slow,
-                          &mode, &valued, &miss, &limit))
+                          &mode, &valued, &miss, &limit, &char_time, &mbap))
         return NULL;
     ExTable *et = PyCapsule_GetPointer(capsule, "modscope.export_table");
     if (et == NULL) return NULL;
@@ -1874,15 +1901,15 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     static const ColSpec specs[] = {
         {"kind", 'B', 0},   {"flags", 'I', 0},   {"t_end", 'd', 0},   {"offset", 'Q', 0},
         {"length", 'H', 0}, {"channel", 'B', 0}, {"partner", 'i', 0}, {"status", 'B', 0},
-        {"unit", 'B', 0},   {"fc", 'B', 0},
+        {"unit", 'B', 0},   {"fc", 'B', 0},      {"t", 'd', 0},
     };
-    Py_buffer c[10];
-    if (columns(store, specs, 10, c) < 0) return NULL;
+    Py_buffer c[11];
+    if (columns(store, specs, 11, c) < 0) return NULL;
     et->running = 1;
     const unsigned char *kind = c[0].buf, *channel = c[5].buf, *status = c[7].buf;
     const unsigned char *unit = c[8].buf, *fc = c[9].buf;
     const uint32_t *flags = c[1].buf;
-    const double *t_end = c[2].buf;
+    const double *t_end = c[2].buf, *t_start = c[10].buf;
     const uint64_t *offset = c[3].buf;
     const uint16_t *length = c[4].buf;
     const int32_t *partner = c[6].buf;
@@ -1896,6 +1923,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     if (c[6].len / 4 < n) n = c[6].len / 4;
     if (c[8].len < n) n = c[8].len;
     if (c[9].len < n) n = c[9].len;
+    if (c[10].len / 8 < n) n = c[10].len / 8;
     PyObject *result = NULL, *streams = NULL;
     /* the table's buffers, grown once: a run's blocks go out as bytes of up to about
      * EX_RUN_BYTES, which the allocator gives back and takes again without new pages
@@ -1918,14 +1946,20 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             break;
         }
         done += 1;
-        int keyed = 0; /* the keys made: 1 the exact one, 2 the "F" one, 4 the "W" one */
+        /* the keys made: 1 the exact one, 2 the "F" one, 4 the "W" one, 8 the "N" one
+         * (the last two in packet_key) */
+        int keyed = 0;
         Py_ssize_t i = PyLong_Check(item) ? PyLong_AsSsize_t(item) : -1;
         if (i == -1 && PyErr_Occurred()) PyErr_Clear(); /* Python says what is wrong */
         if (i < 0 || i >= n) goto slow_path;
-        double t = t_end[i];
+        unsigned k = kind[i];
+        double t = t_end[i]; /* export.py: packet_time */
+        if ((k == K_RESPONSE || k == K_EXCEPTION) && !(flags[i] & mbap)) {
+            double start = t_start[i] + (double)length[i] * char_time;
+            if (start < t) t = start;
+        }
         if (t < 0.0) t = 0.0;
         if (!(t < EX_MAX_TIME)) goto slow_path; /* NaN too */
-        unsigned k = kind[i];
         if (k == K_EVENT || (flags[i] & slow)) goto slow_path;
         if (PyDict_GET_SIZE(notes)) {
             PyObject *key = PyLong_FromSsize_t(i);
@@ -2001,21 +2035,56 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
                 }
             }
         }
+        /* noise: its packet (either style) is its bytes for the `data` dissector and a
+         * comment of its problems, which for noise with no note and no MBAP header to
+         * read (describe.py: _content, problems.py: frame_problems) say its length, flags
+         * and status only: the "N" key, with the bytes put in the template's place */
+        if (s->template == NULL && k == K_NOISE && !(flags[i] & F_ENVELOPE_BAD)) {
+            packet_key.n = 0;
+            if (buf_put(&packet_key, "N", 1) < 0 || ex_put_u32(&packet_key, flags[i]) < 0 ||
+                ex_put_u8(&packet_key, status[i]) < 0 || ex_put_u16(&packet_key, raw_n) < 0)
+                goto fail_item;
+            keyed |= 8;
+            s = ex_slot(et, ex_hash((const unsigned char *)packet_key.p, packet_key.n),
+                        packet_key.p, packet_key.n);
+        }
         if (s->template == NULL) goto slow_path;
         PyObject *tp = s->template;
         PyObject *first = PyTuple_GET_ITEM(tp, 0), *tail = PyTuple_GET_ITEM(tp, 3);
         PyObject *spliced = PyTuple_GET_ITEM(tp, 4);
-        int same = !alike || (PyBytes_GET_SIZE(first) == raw_n &&
-                              memcmp(PyBytes_AS_STRING(first), raw, (size_t)raw_n) == 0);
+        int same = (!alike && !(keyed & 8)) ||
+                   (PyBytes_GET_SIZE(first) == raw_n &&
+                    memcmp(PyBytes_AS_STRING(first), raw, (size_t)raw_n) == 0);
+        if (!same && (keyed & 8)) {
+            /* the block after its time: the two lengths, then the packet, whose last
+             * bytes (before its padding) are the noise's; checked to hold the first's */
+            PyObject *middle = PyTuple_GET_ITEM(tp, 2);
+            const unsigned char *m = (const unsigned char *)PyBytes_AS_STRING(middle);
+            Py_ssize_t mn = PyBytes_GET_SIZE(middle);
+            if (tail != Py_None || PyBytes_GET_SIZE(first) != raw_n || mn < 8) goto slow_path;
+            Py_ssize_t captured = (Py_ssize_t)m[0] | (Py_ssize_t)m[1] << 8 |
+                                  (Py_ssize_t)m[2] << 16 | (Py_ssize_t)m[3] << 24;
+            Py_ssize_t at = 8 + captured - raw_n;
+            if (at < 8 || at + raw_n > mn ||
+                memcmp(m + at, PyBytes_AS_STRING(first), (size_t)raw_n) != 0)
+                goto slow_path;
+            uint32_t words[2];
+            ex_time(t, words);
+            if (ex_put_bytes(&out, PyTuple_GET_ITEM(tp, 1)) < 0 || buf_put(&out, words, 8) < 0 ||
+                buf_put(&out, m, at) < 0 || buf_put(&out, raw, raw_n) < 0 ||
+                buf_put(&out, m + at + raw_n, mn - at - raw_n) < 0)
+                goto fail_item;
+            found += 1;
+            Py_DECREF(item);
+            continue;
+        }
         /* a splice: the bytes _splice puts in, and the unit, the last byte of the MBAP
          * header before them (the "W" keys leave it out) */
         if (!same && (tail == Py_None || spliced == Py_None || PyBytes_GET_SIZE(first) != raw_n ||
                       PyBytes_GET_SIZE(PyTuple_GET_ITEM(spliced, 0)) != 5))
             goto slow_path;
-        /* the block: `time_ticks(t, TICKS)` as PcapExporter.write inlines it */
-        double whole = floor(t);
-        uint64_t ticks = (uint64_t)whole * 1000000000ull + (uint64_t)nearbyint((t - whole) * 1e9);
-        uint32_t words[2] = {(uint32_t)(ticks >> 32), (uint32_t)(ticks & 0xFFFFFFFFu)};
+        uint32_t words[2];
+        ex_time(t, words);
         if (ex_put_bytes(&out, PyTuple_GET_ITEM(tp, 1)) < 0 || buf_put(&out, words, 8) < 0 ||
             ex_put_bytes(&out, PyTuple_GET_ITEM(tp, 2)) < 0)
             goto fail_item;
@@ -2062,7 +2131,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             }
             if (ex_keep(et, &exact, template) < 0 ||
                 ((keyed & 2) && ex_keep(et, &free_key, template) < 0) ||
-                ((keyed & 4) && ex_keep(et, &packet_key, template) < 0)) {
+                ((keyed & 12) && ex_keep(et, &packet_key, template) < 0)) {
                 Py_DECREF(got);
                 goto fail;
             }
@@ -2090,8 +2159,68 @@ done_:
     et->free_key = free_key;
     et->packet_key = packet_key;
     Py_XDECREF(streams);
-    release_all(c, 10);
+    release_all(c, 11);
     return result;
+}
+
+/* export_moved(store, char, apart, mbap) -> the largest move of export.py's
+ * exported_timing: over the rows of the store's columns, in order (events, rows of the
+ * `mbap` flag and rows of no bytes left out), each frame read back from its packet
+ * (`packet_time`, as export_rows makes it) starts `char` a byte before it, and at least
+ * `apart` after the end of the frame before; a request's end moves by the difference to
+ * its `t_end`, any other frame's start (but noise's) to its `t`. The largest such move,
+ * in seconds, as the Python loop finds it (max keeps the first of equals, as there). */
+static PyObject *py_export_moved(PyObject *self, PyObject *args) {
+    PyObject *store;
+    double char_time, apart;
+    unsigned int mbap;
+    if (!PyArg_ParseTuple(args, "OddI", &store, &char_time, &apart, &mbap)) return NULL;
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0}, {"flags", 'I', 0}, {"t", 'd', 0}, {"t_end", 'd', 0}, {"length", 'H', 0},
+    };
+    Py_buffer c[5];
+    if (columns(store, specs, 5, c) < 0) return NULL;
+    const unsigned char *kind = c[0].buf;
+    const uint32_t *flags = c[1].buf;
+    const double *t = c[2].buf, *t_end = c[3].buf;
+    const uint16_t *length = c[4].buf;
+    Py_ssize_t n = c[2].len / 8;
+    if (c[4].len / 2 != n) { /* zip(strict=True) over t and length */
+        release_all(c, 5);
+        PyErr_SetString(PyExc_ValueError, "export_moved: the store's t and length differ");
+        return NULL;
+    }
+    if (c[0].len < n || c[1].len / 4 < n || c[3].len / 8 < n) {
+        release_all(c, 5);
+        PyErr_SetString(PyExc_IndexError, "export_moved: a column is short");
+        return NULL;
+    }
+    double moved = 0.0, last = 0.0;
+    int have_last = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        unsigned k = kind[i];
+        Py_ssize_t size = length[i];
+        if (k == K_EVENT || (flags[i] & mbap) || !size) continue;
+        double at = t_end[i];
+        if (k == K_RESPONSE || k == K_EXCEPTION) {
+            double begin = t[i] + (double)size * char_time;
+            if (begin < at) at = begin;
+        }
+        double start = at - (double)size * char_time;
+        if (have_last && last + apart > start) start = last + apart;
+        last = start > at ? start : at;
+        have_last = 1;
+        double move;
+        if (k == K_REQUEST)
+            move = fabs(last - t_end[i]);
+        else if (k != K_NOISE)
+            move = fabs(start - t[i]);
+        else
+            continue;
+        if (move > moved) moved = move;
+    }
+    release_all(c, 5);
+    return PyFloat_FromDouble(moved);
 }
 
 /* ---- the sidecar's partners, numbered in another range ---------------------------------- */
@@ -2264,6 +2393,7 @@ static PyMethodDef methods[] = {
     {"tally_gaps", py_tally_gaps, METH_VARARGS, "Tallies.add_requests' counting."},
     {"export_table", py_export_table, METH_NOARGS, "A table of the export's packet templates."},
     {"export_rows", py_export_rows, METH_VARARGS, "PcapExporter.write's blocks of a run of rows."},
+    {"export_moved", py_export_moved, METH_VARARGS, "exported_timing's largest move."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
     {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},
     {NULL, NULL, 0, NULL},

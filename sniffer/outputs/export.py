@@ -35,9 +35,7 @@ from __future__ import annotations
 import csv
 import json
 import struct
-from array import array
 from collections.abc import Iterable, Iterator
-from itertools import compress
 from math import floor
 from typing import Any, BinaryIO, TextIO, cast
 
@@ -274,11 +272,7 @@ class PcapExporter:
         self._key = f"pcapng {self.style} {self.interface}"  # its templates' key in a memo
         self._last: Shared | None = None  # see `_rows`
         self._table: object | None = None  # the compiled core's templates (export_table)
-        # each packet's time (`packet_time`), for the rows so far of the store they were
-        # made for (the compiled loop reads them as the store's `t_end`)
-        self._char = line.char_time
-        self._times: array[float] = array("d")
-        self._timed: FrameStore | None = None
+        self._char = line.char_time  # a byte's time on the line (see `packet_time`)
 
     @staticmethod
     def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
@@ -341,7 +335,7 @@ class PcapExporter:
         table = self._table
         if table is None:
             table = self._table = fast.export_table()
-        columns = _PacketColumns(store, self._packet_times(store))
+        columns = _PacketColumns(store)
         apart = (annotator.sunspec.units, annotator.windows_of)
         it = iter(rows)
         n = 0
@@ -349,28 +343,12 @@ class PcapExporter:
         while more:
             blocks, count, found, more = fast.export_rows(
                 table, columns, it, store.notes, apart, annotator.bindings, alike,
-                _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, EXPORT_RUN,
+                _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, EXPORT_RUN, self._char, _MBAP_FLAG,
             )  # fmt: skip
             self.stream.write(blocks)
             describer.count_found(found)
             n += count
         return n
-
-    def _packet_times(self, store: FrameStore) -> array[float]:
-        """`packet_time` of every row of `store`, made for the rows new since the last
-        call (all of them for another store: a live capture's next segment)."""
-        if store is not self._timed:
-            self._timed, self._times = store, array("d")
-        times, have, n = self._times, len(self._times), len(store)
-        if have < n:
-            part = store.t_end[have:n]
-            answers = store.kind[have:n].tobytes().translate(_IS_ANSWER)
-            t, length, flags, char = store.t, store.length, store.flags, self._char
-            for i in compress(range(have, n), answers):
-                if not flags[i] & _MBAP_FLAG:
-                    part[i - have] = min(part[i - have], t[i] + length[i] * char)
-            times.extend(part)
-        return times
 
     def _rows(self, rows: Iterable[int]) -> int:
         """The blocks of `rows`, in order, into the writer's blocks (the pure-Python core,
@@ -468,7 +446,6 @@ class PcapExporter:
         return v.raw, block[:12], block[20 : 28 + at], tail, spliced
 
 
-_IS_ANSWER = bytes(k in (Kind.RESPONSE, Kind.EXCEPTION) for k in range(256))
 _MBAP_FLAG = int(Flag.MBAP)
 
 
@@ -487,7 +464,8 @@ def packet_time(store: FrameStore, i: int, char_time: float) -> float:
 
 class _PacketColumns:
     """A store's columns as the compiled export reads them (sniffer/_core.c:
-    export_rows), `t_end` being the packets' times (`packet_time`)."""
+    export_rows), which makes each packet's time (`packet_time`) from `t` and `t_end`
+    as it goes: nothing is kept per row."""
 
     __slots__ = (
         "channel",
@@ -499,15 +477,16 @@ class _PacketColumns:
         "partner",
         "status",
         "streams",
+        "t",
         "t_end",
         "unit",
     )
 
-    def __init__(self, store: FrameStore, times: array[float]) -> None:
+    def __init__(self, store: FrameStore) -> None:
         self.kind, self.flags, self.offset = store.kind, store.flags, store.offset
         self.length, self.channel, self.partner = store.length, store.channel, store.partner
         self.status, self.unit, self.fc = store.status, store.unit, store.fc
-        self.streams, self.t_end = store.streams, times
+        self.streams, self.t, self.t_end = store.streams, store.t, store.t_end
 
 
 def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float]:
@@ -518,10 +497,22 @@ def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float
     keeps exported frames apart so): a request's end or an answer's start the capture
     placed closer than that (an answer within t3.5, a frame squeezed after another)
     moves, so each latency read back is good to the capture's resolution plus the
-    largest such move."""
+    largest such move (found by the compiled core's `export_moved` when there is one)."""
     stamps = _EXPORTED_STAMPS.get(store.stamps, store.stamps)
     store.sync()
     char, apart = line.char_time, line.t35 + SEPARATION_MARGIN
+    fast = core.FAST
+    if fast is not None and type(store) is FrameStore:
+        moved = fast.export_moved(store, char, apart, _MBAP_FLAG)
+    else:
+        moved = _largest_move(store, char, apart)
+    if moved < 1e-6:  # (the microseconds a recording keeps its times to)
+        moved = 0.0
+    return stamps, store.resolution + moved
+
+
+def _largest_move(store: FrameStore, char: float, apart: float) -> float:
+    """`exported_timing`'s largest move, in Python (see sniffer/_core.c: export_moved)."""
     moved = 0.0
     last: float | None = None  # the end of the frame before, as read back
     kinds, flags = store.kind, store.flags
@@ -536,9 +527,7 @@ def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float
             moved = max(moved, abs(last - store.t_end[i]))
         elif kind != Kind.NOISE:
             moved = max(moved, abs(start - t))
-    if moved < 1e-6:  # (the microseconds a recording keeps its times to)
-        moved = 0.0
-    return stamps, store.resolution + moved
+    return moved
 
 
 _Spliced = tuple[bytes, bytes, bytes, bytes]
