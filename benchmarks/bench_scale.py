@@ -228,8 +228,8 @@ session.ingest(capture.chunks(), window=REPLAY_WINDOW)
 class MixResult:
     mix: Mix
     frames: int
-    reads: Figure
-    one: Figure
+    reads: Figure | None  # None: the listings alone were measured
+    one: Figure | None
     tshark: Figure | None
     listings: dict[str, tuple[Figure, Figure | None]]
 
@@ -270,13 +270,37 @@ def mix_of(name: str, seed: int) -> Mix:
     return random_mix(seed)
 
 
-def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings: int) -> MixResult:
+def measure_mix(
+    mix: Mix,
+    n: int,
+    folder: Path,
+    runs: int,
+    tshark: int,
+    listings: int,
+    only_listings: bool = False,
+    jobs: str = "auto",
+) -> MixResult:
     """The mix's figures: modscope on n frames, tshark on its first `tshark` frames (0:
     none). tshark's rate per frame falls as a file grows (its Modbus request tracking),
-    so a ratio to tshark on fewer frames than modscope read is, if anything, low."""
+    so a ratio to tshark on fewer frames than modscope read is, if anything, low.
+    `only_listings`: the listings and the export alone (no index figures), with
+    `--jobs jobs`."""
     print(f"{mix.name}: {mix.describe()}", flush=True)
-    reads, one = make_mix_files(folder, mix, n)
     reads10, one10 = make_mix_files(folder, mix, SMALL)
+    ix = ix1 = ts = None
+    if not only_listings:
+        ix, ix1, ts = _index_figures(mix, n, folder, runs, tshark, reads10, one10)
+    rows: dict[str, tuple[Figure, Figure | None]] = {}
+    if listings:
+        rows = _listing_figures(mix, listings, folder, runs, tshark, reads10, one10, jobs)
+    return MixResult(mix, n, ix, ix1, ts, rows)
+
+
+def _index_figures(
+    mix: Mix, n: int, folder: Path, runs: int, tshark: int, reads10: Path, one10: Path
+) -> tuple[Figure, Figure, Figure | None]:
+    """`replay --stats` of the mix's two shapes, and tshark's plain summary."""
+    reads, one = make_mix_files(folder, mix, n)
     ix = measure(
         "replay --stats (reads as recorded)",
         n,
@@ -306,42 +330,59 @@ def measure_mix(mix: Mix, n: int, folder: Path, runs: int, tshark: int, listings
             f"{_ratio(ix1, ts):.1f}x (frame per packet)",
             flush=True,
         )
+    return ix, ix1, ts
+
+
+def _listing_figures(
+    mix: Mix,
+    listings: int,
+    folder: Path,
+    runs: int,
+    tshark: int,
+    reads10: Path,
+    one10: Path,
+    jobs: str,
+) -> dict[str, tuple[Figure, Figure | None]]:
+    """The JSONL and text listings and the export of `listings` frames of the mix (as
+    recorded), each with tshark's figure on the same frames one per packet."""
     rows: dict[str, tuple[Figure, Figure | None]] = {}
-    if listings:
-        lreads, lone = make_mix_files(folder, mix, listings)
-        out = folder / "out.pcapng"
-        plain = ek = None
+    lreads, lone = make_mix_files(folder, mix, listings)
+    out = folder / "out.pcapng"
+    plain = ek = None
+    if tshark:
+        plain = measure(
+            "tshark plain summary (listing frames)",
+            listings,
+            [*TSHARK, "-r", str(lone)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+        ek = measure(
+            "tshark -T ek",
+            listings,
+            [*TSHARK, "-T", "ek", "-r", str(lone)],
+            [*TSHARK, "-T", "ek", "-r", str(one10)],
+            runs,
+        )
+    for label, argv, peer in (
+        ("jsonl", ("replay", "--format", "jsonl"), ek),
+        ("text", ("replay", "--format", "text"), plain),
+        ("export", ("export", "-o", str(out)), plain),
+    ):
+        verb, *rest = argv
+        rest = [*rest, "--jobs", jobs]
+        fig = measure(
+            f"{verb} {' '.join(rest)}",
+            listings,
+            modscope(verb, str(lreads), *rest),
+            modscope(verb, str(reads10), *rest),
+            runs,
+        )
+        rows[label] = (fig, peer)
         if tshark:
-            plain = measure(
-                "tshark plain summary (listing frames)",
-                listings,
-                [*TSHARK, "-r", str(lone)],
-                [*TSHARK, "-r", str(one10)],
-                runs,
-            )
-            ek = measure(
-                "tshark -T ek",
-                listings,
-                [*TSHARK, "-T", "ek", "-r", str(lone)],
-                [*TSHARK, "-T", "ek", "-r", str(one10)],
-                runs,
-            )
-        for label, argv, peer in (
-            ("jsonl", ("replay", "--format", "jsonl"), ek),
-            ("text", ("replay", "--format", "text"), plain),
-            ("export", ("export", "-o", str(out)), plain),
-        ):
-            verb, *rest = argv
-            fig = measure(
-                f"{verb} {' '.join(rest)}",
-                listings,
-                modscope(verb, str(lreads), *rest),
-                modscope(verb, str(reads10), *rest),
-                runs,
-            )
-            rows[label] = (fig, peer)
-        out.unlink(missing_ok=True)
-    return MixResult(mix, n, ix, ix1, ts, rows)
+            print(f"  => {_ratio(fig, peer):.1f}x tshark", flush=True)
+    out.unlink(missing_ok=True)
+    return rows
 
 
 def summarize(results: list[MixResult]) -> None:
@@ -353,8 +394,10 @@ def summarize(results: list[MixResult]) -> None:
             (label, [(_ratio(ours, theirs), ours.per_frame, name) for ours, theirs, name in pick])
         )
 
-    add("replay --stats, reads as recorded", [(r.reads, r.tshark, r.mix.name) for r in results])
-    add("replay --stats, frame per packet", [(r.one, r.tshark, r.mix.name) for r in results])
+    indexed = [(r, r.reads, r.one) for r in results if r.reads is not None and r.one is not None]
+    if indexed:
+        add("replay --stats, reads as recorded", [(x, r.tshark, r.mix.name) for r, x, _ in indexed])
+        add("replay --stats, frame per packet", [(y, r.tshark, r.mix.name) for r, _, y in indexed])
     for key, label in (
         ("jsonl", "replay --format jsonl (vs -T ek)"),
         ("text", "replay --format text"),
@@ -364,12 +407,22 @@ def summarize(results: list[MixResult]) -> None:
         if pick:
             add(label, pick)
     print("\nper frame, start-up taken off; ratio = modscope / tshark on the same mix")
-    print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
-    for r in results:
+    if indexed:
+        print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
+    for r, x, y in indexed:
         print(
-            f"  {r.mix.name:<14} {r.reads.per_frame:>11,.0f} {_ratio(r.reads, r.tshark):>5.1f}x "
-            f"{r.one.per_frame:>11,.0f} {_ratio(r.one, r.tshark):>5.1f}x  {r.mix.describe()}"
+            f"  {r.mix.name:<14} {x.per_frame:>11,.0f} {_ratio(x, r.tshark):>5.1f}x "
+            f"{y.per_frame:>11,.0f} {_ratio(y, r.tshark):>5.1f}x  {r.mix.describe()}"
         )
+    for key in ("jsonl", "text", "export"):
+        for r in results:
+            if key in r.listings:
+                ours, theirs = r.listings[key]
+                peer = "" if theirs is None else f" tshark {theirs.per_frame:>9,.0f}/s"
+                print(
+                    f"  {key:<6} {r.mix.name:<14} {ours.per_frame:>9,.0f}/s{peer} "
+                    f"{_ratio(ours, theirs):5.1f}x"
+                )
     print(f"\n  {'figure':<36} {'worst':>24} {'median':>24}")
     for label, values in figures:
         ordered = sorted(values)
@@ -379,7 +432,9 @@ def summarize(results: list[MixResult]) -> None:
             f"  {label:<36} {worst[0]:5.1f}x {worst[1]:>10,.0f}/s {worst[2]:<7} "
             f"{median[0]:5.1f}x {median[1]:>10,.0f}/s {median[2]}"
         )
-    ratio = [r.reads.per_frame / r.one.per_frame for r in results]
+    if not indexed:
+        return
+    ratio = [x.per_frame / y.per_frame for _, x, y in indexed]
     print(
         f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
         f"median {statistics.median(ratio):.2f}"
@@ -413,6 +468,14 @@ def main() -> None:
         default=200_000,
         help="frames of each mix tshark reads (its rate per frame falls as files grow)",
     )
+    parser.add_argument(
+        "--only-listings",
+        action="store_true",
+        help="with --mixes and --mix-listings: the listings and the export alone",
+    )
+    parser.add_argument(
+        "--jobs", default="auto", help="--jobs of the mixes' listings and export (auto)"
+    )
     parser.add_argument("--seed", type=int, default=29, help="seed of the random mixes")
     parser.add_argument("--write-files", type=int, metavar="N", help=argparse.SUPPRESS)
     parser.add_argument("--write-mix", type=int, metavar="N", help=argparse.SUPPRESS)
@@ -438,6 +501,8 @@ def main() -> None:
                 args.runs,
                 0 if args.no_tshark else args.tshark_frames,
                 args.mix_listings,
+                args.only_listings,
+                args.jobs,
             )
             for mix in mixes(args.mixes, args.seed)
         ]
