@@ -357,6 +357,7 @@ class Describer:
         bound = self.annotator.bindings
         cache = self._shared
         valueless = self._valueless
+        sharing = not values
         last, last_raw = -1, b""  # the row before and its bytes
         for i in rows:
             self._fresh = None
@@ -388,6 +389,9 @@ class Describer:
                 continue
             at = offsets[i]
             raw = bytes(streams[channels[i]][at : at + lengths[i]])
+            flag = flags[i]
+            kept = flag & _KEPT_FLAGS
+            status = statuses[i]
             asked = None
             if kind in _ANSWERS and partner != NO_PARTNER:
                 if partner == last:
@@ -395,54 +399,46 @@ class Describer:
                 else:
                     at = offsets[partner]
                     asked = bytes(streams[channels[partner]][at : at + lengths[partner]])
+            last, last_raw = i, raw
+            self._lookups += 1
+            # the shape's key, where rows of other values may share a content (see above):
+            # looked up first, the row's own key only when it is not found
+            free: tuple[object, ...] | None = None
+            if sharing and unit and unit not in bound and not flag & VALUED_FLAGS:
+                fc = fcs[i]
+                if kind == _REQUEST:
+                    if writes and fc in _WRITES and _write_request(raw):
+                        free = (_REQUEST, kept, status, *_write_key(raw))
+                elif asked is not None and kind == _RESPONSE and not flags[partner] & VALUED_FLAGS:
+                    if fc in _READS:
+                        if _valueless(raw, asked):
+                            free = (raw[:3], len(raw), kept, status, asked)
+                    elif fc in _WRITES:
+                        if _written(raw, asked):  # the values written are the request's
+                            free = (raw, kept, status, *_write_key(asked))
+                    elif fc in _BIT_READS:
+                        padding = _bits_valueless(raw, asked)
+                        if padding is not None:
+                            free = (raw[:3], len(raw), kept, status, asked, padding)
+                if free is not None:
+                    alike = valueless.get(free)
+                    if alike is not None:
+                        self._hits += 1
+                        if self._lookups >= GUARD_WINDOW:
+                            self._guard()
+                        yield i, alike
+                        continue
+            if asked is not None:
                 key: tuple[object, ...] = (
                     raw,
                     kind,
-                    flags[i] & _KEPT_FLAGS,
-                    statuses[i],
+                    kept,
+                    status,
                     asked,
                     flags[partner] & _MODE,
                 )
             else:
-                key = (raw, kind, flags[i] & _KEPT_FLAGS, statuses[i])
-            last, last_raw = i, raw
-            self._lookups += 1
-            free: tuple[object, ...] | None = None
-            if (
-                writes
-                and not values
-                and kind == _REQUEST
-                and unit
-                and unit not in bound
-                and not flags[i] & VALUED_FLAGS
-                and _write_request(raw)
-            ):
-                free = (_REQUEST, flags[i] & _KEPT_FLAGS, statuses[i], *_write_key(raw))
-            elif (
-                not values
-                and asked is not None
-                and kind == _RESPONSE
-                and unit
-                and unit not in bound
-                and not (flags[i] | flags[partner]) & VALUED_FLAGS
-            ):
-                if _valueless(raw, asked):
-                    free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
-                elif _written(raw, asked):  # the values written are the request's
-                    free = (raw, flags[i] & _KEPT_FLAGS, statuses[i], *_write_key(asked))
-                else:
-                    padding = _bits_valueless(raw, asked)
-                    if padding is not None:
-                        kept = flags[i] & _KEPT_FLAGS
-                        free = (raw[:3], len(raw), kept, statuses[i], asked, padding)
-            if free is not None:
-                alike = valueless.get(free)
-                if alike is not None:
-                    self._hits += 1
-                    if self._lookups >= GUARD_WINDOW:
-                        self._guard()
-                    yield i, alike
-                    continue
+                key = (raw, kind, kept, status)
             found = cache.get(key)
             if type(found) is Shared:
                 self._hits += 1

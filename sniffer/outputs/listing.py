@@ -345,8 +345,10 @@ _Spliced = tuple[str, str, str, int, int, bool]
 _WORDS = tuple(struct.Struct(f">{n}H") for n in range(128))
 _WORD_VALUES = frozenset((3, 4, 16))  # answers to FC 3/4 reads, FC 16 writes
 _BIT_VALUES = frozenset((1, 2, 15))  # answers to FC 1/2 reads, FC 15 writes
-# each byte's bits as a listing says them, first bit first: `10100000` for 0x05
+# each byte's bits as a listing says them, first bit first: `10100000` for 0x05, and
+# as the JSON list has them, `1, 0, 1, 0, 0, 0, 0, 0`
 _BYTE_BITS = tuple("".join("1" if b >> k & 1 else "0" for k in range(8)) for b in range(256))
+_BYTE_LIST = tuple(", ".join(bits) for bits in _BYTE_BITS)
 
 
 def _spliced(first: str, second: str, d: FrameDetail) -> _Spliced | None:
@@ -401,8 +403,12 @@ def _values_text(raw: bytes, at: int, count: int, words: bool) -> str:
         # than a format per word
         text = "0x" + data.hex(" ", 2).upper().replace(" ", " 0x")
         return f'{", ".join(map(str, listed))}], "text": "{text}'
-    bits = "".join(map(_BYTE_BITS.__getitem__, data))[:count]
-    return f'{", ".join(bits)}], "text": "{" ".join(bits)}'
+    whole, rest = divmod(count, 8)
+    parts = list(map(_BYTE_LIST.__getitem__, data[:whole]))
+    if rest:
+        parts.append(", ".join(_BYTE_BITS[data[whole]][:rest]))
+    listed = ", ".join(parts)
+    return f'{listed}], "text": "{listed.replace(", ", " ")}'
 
 
 def _splice(spliced: _Spliced, raw: bytes) -> tuple[str, str]:
