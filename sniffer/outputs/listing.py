@@ -398,11 +398,11 @@ def _values_text(raw: bytes, at: int, count: int, words: bool) -> str:
     and `BitsField` the text)."""
     data = raw[at:-2]
     if words:
-        listed = _WORDS[count].unpack(data)
+        numbers = _WORDS[count].unpack(data)
         # `0x0001 0x0002` from the bytes' hex in groups of two: one call in C rather
         # than a format per word
         text = "0x" + data.hex(" ", 2).upper().replace(" ", " 0x")
-        return f'{", ".join(map(str, listed))}], "text": "{text}'
+        return f'{", ".join(map(str, numbers))}], "text": "{text}'
     whole, rest = divmod(count, 8)
     parts = list(map(_BYTE_LIST.__getitem__, data[:whole]))
     if rest:
