@@ -183,8 +183,10 @@ class Figure:
 
     @property
     def per_frame(self) -> float:
-        """Frames a second with start-up taken off (time on n minus time on 10)."""
-        return (self.n - SMALL) / max(self.big.seconds - self.small.seconds, 1e-6)
+        """Frames a second with start-up taken off (time on n minus time on 10); NaN
+        when the run on 10 frames took as long (a loaded machine): no figure then."""
+        spent = self.big.seconds - self.small.seconds
+        return (self.n - SMALL) / spent if spent > 0 else float("nan")
 
 
 def measure(
@@ -425,7 +427,9 @@ def summarize(results: list[MixResult]) -> None:
                 )
     print(f"\n  {'figure':<36} {'worst':>24} {'median':>24}")
     for label, values in figures:
-        ordered = sorted(values)
+        ordered = sorted(v for v in values if v[0] == v[0])  # (no NaN: no figure)
+        if not ordered:
+            continue
         worst = ordered[0]
         median = ordered[(len(ordered) - 1) // 2]
         print(
@@ -489,10 +493,16 @@ def main() -> None:
         return
     if args.mixes is not None:
         print(f"machine: {machine()}; load average {os.getloadavg()[0]:.2f}")
-        print(
-            f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
-            f"{args.tshark_frames:,}), median of {args.runs}"
-        )
+        if args.only_listings:
+            print(
+                f"{args.mixes} mixes, listings of {args.mix_listings:,} frames, "
+                f"median of {args.runs}"
+            )
+        else:
+            print(
+                f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
+                f"{args.tshark_frames:,}), median of {args.runs}"
+            )
         results = [
             measure_mix(
                 mix,
