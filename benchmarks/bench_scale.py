@@ -3,6 +3,7 @@
 Run: python benchmarks/bench_scale.py [--frames N] [--runs R] [--dir DIR]
      python benchmarks/bench_scale.py --mixes N [--mix-frames F] [--seed S]
      python benchmarks/bench_scale.py --mixes N --mix-listings F --only-export
+     python benchmarks/bench_scale.py --mixes N --mix-listings F --only-listings [--jobs J]
 
 With --mixes N it measures N buses instead of the project's one stream
 (`benchmarks/mixes.py`: the project's stream, the bus of issue #29, then random buses the
@@ -10,7 +11,8 @@ benchmark was not tuned on), each as `modscope record` writes it and one frame p
 packet, with tshark on the same frames, and prints each mix, then the worst and the
 median mix of every figure (the worst is the one to judge by). With --only-export it
 times, of each mix, only `export -o x.pcapng` and tshark's plain summary on the
---mix-listings frames (no index figures, no listings).
+--mix-listings frames (no index figures, no listings); with --only-listings, the
+listings and the export of each mix against tshark's, without the index figures.
 
 It writes (once; kept in DIR and reused while their frame count matches):
 - `reads-N.pcapng`: N frames of a polling bus at 115200 8N1 as `modscope record` writes
@@ -193,8 +195,10 @@ class Figure:
 
     @property
     def per_frame(self) -> float:
-        """Frames a second with start-up taken off (time on n minus time on 10)."""
-        return (self.n - SMALL) / max(self.big.seconds - self.small.seconds, 1e-6)
+        """Frames a second with start-up taken off (time on n minus time on 10); NaN
+        when the run on 10 frames took as long (a loaded machine): no figure then."""
+        spent = self.big.seconds - self.small.seconds
+        return (self.n - SMALL) / spent if spent > 0 else float("nan")
 
     @property
     def per_frame_cpu(self) -> float:
@@ -253,7 +257,7 @@ INDEX_COUNTED = INDEX_WINDOWED.replace(
 class MixResult:
     mix: Mix
     frames: int
-    reads: Figure | None  # None: not timed (--only-export)
+    reads: Figure | None  # None: not timed (--only-export, --only-listings)
     one: Figure | None
     tshark: Figure | None
     listings: dict[str, tuple[Figure, Figure | None]]
@@ -309,17 +313,33 @@ def measure_mix(
     tshark: int,
     listings: int,
     only_export: bool = False,
+    only_listings: bool = False,
+    jobs: str = "auto",
 ) -> MixResult:
     """The mix's figures: modscope on n frames, tshark on its first `tshark` frames (0:
     none). tshark's rate per frame falls as a file grows (its Modbus request tracking),
     so a ratio to tshark on fewer frames than modscope read is, if anything, low.
     `only_export`: the export of the `listings` frames and tshark's plain summary of
-    them, nothing else."""
+    them, nothing else. `only_listings`: the listings and the export alone (no index
+    figures), with `--jobs jobs`."""
     print(f"{mix.name}: {mix.describe()}", flush=True)
     if only_export:
         return _measure_export(mix, folder, runs, tshark, listings)
-    reads, one = make_mix_files(folder, mix, n)
     reads10, one10 = make_mix_files(folder, mix, SMALL)
+    ix = ix1 = ts = None
+    if not only_listings:
+        ix, ix1, ts = _index_figures(mix, n, folder, runs, tshark, reads10, one10)
+    rows: dict[str, tuple[Figure, Figure | None]] = {}
+    if listings:
+        rows = _listing_figures(mix, listings, folder, runs, tshark, reads10, one10, jobs)
+    return MixResult(mix, n, ix, ix1, ts, rows)
+
+
+def _index_figures(
+    mix: Mix, n: int, folder: Path, runs: int, tshark: int, reads10: Path, one10: Path
+) -> tuple[Figure, Figure, Figure | None]:
+    """`replay --stats` of the mix's two shapes, and tshark's plain summary."""
+    reads, one = make_mix_files(folder, mix, n)
     ix = measure(
         "replay --stats (reads as recorded)",
         n,
@@ -350,42 +370,59 @@ def measure_mix(
             f"{_cpu_ratio(ix, ts):.1f}x, {_cpu_ratio(ix1, ts):.1f}x",
             flush=True,
         )
+    return ix, ix1, ts
+
+
+def _listing_figures(
+    mix: Mix,
+    listings: int,
+    folder: Path,
+    runs: int,
+    tshark: int,
+    reads10: Path,
+    one10: Path,
+    jobs: str,
+) -> dict[str, tuple[Figure, Figure | None]]:
+    """The JSONL and text listings and the export of `listings` frames of the mix (as
+    recorded), each with tshark's figure on the same frames one per packet."""
     rows: dict[str, tuple[Figure, Figure | None]] = {}
-    if listings:
-        lreads, lone = make_mix_files(folder, mix, listings)
-        out = folder / "out.pcapng"
-        plain = ek = None
+    lreads, lone = make_mix_files(folder, mix, listings)
+    out = folder / "out.pcapng"
+    plain = ek = None
+    if tshark:
+        plain = measure(
+            "tshark plain summary (listing frames)",
+            listings,
+            [*TSHARK, "-r", str(lone)],
+            [*TSHARK, "-r", str(one10)],
+            runs,
+        )
+        ek = measure(
+            "tshark -T ek",
+            listings,
+            [*TSHARK, "-T", "ek", "-r", str(lone)],
+            [*TSHARK, "-T", "ek", "-r", str(one10)],
+            runs,
+        )
+    for label, argv, peer in (
+        ("jsonl", ("replay", "--format", "jsonl"), ek),
+        ("text", ("replay", "--format", "text"), plain),
+        ("export", ("export", "-o", str(out)), plain),
+    ):
+        verb, *rest = argv
+        rest = [*rest, "--jobs", jobs]
+        fig = measure(
+            f"{verb} {' '.join(rest)}",
+            listings,
+            modscope(verb, str(lreads), *rest),
+            modscope(verb, str(reads10), *rest),
+            runs,
+        )
+        rows[label] = (fig, peer)
         if tshark:
-            plain = measure(
-                "tshark plain summary (listing frames)",
-                listings,
-                [*TSHARK, "-r", str(lone)],
-                [*TSHARK, "-r", str(one10)],
-                runs,
-            )
-            ek = measure(
-                "tshark -T ek",
-                listings,
-                [*TSHARK, "-T", "ek", "-r", str(lone)],
-                [*TSHARK, "-T", "ek", "-r", str(one10)],
-                runs,
-            )
-        for label, argv, peer in (
-            ("jsonl", ("replay", "--format", "jsonl"), ek),
-            ("text", ("replay", "--format", "text"), plain),
-            ("export", ("export", "-o", str(out)), plain),
-        ):
-            verb, *rest = argv
-            fig = measure(
-                f"{verb} {' '.join(rest)}",
-                listings,
-                modscope(verb, str(lreads), *rest),
-                modscope(verb, str(reads10), *rest),
-                runs,
-            )
-            rows[label] = (fig, peer)
-        out.unlink(missing_ok=True)
-    return MixResult(mix, n, ix, ix1, ts, rows)
+            print(f"  => {_ratio(fig, peer):.1f}x tshark", flush=True)
+    out.unlink(missing_ok=True)
+    return rows
 
 
 def _export_figure(folder: Path, lreads: Path, reads10: Path, listings: int, runs: int) -> Figure:
@@ -429,16 +466,10 @@ def summarize(results: list[MixResult]) -> None:
             (label, [(_ratio(ours, theirs), ours.per_frame, name) for ours, theirs, name in pick])
         )
 
-    indexed = [r for r in results if r.reads is not None and r.one is not None]
+    indexed = [(r, r.reads, r.one) for r in results if r.reads is not None and r.one is not None]
     if indexed:
-        add(
-            "replay --stats, reads as recorded",
-            [(r.reads, r.tshark, r.mix.name) for r in indexed if r.reads is not None],
-        )
-        add(
-            "replay --stats, frame per packet",
-            [(r.one, r.tshark, r.mix.name) for r in indexed if r.one is not None],
-        )
+        add("replay --stats, reads as recorded", [(x, r.tshark, r.mix.name) for r, x, _ in indexed])
+        add("replay --stats, frame per packet", [(y, r.tshark, r.mix.name) for r, _, y in indexed])
     for key, label in (
         ("jsonl", "replay --format jsonl (vs -T ek)"),
         ("text", "replay --format text"),
@@ -450,42 +481,52 @@ def summarize(results: list[MixResult]) -> None:
     print("\nper frame, start-up taken off; ratio = modscope / tshark on the same mix")
     if indexed:
         print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
-    for r in indexed:
-        assert r.reads is not None and r.one is not None
+    for r, x, y in indexed:
         print(
-            f"  {r.mix.name:<14} {r.reads.per_frame:>11,.0f} {_ratio(r.reads, r.tshark):>5.1f}x "
-            f"{r.one.per_frame:>11,.0f} {_ratio(r.one, r.tshark):>5.1f}x  {r.mix.describe()}"
+            f"  {r.mix.name:<14} {x.per_frame:>11,.0f} {_ratio(x, r.tshark):>5.1f}x "
+            f"{y.per_frame:>11,.0f} {_ratio(y, r.tshark):>5.1f}x  {r.mix.describe()}"
         )
+    for key in ("jsonl", "text", "export"):
+        for r in results:
+            if key in r.listings:
+                ours, theirs = r.listings[key]
+                peer = "" if theirs is None else f" tshark {theirs.per_frame:>9,.0f}/s"
+                print(
+                    f"  {key:<6} {r.mix.name:<14} {ours.per_frame:>9,.0f}/s{peer} "
+                    f"{_ratio(ours, theirs):5.1f}x"
+                )
     print(f"\n  {'figure':<36} {'worst':>24} {'median':>24}")
     for label, values in figures:
-        ordered = sorted(values)
+        ordered = sorted(v for v in values if v[0] == v[0])  # (no NaN: no figure)
+        if not ordered:
+            continue
         worst = ordered[0]
         median = ordered[(len(ordered) - 1) // 2]
         print(
             f"  {label:<36} {worst[0]:5.1f}x {worst[1]:>10,.0f}/s {worst[2]:<7} "
             f"{median[0]:5.1f}x {median[1]:>10,.0f}/s {median[2]}"
         )
-    ratio = [r.reads.per_frame / r.one.per_frame for r in indexed if r.reads and r.one]
-    if not ratio:
+    if not indexed:
         return
+    ratio = [x.per_frame / y.per_frame for _, x, y in indexed]
     print(
         f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
         f"median {statistics.median(ratio):.2f}"
     )
     print("\nthe same in CPU time (user + system of each process; the load moves it least)")
-    for r in results:
+    for r, x, y in indexed:
         print(
-            f"  {r.mix.name:<14} {r.reads.per_frame_cpu:>11,.0f} "
-            f"{_cpu_ratio(r.reads, r.tshark):>5.1f}x {r.one.per_frame_cpu:>11,.0f} "
-            f"{_cpu_ratio(r.one, r.tshark):>5.1f}x"
+            f"  {r.mix.name:<14} {x.per_frame_cpu:>11,.0f} "
+            f"{_cpu_ratio(x, r.tshark):>5.1f}x {y.per_frame_cpu:>11,.0f} "
+            f"{_cpu_ratio(y, r.tshark):>5.1f}x"
         )
     for label, pairs in (
-        ("replay --stats, reads as recorded", [(r.reads, r.tshark) for r in results]),
-        ("replay --stats, frame per packet", [(r.one, r.tshark) for r in results]),
+        ("replay --stats, reads as recorded", [(x, r.tshark) for r, x, _ in indexed]),
+        ("replay --stats, frame per packet", [(y, r.tshark) for r, _, y in indexed]),
     ):
         cpu = sorted(_cpu_ratio(ours, theirs) for ours, theirs in pairs)
         print(f"  {label:<36} worst {cpu[0]:5.1f}x median {cpu[(len(cpu) - 1) // 2]:5.1f}x")
-    cpu_shape = [r.reads.per_frame_cpu / r.one.per_frame_cpu for r in results]
+    cpu_shape = [x.per_frame_cpu / y.per_frame_cpu for _, x, y in indexed]
     print(
         f"  reads as recorded / frame per packet, per frame of CPU: worst {min(cpu_shape):.2f}, "
         f"median {statistics.median(cpu_shape):.2f}"
@@ -524,6 +565,14 @@ def main() -> None:
         default=200_000,
         help="frames of each mix tshark reads (its rate per frame falls as files grow)",
     )
+    parser.add_argument(
+        "--only-listings",
+        action="store_true",
+        help="with --mixes and --mix-listings: the listings and the export alone",
+    )
+    parser.add_argument(
+        "--jobs", default="auto", help="--jobs of the mixes' listings and export (auto)"
+    )
     parser.add_argument("--seed", type=int, default=29, help="seed of the random mixes")
     parser.add_argument("--write-files", type=int, metavar="N", help=argparse.SUPPRESS)
     parser.add_argument("--write-mix", type=int, metavar="N", help=argparse.SUPPRESS)
@@ -544,6 +593,11 @@ def main() -> None:
                 f"{args.mixes} mixes, the export of {args.mix_listings:,} frames and tshark's "
                 f"plain summary of the same frames, median of {args.runs}"
             )
+        elif args.only_listings:
+            print(
+                f"{args.mixes} mixes, listings of {args.mix_listings:,} frames, "
+                f"median of {args.runs}"
+            )
         else:
             print(
                 f"{args.mixes} mixes of {args.mix_frames:,} frames (tshark: the first "
@@ -558,6 +612,8 @@ def main() -> None:
                 0 if args.no_tshark else args.tshark_frames,
                 args.mix_listings,
                 args.only_export,
+                args.only_listings,
+                args.jobs,
             )
             for mix in mixes(args.mixes, args.seed)
         ]

@@ -466,13 +466,13 @@ class GlobalRows(Describer):
         return session.describer.shared(i - session.base)
 
     def contents(
-        self, rows: Iterable[int], values: bool = True
+        self, rows: Iterable[int], values: bool = True, writes: bool = False
     ) -> Iterator[tuple[int, Shared | None]]:
         """The session's describer's walk (`Describer.contents`, answers with other
         values sharing a content too), renumbered: the live listing's rows cost what a
         replay's do, rather than a lookup and a new content each."""
         base = self.session.base
-        for i, shared in self.session.describer.contents((r - base for r in rows), values):
+        for i, shared in self.session.describer.contents((r - base for r in rows), values, writes):
             yield i + base, shared
 
     def view(self, i: int) -> FrameView:

@@ -40,6 +40,7 @@ _KEPT_FLAGS = ~_DEVICE_SLOW  # the slow answer's sentence has the row's latency 
 _ANSWERS = (int(Kind.RESPONSE), int(Kind.EXCEPTION))
 _NO_REGISTERS: list[RegisterValue] = []  # never written to
 _RESPONSE = int(Kind.RESPONSE)
+_REQUEST = int(Kind.REQUEST)
 # flags that make a read answer's description depend on its bytes or on more than its
 # content: the check's verdict (its sentence has the CRC in it), the other framings, the
 # slow answer's latency
@@ -109,6 +110,20 @@ def _write_key(asked: bytes) -> tuple[bytes, int, int]:
     used = (asked[4] << 8 | asked[5]) % 8
     padding = asked[-3] & (0xFF << used) & 0xFF if asked[1] == 15 and used else 0
     return asked[:7], len(asked), padding
+
+
+def _write_request(raw: bytes) -> bool:
+    """Whether `raw`, an RTU request, is a well-formed FC 15 or 16 write (a byte count
+    that is the bytes that follow and what the quantity needs). For a unit with no
+    dictionary (and not followed as SunSpec) its name, summary and problems read only its
+    head, its length and, for FC 15, the padding bits after the quantity (`_write_key`):
+    writes of other values share a content for the listings, which splice each row's
+    own values into what they keep (`sniffer.outputs.listing`)."""
+    if len(raw) < 9 or raw[1] not in _WRITES:
+        return False
+    quantity = raw[4] << 8 | raw[5]
+    need = (quantity + 7) // 8 if raw[1] == 15 else 2 * quantity
+    return len(raw) == 9 + raw[6] and raw[6] == need
 
 
 def _explained(unit: int, asked_unit: int, bound: Container[int], sunspec: Container[int]) -> bool:
@@ -293,7 +308,7 @@ class Describer:
         return self.store.view(i)
 
     def contents(
-        self, rows: Iterable[int], values: bool = True
+        self, rows: Iterable[int], values: bool = True, writes: bool = False
     ) -> Iterator[tuple[int, Shared | None]]:
         """`(i, shared(i))` for each row `i` of `rows`, in order: the listings' and the
         export's way through many rows. The same contents as `shared`, with what every
@@ -316,7 +331,13 @@ class Describer:
         consumers that read no value (the text listing) or put the row's own bytes and
         values in (the JSONL listing and the Modbus/TCP export, which splice them into
         what they keep per content). On the
-        100k-frame benchmark that leaves 3.3k contents to describe instead of 27k."""
+        100k-frame benchmark that leaves 3.3k contents to describe instead of 27k.
+
+        With `writes` too (the listings: the text line shows no value written, the JSONL
+        line has the row's own values spliced in), a well-formed FC 15 or 16 write of a
+        unit with no dictionary may be given the content of another write of other
+        values (`_write_request`): the same head, length, flags, status and, for FC 15,
+        padding bits."""
         if type(self).shared is not Describer.shared or self.shared_size <= 0:
             for i in rows:  # a subclass's own contents (the live window's numbering)
                 yield i, self.shared(i)
@@ -336,6 +357,7 @@ class Describer:
         bound = self.annotator.bindings
         cache = self._shared
         valueless = self._valueless
+        sharing = not values
         last, last_raw = -1, b""  # the row before and its bytes
         for i in rows:
             self._fresh = None
@@ -367,6 +389,9 @@ class Describer:
                 continue
             at = offsets[i]
             raw = bytes(streams[channels[i]][at : at + lengths[i]])
+            flag = flags[i]
+            kept = flag & _KEPT_FLAGS
+            status = statuses[i]
             asked = None
             if kind in _ANSWERS and partner != NO_PARTNER:
                 if partner == last:
@@ -374,44 +399,46 @@ class Describer:
                 else:
                     at = offsets[partner]
                     asked = bytes(streams[channels[partner]][at : at + lengths[partner]])
+            last, last_raw = i, raw
+            self._lookups += 1
+            # the shape's key, where rows of other values may share a content (see above):
+            # looked up first, the row's own key only when it is not found
+            free: tuple[object, ...] | None = None
+            if sharing and unit and unit not in bound and not flag & VALUED_FLAGS:
+                fc = fcs[i]
+                if kind == _REQUEST:
+                    if writes and fc in _WRITES and _write_request(raw):
+                        free = (_REQUEST, kept, status, *_write_key(raw))
+                elif asked is not None and kind == _RESPONSE and not flags[partner] & VALUED_FLAGS:
+                    if fc in _READS:
+                        if _valueless(raw, asked):
+                            free = (raw[:3], len(raw), kept, status, asked)
+                    elif fc in _WRITES:
+                        if _written(raw, asked):  # the values written are the request's
+                            free = (raw, kept, status, *_write_key(asked))
+                    elif fc in _BIT_READS:
+                        padding = _bits_valueless(raw, asked)
+                        if padding is not None:
+                            free = (raw[:3], len(raw), kept, status, asked, padding)
+                if free is not None:
+                    alike = valueless.get(free)
+                    if alike is not None:
+                        self._hits += 1
+                        if self._lookups >= GUARD_WINDOW:
+                            self._guard()
+                        yield i, alike
+                        continue
+            if asked is not None:
                 key: tuple[object, ...] = (
                     raw,
                     kind,
-                    flags[i] & _KEPT_FLAGS,
-                    statuses[i],
+                    kept,
+                    status,
                     asked,
                     flags[partner] & _MODE,
                 )
             else:
-                key = (raw, kind, flags[i] & _KEPT_FLAGS, statuses[i])
-            last, last_raw = i, raw
-            self._lookups += 1
-            free: tuple[object, ...] | None = None
-            if (
-                not values
-                and asked is not None
-                and kind == _RESPONSE
-                and unit
-                and unit not in bound
-                and not (flags[i] | flags[partner]) & VALUED_FLAGS
-            ):
-                if _valueless(raw, asked):
-                    free = (raw[:3], len(raw), flags[i] & _KEPT_FLAGS, statuses[i], asked)
-                elif _written(raw, asked):  # the values written are the request's
-                    free = (raw, flags[i] & _KEPT_FLAGS, statuses[i], *_write_key(asked))
-                else:
-                    padding = _bits_valueless(raw, asked)
-                    if padding is not None:
-                        kept = flags[i] & _KEPT_FLAGS
-                        free = (raw[:3], len(raw), kept, statuses[i], asked, padding)
-            if free is not None:
-                alike = valueless.get(free)
-                if alike is not None:
-                    self._hits += 1
-                    if self._lookups >= GUARD_WINDOW:
-                        self._guard()
-                    yield i, alike
-                    continue
+                key = (raw, kind, kept, status)
             found = cache.get(key)
             if type(found) is Shared:
                 self._hits += 1

@@ -8,10 +8,21 @@ import math
 import struct
 from collections.abc import Iterable, Iterator, Sequence
 from datetime import UTC, datetime
+from math import ceil, log10
 from typing import Any, TextIO
 
 from dissectors.values import Field
-from sniffer.framing.pairing import coarse, latency_words, measure, timing_note
+from sniffer.framing.pairing import (
+    INF,
+    RESOLVED,
+    UNRESOLVED,
+    coarse,
+    latency_words,
+    measure,
+    shown_step,
+    span_words,
+    timing_note,
+)
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.meaning.describe import Describer, FrameDetail, Shared
 from sniffer.model import Stamp
@@ -327,46 +338,86 @@ def _json_parts(d: FrameDetail) -> tuple[str, str, str]:
     return json_line(first)[1:-1], json_line(second)[1:-1], json_line(registers)[1:-1]
 
 
-_Spliced = tuple[str, str, str]
+# (what follows the hex of the row's bytes in the first part, what comes before its
+# values field in the second, what follows the values' text, where the values start in
+# the bytes, how many there are, whether they are words or bits)
+_Spliced = tuple[str, str, str, int, int, bool]
 _WORDS = tuple(struct.Struct(f">{n}H") for n in range(128))
+_WORD_VALUES = frozenset((3, 4, 16))  # answers to FC 3/4 reads, FC 16 writes
+_BIT_VALUES = frozenset((1, 2, 15))  # answers to FC 1/2 reads, FC 15 writes
+# each byte's bits as a listing says them, first bit first: `10100000` for 0x05, and
+# as the JSON list has them, `1, 0, 1, 0, 0, 0, 0, 0`
+_BYTE_BITS = tuple("".join("1" if b >> k & 1 else "0" for k in range(8)) for b in range(256))
+_BYTE_LIST = tuple(", ".join(bits) for bits in _BYTE_BITS)
 
 
-def _spliced(first: str, second: str, raw: bytes) -> _Spliced | None:
-    """How the JSONL parts of an answer to an FC 3 or 4 read (`_json_parts`) are made of
-    its bytes `raw`: (what follows the hex of `raw` in the first, what comes before its
-    values field in the second, what follows the values' text), so that `_splice` makes
-    those of an answer with other values (Describer.contents gives such answers one
-    content); None if the parts do not end that way (checked by making them again).
-    Splicing costs a row a small part of what describing and encoding it would."""
+def _spliced(first: str, second: str, d: FrameDetail) -> _Spliced | None:
+    """How the JSONL parts (`_json_parts`) of row `d`, an RTU frame whose `values` field
+    holds words or bits of its own bytes (an answer to an FC 1-4 read, an FC 15 or 16
+    write), are made of its bytes: so that `_splice` makes those of a frame with other
+    values (Describer.contents gives such frames one content); None if the parts do not
+    end that way (checked by making them again). Splicing costs a row a small part of
+    what describing and encoding it would."""
+    raw = d.view.raw
     n = len(raw)
-    if n < 5 or (n - 5) % 2 or (n - 5) // 2 >= len(_WORDS):
+    dissection = d.dissection
+    if dissection is None or d.registers or d.view.flags & _MODE or n < 5:
+        return None
+    fc = raw[1]
+    words = fc in _WORD_VALUES
+    if not words and fc not in _BIT_VALUES:
+        return None
+    field = dissection.field("values")
+    if field is None or type(field.value) is not tuple or field.span[1] != n - 2:
+        return None
+    at, count = field.span[0], len(field.value)
+    size = n - 2 - at
+    if not count or (size != 2 * count if words else size != (count + 7) // 8):
+        return None
+    if words and count >= len(_WORDS):
         return None
     head = f'"raw": "{raw.hex()}"'
-    values = f'{{"name": "values", "value": [{_values_text(raw)}'
-    at = second.rfind(values)
-    if not first.startswith(head) or at < 0:
+    values = f'{{"name": "values", "value": [{_values_text(raw, at, count, words)}'
+    where = second.rfind(values)
+    if not first.startswith(head) or where < 0:
         return None
-    made = (first[len(head) - 1 :], second[:at], second[at + len(values) :])
+    made = (
+        first[len(head) - 1 :],
+        second[:where],
+        second[where + len(values) :],
+        at,
+        count,
+        words,
+    )
     return made if _splice(made, raw) == (first, second) else None
 
 
-def _values_text(raw: bytes) -> str:
-    """`1, 2], "text": "0x0001 0x0002`: the words of an FC 3/4 answer as its values
-    field says them (as `json.dumps` writes the list and `WordsField` the text)."""
-    data = raw[3:-2]
-    words = _WORDS[len(data) // 2].unpack(data)
-    # `0x0001 0x0002` from the bytes' hex in groups of two: one call in C rather than a
-    # format per word
-    text = "0x" + data.hex(" ", 2).upper().replace(" ", " 0x") if data else ""
-    return f'{", ".join(map(str, words))}], "text": "{text}'
+def _values_text(raw: bytes, at: int, count: int, words: bool) -> str:
+    """`1, 2], "text": "0x0001 0x0002`: the `count` words (or bits) of `raw` from byte
+    `at` as its values field says them (as `json.dumps` writes the list, `WordsField`
+    and `BitsField` the text)."""
+    data = raw[at:-2]
+    if words:
+        numbers = _WORDS[count].unpack(data)
+        # `0x0001 0x0002` from the bytes' hex in groups of two: one call in C rather
+        # than a format per word
+        text = "0x" + data.hex(" ", 2).upper().replace(" ", " 0x")
+        return f'{", ".join(map(str, numbers))}], "text": "{text}'
+    whole, rest = divmod(count, 8)
+    parts = list(map(_BYTE_LIST.__getitem__, data[:whole]))
+    if rest:
+        parts.append(", ".join(_BYTE_BITS[data[whole]][:rest]))
+    listed = ", ".join(parts)
+    return f'{listed}], "text": "{listed.replace(", ", " ")}'
 
 
 def _splice(spliced: _Spliced, raw: bytes) -> tuple[str, str]:
-    """The JSONL parts of `raw`, an answer with other values (see `_spliced`)."""
-    after_hex, before_values, after_text = spliced
+    """The JSONL parts of `raw`, a frame with other values (see `_spliced`)."""
+    after_hex, before_values, after_text, at, count, words = spliced
     return (
         f'"raw": "{raw.hex()}{after_hex}',
-        f'{before_values}{{"name": "values", "value": [{_values_text(raw)}{after_text}',
+        f'{before_values}{{"name": "values", "value": '
+        f"[{_values_text(raw, at, count, words)}{after_text}",
     )
 
 
@@ -395,8 +446,74 @@ def _transaction_json(
 
 
 _DEVICE_SLOW = int(Flag.DEVICE_SLOW)
+_MODE = int(Flag.ASCII | Flag.MBAP)
 _REQUEST = int(Kind.REQUEST)
 _OPEN = int(Status.OPEN)
+_NO_STAMPS = (Stamp.NONE, Stamp.PRINT)
+
+
+class Latencies:
+    """Row latencies as `pairing.measure` gives them and the listings show them, made
+    from the store's columns without a `Latency` object a row: for stamps that are
+    neither none nor print times (those, and a resolution that is not finite, go to
+    `measure`), the same operations on the same floats in the same order as `judge`, so
+    the figures are the same to the bit (`tests/outputs/test_listing_fast.py` holds
+    them to `measure`). The text a latency shows is kept per value: a polling capture
+    shows few distinct ones."""
+
+    def __init__(self) -> None:
+        self.stamps: Stamp | None = None
+        self.resolution = -1.0
+        self._texts: dict[tuple[float, bool], str] = {}
+
+    def _settle(self, store: FrameStore) -> None:
+        """Take the store's stamps and resolution (a live store's may change)."""
+        self.stamps, self.resolution = store.stamps, res = store.stamps, store.resolution
+        self._fast = self.stamps not in _NO_STAMPS and res < INF
+        step = self._step = shown_step(res)
+        self._digits = max(0, -round(log10(step * 1000) - 1e-9))
+        self._least = max(RESOLVED * res, UNRESOLVED)
+        self._texts = {}
+
+    def ms(self, store: FrameStore, i: int) -> tuple[float, bool] | None:
+        """Row `i`'s latency in ms as `Latency.ms` gives it, and whether it is a bound;
+        None where `measure` gives None."""
+        if store.stamps is not self.stamps or store.resolution != self.resolution:
+            self._settle(store)
+        if not self._fast:
+            measured = measure(store, i)
+            return None if measured is None else (measured.ms, measured.bound)
+        j = store.partner[i]
+        if j == NO_PARTNER:
+            return None
+        req, resp = (j, i) if store.kind[i] != _REQUEST else (i, j)
+        t, end = store.t[resp], store.t_end[req]
+        raw = t - end
+        step = self._step
+        if not raw < self._least:
+            value = round(t, 6) - round(end, 6)
+            if value == value:
+                value = round(value / step) * step
+            return round(value * 1000, self._digits), False
+        res = self.resolution
+        if res > 0 and raw + res > 0:
+            return round(ceil((raw + res) / step - 1e-9) * step * 1000, self._digits), True
+        return None
+
+    def text(self, store: FrameStore, i: int) -> str:
+        """` {text:>9}`: row `i`'s latency as a text line shows it (`Latency.text`),
+        empty where there is none."""
+        found = self.ms(store, i)
+        if found is None:
+            return ""
+        shown = self._texts.get(found)
+        if shown is None:
+            ms, bound = found
+            words = span_words(ms)
+            shown = f" {'<' + words if bound else words:>9}"
+            if ms > 0 and len(self._texts) < 4096:  # (not -0.0, NaN: not one key)
+                self._texts[found] = shown
+        return shown
 
 
 class Lister:
@@ -436,6 +553,7 @@ class Lister:
         # their answers) by number, so their lines end with it (`  #40`)
         self._cited: set[int] = set()
         self.updates = updates
+        self._latencies = Latencies()
         if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
@@ -452,7 +570,7 @@ class Lister:
         # answers that differ only in their values may share a content: a text line
         # shows no value, a JSONL line has them spliced in (see `_json_line`)
         contents = (
-            describer.contents(rows, values=False)
+            describer.contents(rows, values=False, writes=True)
             if self._csv is None
             else ((i, None) for i in rows)
         )
@@ -538,10 +656,10 @@ class Lister:
             when += f"  {peer or f'ch{store.channel[i]}':<21}"
         if store.kind[i] == _REQUEST or not shared.timed or store.partner[i] == NO_PARTNER:
             return when + parts[2]
-        measured = measure(store, i)
-        if measured is None:
+        shown = self._latencies.text(store, i)
+        if not shown:
             return when + parts[2]
-        return f"{when}{parts[0]} {measured.text():>9}{parts[1]}"
+        return f"{when}{parts[0]}{shown}{parts[1]}"
 
     def _json_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s JSONL line from what rows with its content share, with the row's
@@ -555,12 +673,12 @@ class Lister:
         kind = store.kind[i]
         ms = max_ms = None
         if shared.timed and store.partner[i] != NO_PARTNER:
-            measured = measure(store, i)
+            measured = self._latencies.ms(store, i)
             if measured is not None:
-                if measured.bound:
-                    max_ms = measured.ms
+                if measured[1]:
+                    max_ms = measured[0]
                 else:
-                    ms = measured.ms
+                    ms = measured[0]
         memo = shared.memo
         json_parts = memo.get("jsonl")
         raw = b""
@@ -570,8 +688,10 @@ class Lister:
         if json_parts is None:
             if raw != shared.raw:
                 return None  # the content of an answer with other values (not its own)
-            first, second, registers = _json_parts(self._bare(i, shared))
-            memo["jsonl"] = json_parts = (first, second, registers, _spliced(first, second, raw))
+            bare = self._bare(i, shared)
+            first, second, registers = _json_parts(bare)
+            spliced = _spliced(first, second, bare) if raw else None
+            memo["jsonl"] = json_parts = (first, second, registers, spliced)
         first, second, registers, spliced = json_parts
         if raw != shared.raw:  # an answer with other values (see Describer.contents)
             if spliced is None:

@@ -142,7 +142,7 @@ def test_every_file_record_asked_for_is_listed(records: list[tuple[int, int, int
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.integers(0, 0xFFFF), max_size=127))
+@given(st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=127))
 def test_values_spliced_into_a_jsonl_line_are_written_as_the_record_writes_them(
     words: list[int],
 ) -> None:
@@ -154,4 +154,19 @@ def test_values_spliced_into_a_jsonl_line_are_written_as_the_record_writes_them(
     values = d.field("values")
     assert values is not None
     said = json_line({"value": list(words), "text": values.text})
-    assert said == '{"value": [' + _values_text(answer) + '"}'
+    assert said == '{"value": [' + _values_text(answer, 3, len(words), True) + '"}'
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(min_size=1, max_size=250), st.integers(0, 7))
+def test_bits_spliced_into_a_jsonl_line_are_written_as_the_record_writes_them(
+    data: bytes, short: int
+) -> None:
+    """The same for bits: an FC 15 write's values (its quantity short of the bytes' bits
+    by up to 7) as `json_line` and the dissector's bits field say them."""
+    quantity = 8 * len(data) - short
+    write = with_crc(bytes((7, 15, 0, 0, quantity >> 8, quantity & 0xFF, len(data))) + data)
+    values = dissect(write[:-2], Role.REQUEST).field("values")
+    assert values is not None and isinstance(values.value, tuple)
+    said = json_line({"value": list(values.value), "text": values.text})
+    assert said == '{"value": [' + _values_text(write, 7, quantity, False) + '"}'

@@ -297,9 +297,9 @@ def _break_in_workers(monkeypatch: pytest.MonkeyPatch, act: Callable[[], None]) 
     parent = os.getpid()
 
     def contents(
-        self: Describer, rows: Iterable[int], values: bool = True
+        self: Describer, rows: Iterable[int], values: bool = True, writes: bool = False
     ) -> Iterator[tuple[int, object]]:
-        for i, found in real(self, rows, values):
+        for i, found in real(self, rows, values, writes):
             if os.getpid() != parent and i == len(self.store) - 1:
                 act()
             yield i, found
