@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from heapq import heappush, heapreplace
 from itertools import accumulate, compress, repeat
 from math import ceil, floor
-from operator import add, eq, lt, mul, ne, sub
+from operator import add, lt, mul, ne, sub
 from typing import Any, cast
 
 from sniffer import core
@@ -297,14 +297,21 @@ class _Waits:
 
     def count(self, seq: array[float]) -> None:
         """Count the waits between consecutive `seq` (at least two) in the buckets."""
-        waits = list(map(sub, seq[1:], seq[:-1]))  # b - a, as the gaps were ever taken
-        known = waits
-        if not all(map(eq, waits, waits)):  # NaN among them: counted apart
-            known = [w for w in waits if w == w]
-            self.unknown += len(waits) - len(known)
+        later, earlier = seq[1:], seq[:-1]
         quantum = self.quantum
-        keys = list(map(floor, map(mul, known, repeat(1 / quantum))))
-        if self.exact and any(map(ne, map(mul, keys, repeat(quantum)), known)):
+        known: list[float] | None = None
+        try:  # each wait's bucket, b - a as the gaps were ever taken, all in C
+            keys = list(map(floor, map(mul, map(sub, later, earlier), repeat(1 / quantum))))
+        except (ValueError, OverflowError):  # NaN (or infinite) stamps among them
+            known = self._known(later, earlier)
+            keys = list(map(floor, map(mul, known, repeat(1 / quantum))))
+        if self.exact and any(
+            map(
+                ne,
+                map(mul, keys, repeat(quantum)),
+                map(sub, later, earlier) if known is None else known,
+            )
+        ):
             self.exact = False
         dense, far, span = self.dense, self.far, len(self.dense)
         if not span:
@@ -321,8 +328,16 @@ class _Waits:
         elif len(far) > FAR:
             self.coarsen()
         top = self.top
-        if not self.cut and known and (len(top) < RECORDS_TOP or max(known) > top[0]):
-            self._records(seq, waits)
+        if self.cut or not keys:
+            return
+        if len(top) < RECORDS_TOP or (max(keys) + 1) * quantum > top[0]:
+            self._records(seq, list(map(sub, later, earlier)))
+
+    def _known(self, later: array[float], earlier: array[float]) -> list[float]:
+        """The waits that are a time; those that are not (NaN, infinite) counted apart."""
+        known = [w for w in map(sub, later, earlier) if abs(w) < float("inf")]
+        self.unknown += len(later) - len(known)
+        return known
 
     def _records(self, seq: array[float], waits: list[float]) -> None:
         """Keep the waits fewer than RECORDS_TOP earlier ones were as long as."""
@@ -732,23 +747,20 @@ class _Counted:
 def _timed_poll(unit: int, sent: _Sent, times: array[float], resolution: float) -> Poll:
     """One repeating request's line from every time it was sent (as it ever was)."""
     picked = _picked_waits(times)
-    waits: list[float] | None = None
     if picked is None:
-        waits = list(map(sub, times[1:], times[:-1]))
-        ordered = sorted(waits)  # once for the three quantiles (as nearest_rank)
+        ordered = sorted(map(sub, times[1:], times[:-1]))  # for the quantiles (nearest_rank)
         low, period, high = (_rank(ordered, q) for q in (0.05, 0.5, 0.95))
+        longest = float("inf")  # (NaN may have left the order anyhow: every wait looked at)
     else:
         low, period, high, longest = picked
     period, period_bound, jitter, jitter_bound = resolved_cycle(period, high - low, resolution)
     limit = GAP_FACTOR * period + resolution
     gaps: tuple[Gap, ...] = ()
-    if waits is None and longest > limit:
-        waits = list(map(sub, times[1:], times[:-1]))
-    if waits is not None:
-        gaps = tuple(
-            Gap(times[k], waits[k])
-            for k in compress(range(len(waits)), map(lt, repeat(limit), waits))
-        )
+    if not longest <= limit:  # (a NaN among the waits: looked at one by one, as ever)
+        # the waits past the limit picked out in C, a Gap made only for each of those
+        later, earlier = times[1:], times[:-1]
+        past = map(lt, repeat(limit), map(sub, later, earlier))
+        gaps = tuple(Gap(times[k], later[k] - times[k]) for k in compress(range(len(later)), past))
     return Poll(
         unit,
         sent.fc,

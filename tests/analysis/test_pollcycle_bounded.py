@@ -137,45 +137,55 @@ def test_an_error_the_printed_step_can_show_is_marked() -> None:
 # -- memory ------------------------------------------------------------------------------
 
 
-def _kept_by_poll_cycles(sendings: int) -> int:
-    """Bytes still allocated after `sendings` requests of 20 polls (every 0.2-2 s, 5%
-    jitter, stamps to the µs, a stall of 60 periods now and then) were counted, in
-    blocks as the windowed replay hands them over."""
+def _blocks(sendings: int, polls: int = 20) -> list[list[array[float]]]:
+    """`sendings` requests of `polls` polls (every 0.2-2 s, 5% jitter, stamps to the µs,
+    a stall of 60 periods now and then), in blocks as the windowed replay hands them
+    over: for each block, each poll's times."""
     rng = random.Random(29)
-    polls = 20
     periods = [rng.uniform(0.2, 2.0) for _ in range(polls)]
     # the waits, in periods: drawn once, taken from at another place by each poll
     factors = [60.0 if rng.random() < 0.001 else rng.uniform(0.95, 1.05) for _ in range(1 << 16)]
     per_block = 4096 // polls
     clocks = [T0] * polls
-    tracemalloc.start()
-    try:
-        before = tracemalloc.get_traced_memory()[0]
-        cycles = PollCycles()
-        sent = [_Sent(f"read holding {k}", 3) for k in range(polls)]
-        cycles.sendings[1] = {(3, k, 1): s for k, s in enumerate(sent)}
-        for b in range(sendings // (per_block * polls)):
-            for k, s in enumerate(sent):
-                at = (b * per_block + 977 * k) % (len(factors) - per_block)
-                steps = map(mul, factors[at : at + per_block], repeat(periods[k]))
-                block = array("d", map(round, accumulate(steps, initial=clocks[k]), repeat(6)))
-                del block[0]  # (the time before: sent in the block before)
-                clocks[k] = block[-1]
-                cycles._feed(s, block)
-        after = tracemalloc.get_traced_memory()[0]
-    finally:
-        tracemalloc.stop()
-    assert all(s.times is None for s in sent)  # (all past EXACT: bucketed)
-    return after - before
+    out = []
+    for b in range(sendings // (per_block * polls)):
+        row = []
+        for k in range(polls):
+            at = (b * per_block + 977 * k) % (len(factors) - per_block)
+            steps = map(mul, factors[at : at + per_block], repeat(periods[k]))
+            block = array("d", map(round, accumulate(steps, initial=clocks[k]), repeat(6)))
+            del block[0]  # (the time before: sent in the block before)
+            clocks[k] = block[-1]
+            row.append(block)
+        out.append(row)
+    return out
 
 
 @pytest.mark.slow
 def test_what_the_poll_cycle_keeps_does_not_grow_with_the_sendings() -> None:
-    # 1M and 3M sendings: keeping each time would take 16 MB more; the buckets are
-    # allocated once (256 KB a poll), the distinct waits kept apart and the first gaps
-    # are capped, so the difference stays within a small margin
-    small, large = _kept_by_poll_cycles(1_000_000), _kept_by_poll_cycles(3_000_000)
-    assert small < 40 * (4 * pollcycle.BUCKETS + 200_000), small
+    # 1M sendings, then 2M more: keeping each time would take 16 MB more; the buckets
+    # are allocated once (256 KB a poll), the distinct waits kept apart and the first
+    # gaps are capped, so what is kept stays within a small margin (tracemalloc: the
+    # bytes still allocated after each)
+    blocks = _blocks(3_000_000)
+    cycles = PollCycles()
+    sent = [_Sent(f"read holding {k}", 3) for k in range(len(blocks[0]))]
+    cycles.sendings[1] = {(3, k, 1): s for k, s in enumerate(sent)}
+    kept = []
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        for n, row in enumerate(blocks, 1):
+            for s, times in zip(sent, row, strict=True):
+                cycles._feed(s, times)
+            if n in (len(blocks) // 3, len(blocks)):
+                kept.append(tracemalloc.get_traced_memory()[0] - before)
+    finally:
+        tracemalloc.stop()
+    assert all(s.times is None for s in sent)  # (all past EXACT: counted in buckets)
+    assert sum(s.count for s in sent) > 2_900_000
+    small, large = kept
+    assert small < len(sent) * (4 * pollcycle.BUCKETS + 200_000), small
     assert large - small < 1_000_000, (small, large)
 
 
