@@ -30,6 +30,7 @@ from sniffer.analysis.pollcycle import (
 )
 from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.store import FrameStore
+from sniffer.session.session import DEMO_CAPTURE, replay_file
 from sniffer.vocab import Kind
 
 T0 = 1_764_000_000.0  # epoch stamps: their waits are whole multiples of 2**-22 s
@@ -233,3 +234,33 @@ def test_the_times_kept_by_all_requests_are_capped(monkeypatch: pytest.MonkeyPat
     for poll in found.cycles()[1].polls:
         if poll.what == "read holding 0":
             _check(poll, times)
+
+
+# -- a capture's table, its requests counted in buckets --------------------------------
+
+
+def test_the_demo_table_is_the_same_with_every_request_counted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # every request past its 4th sending counted instead of kept: its distinct waits
+    # each apart (epoch stamps: exact), so the printed table is the same, byte for byte
+    store = replay_file(DEMO_CAPTURE).store
+    exact = poll_cycles(store)
+    monkeypatch.setattr(pollcycle, "EXACT", 4)
+    counted = poll_cycles(store)
+    assert cycle_table(counted) == cycle_table(exact)
+    # and in buckets of 2**16 from zero: each figure within the bound it says
+    monkeypatch.setattr(pollcycle, "SPARSE", 4)
+    monkeypatch.setattr(pollcycle, "BUCKETS", 1 << 10)
+    bucketed = poll_cycles(store)
+    assert bucketed.keys() == exact.keys()
+    for unit, cycle in exact.items():
+        found = {p.what: p for p in bucketed[unit].polls}
+        for p in cycle.polls:
+            q = found[p.what]
+            assert q.count == p.count and q.retries == p.retries
+            if q.period_bound or q.period == float("inf"):
+                continue  # (a bound of coarse stamps: from the same median within its error)
+            assert abs(q.period - p.period) <= q.quantum / 2
+            assert abs(q.jitter - p.jitter) <= q.quantum
+            assert q.gap_count <= p.gap_count <= q.gap_count + q.unsure_gaps
