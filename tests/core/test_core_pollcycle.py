@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 from dissectors.checks import lrc, with_crc
 from sniffer.analysis import pollcycle, stats
-from sniffer.analysis.pollcycle import PollCycles, cycle_table
+from sniffer.analysis.pollcycle import PollCycles, _Sent, cycle_table
 from sniffer.analysis.polls import FRAMED_APART, RULES, Form, core_rules, plain_identity
 from sniffer.analysis.stats import Tallies
 from sniffer.framing.store import FrameStore
@@ -158,9 +158,19 @@ def _grow(store: FrameStore, rows: list[Row]) -> None:
     store.sync()
 
 
+def _sendings(s: _Sent) -> tuple[object, ...]:
+    """What a request's sendings keep (`pollcycle._Sent`): its times while it keeps them,
+    else its waits counted."""
+    times = None if s.times is None else s.times.tolist()
+    w = s.waits
+    waits = w and (w.quantum, w.dense.tolist(), sorted(w.far.items()), w.exact, w.unknown)
+    kept = w and (w.starts.tolist(), w.lengths.tolist(), w.cut)
+    return (s.count, s.first, s.last, times, waits, kept)
+
+
 def _poll_state(found: PollCycles) -> str:
     kept = [
-        (unit, [(key, s.what, s.fc, s.times.tolist(), s.retries) for key, s in r.items()])
+        (unit, [(key, s.what, s.fc, _sendings(s), s.retries) for key, s in r.items()])
         for unit, r in found.sendings.items()
     ]
     cycles = found.cycles()

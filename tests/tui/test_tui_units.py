@@ -147,7 +147,7 @@ def test_writes_are_one_poll_whatever_they_write() -> None:
     assert counts == [1, 1, 1, 1, 3, 3]
     stats = PollCycles()
     stats.add(session.store)
-    assert counts == sorted(len(s.times) for s in stats.sendings[4].values())
+    assert counts == sorted(s.count for s in stats.sendings[4].values())
 
 
 # -- Modbus TCP: polls counted as --stats counts them -------------------------------------
