@@ -109,13 +109,7 @@ def _export(
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    # every row, unfiltered: their numbers as a range, not a list of them all (a list of
-    # 3M rows held 115 MB through the export)
-    chosen: Sequence[int] = (
-        range(len(session.store))
-        if query is None and args.count is None
-        else Selection(session, query, args.count).take(len(session.store), final=True)
-    )
+    chosen = Selection(session, query, args.count).take(len(session.store), final=True)
     status = finish_read(capture, session, err)
     describer = session.describer
     if fmt == "parquet":

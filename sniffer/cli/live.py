@@ -11,6 +11,7 @@ import io
 import os
 import sys
 import time
+from collections.abc import Sequence
 from typing import TextIO
 
 from sniffer.analysis.liveness import Heard, liveness, liveness_lines
@@ -335,9 +336,9 @@ def stream(
             base = session.base
             if selection is not None:
                 _new_segment(selection)
-        picked: list[int] | None = None  # the rows a filter or -c lets through
+        picked: Sequence[int] | None = None  # the rows a filter or -c lets through
         if selection is not None and (selection.query is not None or selection.left is not None):
-            picked = selection.take(rows.stop, final=final) if rows.stop else []
+            picked = selection.take(rows.stop, final=final) if rows.stop else range(0)
         todo: list[int] | range = (
             range(rows.start + base, rows.stop + base)
             if picked is None
