@@ -45,7 +45,7 @@ import tempfile
 import zlib
 from array import array
 from bisect import bisect_left
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache, lru_cache
 from itertools import compress
 from pathlib import Path
@@ -577,14 +577,11 @@ LEVEL = 1
 WINDOW = 1 << 15  # deflate's window: a piece's region of the capture is at most this long
 PIECE = 1 << 14  # stream bytes a piece holds at most
 NEEDLE = 48  # bytes of a row looked for in the capture
-_BLOCK_HEAD = struct.Struct(
-    "=QQII"
-)  # first time's bits, first offset, CRC-32 of the bytes, channels
+_BLOCK_HEAD = struct.Struct("=II")  # the CRC-32 of the block's bytes, its channels
 _SIZES = struct.Struct("=" + "I" * len(COLUMNS))  # each column's packed length
 _COUNT = struct.Struct("=I")  # a channel's pieces
-_PIECE = struct.Struct(
-    "=IqII"
-)  # stream bytes, region in the capture (-1: none), its length, packed length
+# a piece: its bytes, where its region of the capture is (-1: none) and how long, packed
+_PIECE = struct.Struct("=IqII")
 _WIDTHS = {name: array(code).itemsize for name, code in zip(COLUMNS, "QHddBBBIBiB", strict=True)}
 
 
@@ -624,14 +621,14 @@ def _add(raw: bytes, by: int) -> bytes:
     return total.to_bytes(len(raw), sys.byteorder)
 
 
-@lru_cache(maxsize=4)
 def _rows(n: int) -> int:
     """The numbers 0..n-1 as int32 words, as one integer."""
-    return int.from_bytes(array("i", range(n)).tobytes(), sys.byteorder)
+    return int.from_bytes(_counting(max(n, BLOCK))[: 4 * n], sys.byteorder)
 
 
-def _first(raw: bytes) -> int:
-    return int.from_bytes(raw[:8], sys.byteorder) if raw else 0
+@lru_cache(maxsize=2)
+def _counting(n: int) -> bytes:
+    return array("i", range(n)).tobytes()
 
 
 def _pack(raw: bytes) -> bytes:
@@ -646,25 +643,19 @@ def _unpack(raw: bytes | memoryview, size: int) -> bytes:
     return out
 
 
-def _pack_columns(col: dict[str, bytes], n: int, first_row: int) -> tuple[int, int, list[bytes]]:
-    """A block's columns packed: times from the block's first (`t_end` from `t`), in
-    the bits of the floats taken as integers (exact); offsets from the first; partners
-    from their own row (mostly the row before or after); the wider columns in byte
-    planes; each with zlib."""
-    t0, o0 = _first(col["t"]), _first(col["offset"])
+def _pack_columns(col: dict[str, bytes], n: int, first_row: int) -> list[bytes]:
+    """A block's columns packed: `t_end` as its distance from `t` (the bits of the floats
+    taken as integers: exact), partners as their distance from their own row (mostly
+    the row before or after), the wider columns in byte planes, each with zlib."""
     out = []
     for name in COLUMNS:
         raw = col[name]
-        if name == "t":
-            raw = _minus(raw, t0 * _ones(n, 8))
-        elif name == "t_end":
+        if name == "t_end":
             raw = _minus(raw, int.from_bytes(col["t"], sys.byteorder))
-        elif name == "offset":
-            raw = _minus(raw, o0 * _ones(n, 8))
         elif name == "partner":
             raw = _minus(raw, first_row * _ones(n, 4) + _rows(n))
         out.append(_pack(_planes(raw, _WIDTHS[name])))
-    return t0, o0, out
+    return out
 
 
 class Packed:
@@ -675,7 +666,7 @@ class Packed:
 
     def __init__(self, data: bytes, count: int, first_row: int, channels: int) -> None:
         self.data, self.count, self.first_row = data, count, first_row
-        self.t0, self.o0, self.bytes_crc, listed = _BLOCK_HEAD.unpack_from(data, 0)
+        self.bytes_crc, listed = _BLOCK_HEAD.unpack_from(data, 0)
         if listed != channels:
             raise ValueError("a block of other channels")
         at = _BLOCK_HEAD.size
@@ -717,18 +708,13 @@ class Packed:
 
     def column(self, name: str) -> bytes:
         at, size = self.columns[name]
-        n = self.count
-        raw = _unplanes(
-            _unpack(memoryview(self.data)[at : at + size], n * _WIDTHS[name]), _WIDTHS[name]
-        )
+        n, width = self.count, _WIDTHS[name]
+        raw = _unplanes(_unpack(memoryview(self.data)[at : at + size], n * width), width)
         if name == "t":
-            raw = _add(raw, self.t0 * _ones(n, 8))
             self._t = raw
         elif name == "t_end":
             t = self._t if self._t is not None else self.column("t")
             raw = _add(raw, int.from_bytes(t, sys.byteorder))
-        elif name == "offset":
-            raw = _add(raw, self.o0 * _ones(n, 8))
         elif name == "partner":
             raw = _add(raw, self.first_row * _ones(n, 4) + _rows(n))
         return raw
@@ -798,15 +784,15 @@ class _Referrer:
             self.map = None
 
     def _locate(
-        self, ch: int, share: bytes, start: int, offs: list[int], lens: list[int], row: int
+        self, ch: int, share: bytes, start: int, offs: Sequence[int], lens: Sequence[int], row: int
     ) -> tuple[int, int] | None:
         """A row from `row` on found in the capture: (its row, where), or None."""
         capture = self.map
         if capture is None:
             return None
         anchor_s, anchor_f = self.anchors.get(ch, (0, 0))
-        tried = sorted(range(row, min(row + 16, len(offs))), key=lambda q: -lens[q])[:4]
-        for q in tried:
+        for lo in range(row, min(row + 64, len(offs)), 16):  # the longest of 16 rows
+            q = max(range(lo, min(lo + 16, len(offs))), key=lens.__getitem__)
             size = min(lens[q], NEEDLE)
             if size < 6:
                 continue
@@ -819,7 +805,7 @@ class _Referrer:
         return None
 
     def pieces(
-        self, ch: int, share: bytes, start: int, offs: list[int], lens: list[int]
+        self, ch: int, share: bytes, start: int, offs: Sequence[int], lens: Sequence[int]
     ) -> list[tuple[int, int, int, bytes]]:
         """The pieces of `share` (the block's bytes of channel `ch`, from byte `start`
         of its stream), packed: (bytes, region, region's length, packed). `offs` and
@@ -831,6 +817,14 @@ class _Referrer:
         row = bisect_left(offs, start)
         got = self._locate(ch, share, start, offs, lens, row) if self.map is not None else None
         ratio = self.ratios.get(ch, 2.0)
+        if got is not None and offs[got[0]] > s:
+            # the share's first bytes are a little before the row found: its region
+            # starts early enough for them (a region too long only misses references)
+            anchor_s, anchor_f = self.anchors.get(ch, (0, 0))
+            early = got[1] - int(ratio * (offs[got[0]] - s)) - 256
+            where = max(early, anchor_f + max(0, s - anchor_s), 0)
+            if where > got[1]:
+                where = -1
         while s < end:
             if got is not None and offs[got[0]] == s:
                 where = got[1]
@@ -882,7 +876,7 @@ def _pack_block(
     the store's stream."""
     n = b - a
     col = {name: bytes(parts[k]) for k, name in enumerate(COLUMNS)}
-    t0, o0, packed = _pack_columns(col, n, base + a)
+    packed = _pack_columns(col, n, base + a)
     offset = memoryview(col["offset"]).cast("Q")
     length = memoryview(col["length"]).cast("H")
     channels = store.channel[a:b].tobytes()
@@ -890,37 +884,34 @@ def _pack_block(
     table = []
     crc = 0
     packed_pieces: list[bytes] = []
+    offs: Sequence[int]
+    lens: Sequence[int]
     for k, (ch, _size) in enumerate(pieces):
         share = bytes(parts[len(COLUMNS) + k])
         crc = zlib.crc32(share, crc)
         if present == {ch}:
-            offs, lens = offset.tolist(), length.tolist()
+            offs, lens = offset, length
         else:
             mask = channels.translate(marking((ch,)))
-            offs, lens = list(compress(offset, mask)), list(compress(length, mask))
+            offs = array("Q", compress(offset, mask))
+            lens = array("H", compress(length, mask))
         listed = referrer.pieces(ch, share, bases.get(ch, 0) + at[ch], offs, lens)
         table.append(_COUNT.pack(len(listed)))
         for size, where, span, data in listed:
             table.append(_PIECE.pack(size, where, span, len(data)))
             packed_pieces.append(data)
-    head = _BLOCK_HEAD.pack(t0, o0, crc, len(pieces)) + _SIZES.pack(*map(len, packed))
+    head = _BLOCK_HEAD.pack(crc, len(pieces)) + _SIZES.pack(*map(len, packed))
     return [head + b"".join(table), *packed, *packed_pieces]
 
 
 def _pack_tail(values: array[float]) -> bytes:
-    """Latencies or request times: from the first, in byte planes, with zlib."""
-    raw = values.tobytes()
-    return _pack(_planes(_minus(raw, _first(raw) * _ones(len(values), 8)), 8)) + raw[:8]
+    """Latencies or request times: in byte planes, with zlib."""
+    return _pack(_planes(values.tobytes(), 8))
 
 
 def _unpack_tail(packed: bytes, count: int) -> array[float]:
     out = array("d")
-    if count:
-        first = int.from_bytes(packed[-8:], sys.byteorder)
-        raw = _add(
-            _unplanes(_unpack(memoryview(packed)[:-8], 8 * count), 8), first * _ones(count, 8)
-        )
-        out.frombytes(raw)
+    out.frombytes(_unplanes(_unpack(packed, 8 * count), 8))
     return out
 
 
