@@ -5,8 +5,9 @@ about 65 bytes each, 2 GB. The TUI's views scan only a few narrow columns over e
 row (kind, unit, function, flags, channel, partner, status: 13 bytes a row, 390 MB for
 the day); the rest (offsets, lengths, times, and the bytes themselves) they need only for
 the rows on screen or in the detail pane. So `PagedStore` keeps those narrow columns in
-memory and reads the others from the sidecar index (`sniffer.session.index`) a block at a time
-when a row is looked at, with a small cache of blocks.
+memory and reads the others from the sidecar index (`sniffer.session.index`) when a row
+is looked at: a block's column unpacked whole (a block's times are some 120 KB packed), a
+piece of its bytes (at most `index.PIECE`) from the capture, with a small cache.
 
 It fills as a windowed `Session.ingest` goes (a segment at a time, `take`): each
 segment's rows are in the sidecar being written by then; or, while a sidecar is read
