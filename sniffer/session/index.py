@@ -806,8 +806,9 @@ class _Referrer:
         if capture is None:
             return None
         anchor_s, anchor_f = self.anchors.get(ch, (0, 0))
-        for lo in range(row, min(row + 64, len(offs)), 16):  # the longest of 16 rows
-            q = max(range(lo, min(lo + 16, len(offs))), key=lens.__getitem__)
+        # the four longest of the next 16 rows (a long row may be cut by a read's end)
+        near = range(row, min(row + 16, len(offs)))
+        for q in sorted(near, key=lens.__getitem__, reverse=True)[:4]:
             size = min(lens[q], NEEDLE)
             if size < 6:
                 continue
