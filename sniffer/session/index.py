@@ -15,9 +15,24 @@ A sidecar is used only when all of this still holds, else the capture is indexed
   annotator's flags are in the rows), and a fingerprint of modscope's own code.
 
 The file: a header of JSON (with its CRC-32), then the rows in blocks of `BLOCK` rows,
-each its columns and the bytes its rows point at, each with its own CRC-32, then the
-per-unit latencies and request times. It is read a block at a time (`load`): the TUI
-shows the first rows after the first block while the rest is read.
+each with its own CRC-32, then the per-unit latencies and request times. It is read a
+block at a time (`load`): the TUI shows the first rows after the first block while the
+rest is read.
+
+A block is packed (format 3, #29: the sidecar at most a quarter of its capture, was 84-162
+% of it): a table (each part's length), its columns and its share of each channel's bytes.
+- Columns: each with zlib (level 1), the wider ones in byte planes (all the lowest
+  bytes, then the next...: the high bytes of close values are runs); `t_end` as its
+  distance from `t` and partners as their distance from their own row, both in the bits
+  taken as integers (exact, one integer operation a column, `_minus`/`_add`).
+- Bytes: not copied but referred to in the capture. A piece of a channel's bytes (at
+  most `PIECE`) is packed with deflate given the region of the capture it was read from
+  as its dictionary (at most deflate's 32 KiB window), found by looking for a row's
+  bytes after those of the piece before (`_Referrer`); deflate then keeps a few bytes for
+  each run of bytes read. Bytes the capture does not hold as read (text logs) pack as
+  plain zlib. Each block keeps the CRC-32 of its bytes, checked when they are read back
+  from the capture: a capture whose bytes changed is indexed again.
+- The statistics' latencies and request times in byte planes with zlib.
 
 A sidecar is data, never code: one that is damaged or does not fit its capture is
 ignored, and the capture indexed again (a damaged block found after rows were read: the
@@ -36,6 +51,7 @@ import dataclasses
 import fcntl
 import hashlib
 import json
+import mmap
 import operator
 import os
 import struct
@@ -43,7 +59,8 @@ import sys
 import tempfile
 import zlib
 from array import array
-from collections.abc import Callable, Mapping
+from bisect import bisect_left
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache, lru_cache
 from itertools import compress
 from pathlib import Path
@@ -60,7 +77,7 @@ from sniffer.sources import Capture
 from sniffer.vocab import Kind
 
 MAGIC = b"MODSCOPE-INDEX\n\0"
-FORMAT = 2  # the file's layout: a sidecar of another format is ignored (indexed again)
+FORMAT = 3  # the file's layout: a sidecar of another format is ignored (indexed again)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
@@ -209,11 +226,6 @@ def settings_key(annotator: Annotator, options: Any, timeout: float | None) -> s
 # -------------------------------------------------------------------------- writing
 
 
-def _row_bytes() -> int:
-    model = FrameStore()
-    return sum(getattr(model, name).itemsize for name in COLUMNS)
-
-
 def _blocks(store: FrameStore, n: int) -> list[tuple[int, int, list[list[int]]]] | None:
     """The blocks of rows: (first row, end, [[channel, bytes], ...]) where a block carries
     the bytes of each channel from where the one before stopped to the end of the last
@@ -234,7 +246,7 @@ def _blocks(store: FrameStore, n: int) -> list[tuple[int, int, list[list[int]]]]
             offset, length = store.offset[a:b], store.length[a:b]
             for ch in present:
                 if len(present) == 1:
-                    far = max(map(operator.add, offset, length))
+                    far = max(_ends(offset, length))
                 else:
                     mask = channels.translate(marking((ch,)))
                     far = max(compress(map(operator.add, offset, length), mask))
@@ -261,57 +273,16 @@ def _block_parts(
 
 def save(state: SessionState, capture: Capture, path: Path, key: str) -> Path | None:
     """Write the sidecar of `path`; its location, or None when nowhere could take it."""
-    who = identity(path)
-    if who is None:
+    if identity(path) is None:
         return None
-    store = state.store
-    store.sync()
-    n = len(store)
-    blocks = _blocks(store, n)
-    if blocks is None:
-        return None
-    table = []
-    starts = dict.fromkeys(store.streams, 0)
-    for a, b, pieces in blocks:
-        crc = 0
-        for part in _block_parts(store, a, b, pieces, starts):
-            crc = zlib.crc32(part, crc)
-        table.append([b - a, pieces, crc])
-    tail, crc = _tail(state)
-    header = _header_of(
-        state,
-        capture,
-        key,
-        who,
-        rows=n,
-        streams=[[ch, len(data)] for ch, data in store.streams.items()],
-        blocks=table,
-        tail_crc=crc,
-        notes={str(i): text for i, text in store.notes.items()},
-    )
-    blob = json.dumps(header).encode()
-    for target in sidecars(path):
-        try:
-            fd, tmp = _temporary(target.parent)
-        except OSError:
-            continue
-        try:
-            with os.fdopen(fd, "wb") as out:
-                out.write(MAGIC)
-                out.write(_PREFIX.pack(len(blob), zlib.crc32(blob)))
-                out.write(blob)
-                starts = dict.fromkeys(store.streams, 0)
-                for a, b, pieces in blocks:
-                    for part in _block_parts(store, a, b, pieces, starts):
-                        out.write(part)
-                for part in tail:
-                    out.write(memoryview(part).cast("B"))
-                out.flush()
-                _publish(tmp, target)  # while still locked (see `sweep`)
-            return target
-        except OSError:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    for target in sidecars(path):  # (one that cannot take it: the next)
+        writer = Writer(path, [target])
+        writer.add(state)
+        if writer.unfit:
+            return None  # not for want of a place
+        written = writer.close(state, capture, key)
+        if written is not None:
+            return written
     return None
 
 
@@ -323,15 +294,15 @@ def _publish(tmp: str, target: Path) -> None:
     os.replace(tmp, target)
 
 
-def _tail(state: SessionState) -> tuple[list[Any], int]:
-    """The per-unit latencies and request times written after the blocks, and their
-    CRC-32."""
-    tail: list[Any] = []
+def _tail(state: SessionState) -> tuple[list[bytes], int]:
+    """The per-unit latencies and request times written after the blocks, each packed
+    (`_pack_tail`), and the CRC-32 of what is written."""
+    tail: list[bytes] = []
     for unit in state.stats.units.values():
-        tail += [unit.latencies, unit.request_times]
+        tail += [_pack_tail(unit.latencies), _pack_tail(unit.request_times)]
     crc = 0
     for part in tail:
-        crc = zlib.crc32(memoryview(part).cast("B"), crc)
+        crc = zlib.crc32(part, crc)
     return tail, crc
 
 
@@ -345,6 +316,7 @@ def _header_of(
     streams: list[list[int]],
     blocks: list[Any],
     tail_crc: int,
+    tail_sizes: list[int],
     notes: dict[str, str],
 ) -> dict[str, Any]:
     store = state.store
@@ -357,6 +329,7 @@ def _header_of(
         "streams": streams,
         "blocks": blocks,
         "tail_crc32": tail_crc,
+        "tail": tail_sizes,
         "notes": notes,
         "stamps": store.stamps.name,
         "resolution": store.resolution,
@@ -386,12 +359,13 @@ class Writer:
     holding every row, but for where blocks end. The header comes last, into room left
     for it at the start (`RESERVE`)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, targets: list[Path] | None = None) -> None:
         self.path = path
         self.out: Any = None
+        self.unfit = False  # rows a sidecar cannot take (a row of a channel with no bytes)
         self.tmp = ""
         self.target: Path | None = None
-        for target in sidecars(path):
+        for target in sidecars(path) if targets is None else targets:
             try:
                 fd, tmp = _temporary(target.parent)
             except OSError:
@@ -400,6 +374,7 @@ class Writer:
             break
         self.blocks: list[Any] = []
         self.first_block = len(MAGIC) + _PREFIX.size + RESERVE  # where the blocks start
+        self.capture = _Referrer(path) if self.out is not None else None
         self.notes: dict[str, str] = {}
         self.rows = 0
         self.streams: dict[int, int] = {}
@@ -412,27 +387,30 @@ class Writer:
 
     def add(self, state: SessionState) -> None:
         """Write the rows of the session's store (`state`: a segment, or the last rows)."""
-        if self.out is None:
+        if self.out is None or self.capture is None:
             return
         store = state.store
         store.sync()
         n = len(store)
         blocks = _blocks(store, n)
         if blocks is None:
+            self.unfit = True
             self.abandon()
             return
         base, bases = state.base, state.stream_base
         starts = dict.fromkeys(store.streams, 0)
         try:
             for a, b, pieces in blocks:
+                at = dict(starts)
                 parts = _block_parts(store, a, b, pieces, starts)
                 if base or any(bases.values()):
                     _renumber(store, a, b, parts, base, bases)
+                packed = _pack_block(store, a, b, pieces, parts, at, base, bases, self.capture)
                 crc = 0
-                for part in parts:
+                for part in packed:
                     crc = zlib.crc32(part, crc)
                     self.out.write(part)
-                self.blocks.append([b - a, pieces, crc])
+                self.blocks.append([b - a, pieces, crc, sum(len(part) for part in packed)])
         except OSError:
             self.abandon()
             return
@@ -458,12 +436,13 @@ class Writer:
             streams=[[ch, size] for ch, size in self.streams.items()],
             blocks=self.blocks,
             tail_crc=crc,
+            tail_sizes=[len(part) for part in tail],
             notes=self.notes,
         )
         blob = json.dumps(header).encode()
         try:
             for part in tail:
-                out.write(memoryview(part).cast("B"))
+                out.write(part)
             if len(blob) <= RESERVE:
                 blob += b" " * (RESERVE - len(blob))
                 out.seek(len(MAGIC))
@@ -478,6 +457,8 @@ class Writer:
             self.abandon()
             return None
         self.out = None
+        if self.capture is not None:
+            self.capture.close()
         return target
 
     def _rewrite(self, blob: bytes, target: Path) -> None:
@@ -505,6 +486,8 @@ class Writer:
 
     def abandon(self) -> None:
         """No sidecar after all (a folder that filled up, a read stopped halfway)."""
+        if self.capture is not None:
+            self.capture.close()
         if self.out is not None:
             with contextlib.suppress(OSError):
                 self.out.close()
@@ -601,6 +584,353 @@ def _stats_header(state: SessionState) -> dict[str, Any]:
     }
 
 
+# -------------------------------------------------------------------------- packing
+
+# zlib's level for everything packed: level 1 is the fastest, and the higher levels
+# gain little on these columns and pieces (benchmarks/bench_index.py, docs/performance.md)
+LEVEL = 1
+WINDOW = 1 << 15  # deflate's window: a piece's region of the capture is at most this long
+PIECE = 1 << 14  # stream bytes a piece holds at most
+NEEDLE = 48  # bytes of a row looked for in the capture
+_BLOCK_HEAD = struct.Struct("=II")  # the CRC-32 of the block's bytes, its channels
+_SIZES = struct.Struct("=" + "I" * len(COLUMNS))  # each column's packed length
+_COUNT = struct.Struct("=I")  # a channel's pieces
+# a piece: its bytes, where its region of the capture is (-1: none) and how long, packed
+_PIECE = struct.Struct("=IqII")
+_WIDTHS = {name: array(code).itemsize for name, code in zip(COLUMNS, "QHddBBBIBiB", strict=True)}
+
+
+def _planes(raw: bytes, width: int) -> bytes:
+    """The bytes of `width`-byte words regrouped by their place in the word (all the
+    lowest bytes, then the next...): the high bytes of small or close values are runs
+    that zlib takes for almost nothing."""
+    if width == 1:
+        return raw
+    return b"".join(raw[k::width] for k in range(width))
+
+
+def _unplanes(raw: bytes, width: int) -> bytes:
+    if width == 1:
+        return raw
+    n = len(raw) // width
+    out = bytearray(len(raw))
+    for k in range(width):
+        out[k::width] = raw[k * n : (k + 1) * n]
+    return bytes(out)
+
+
+@lru_cache(maxsize=4)
+def _mask(size: int) -> int:
+    return (1 << (8 * size)) - 1
+
+
+def _minus(raw: bytes, by: int) -> bytes:
+    """`raw` (words of a column) less `by` (as many words), all the bytes taken as one
+    integer modulo its size: exact both ways (`_add`), one operation in C."""
+    total = (int.from_bytes(raw, sys.byteorder) - by) & _mask(len(raw))
+    return total.to_bytes(len(raw), sys.byteorder)
+
+
+def _add(raw: bytes, by: int) -> bytes:
+    total = (int.from_bytes(raw, sys.byteorder) + by) & _mask(len(raw))
+    return total.to_bytes(len(raw), sys.byteorder)
+
+
+def _rows(n: int) -> int:
+    """The numbers 0..n-1 as int32 words, as one integer."""
+    return int.from_bytes(_counting(max(n, BLOCK))[: 4 * n], sys.byteorder)
+
+
+@lru_cache(maxsize=2)
+def _counting(n: int) -> bytes:
+    return array("i", range(n)).tobytes()
+
+
+def _pack(raw: bytes) -> bytes:
+    return zlib.compress(raw, LEVEL, wbits=-15)
+
+
+def _unpack(raw: bytes | memoryview, size: int) -> bytes:
+    d = zlib.decompressobj(wbits=-15)
+    out = d.decompress(raw, size + 1)
+    if len(out) != size:
+        raise ValueError("a packed part of the wrong length")
+    return out
+
+
+def _pack_columns(col: dict[str, bytes], n: int, first_row: int) -> list[bytes]:
+    """A block's columns packed: `t_end` as its distance from `t` (the bits of the floats
+    taken as integers: exact), partners as their distance from their own row (mostly
+    the row before or after), the wider columns in byte planes, each with zlib."""
+    out = []
+    for name in COLUMNS:
+        raw = col[name]
+        if name == "t_end":
+            raw = _minus(raw, int.from_bytes(col["t"], sys.byteorder))
+        elif name == "partner":
+            raw = _minus(raw, first_row * _ones(n, 4) + _rows(n))
+        out.append(_pack(_planes(raw, _WIDTHS[name])))
+    return out
+
+
+class Packed:
+    """One packed block of a sidecar: its table read, its columns and bytes unpacked
+    on demand. `data`: the block as in the file (CRC-32 checked by the caller);
+    `first_row`: its first row's number in the capture; `channels`: how many channels
+    its bytes are in. Raises ValueError (or zlib.error) when it does not hold up."""
+
+    def __init__(self, data: bytes, count: int, first_row: int, channels: int) -> None:
+        self.data, self.count, self.first_row = data, count, first_row
+        self.bytes_crc, listed = _BLOCK_HEAD.unpack_from(data, 0)
+        if listed != channels:
+            raise ValueError("a block of other channels")
+        at = _BLOCK_HEAD.size
+        sizes = _SIZES.unpack_from(data, at)
+        at += _SIZES.size
+        # each channel's pieces: (first stream byte in the block's share, stream bytes,
+        # region, its length, packed length)
+        self.pieces: list[list[tuple[int, int, int, int, int]]] = []
+        for _ch in range(channels):
+            (k,) = _COUNT.unpack_from(data, at)
+            at += _COUNT.size
+            if k > len(data):
+                raise ValueError("too many pieces")
+            listed_pieces = []
+            first = 0
+            for _ in range(k):
+                size, where, span, packed = _PIECE.unpack_from(data, at)
+                at += _PIECE.size
+                listed_pieces.append((first, size, where, span, packed))
+                first += size
+            self.pieces.append(listed_pieces)
+        self.columns: dict[str, tuple[int, int]] = {}
+        for name, size in zip(COLUMNS, sizes, strict=True):
+            self.columns[name] = (at, size)
+            at += size
+        self.piece_at: list[list[int]] = []
+        for listed_pieces in self.pieces:
+            starts = []
+            for piece in listed_pieces:
+                starts.append(at)
+                at += piece[4]
+            self.piece_at.append(starts)
+        if at != len(data):
+            raise ValueError("a block of another length")
+        self._t: bytes | None = None
+
+    def __len__(self) -> int:  # (what it holds in a cache)
+        return len(self.data)
+
+    def column(self, name: str) -> bytes:
+        at, size = self.columns[name]
+        n, width = self.count, _WIDTHS[name]
+        raw = _unplanes(_unpack(memoryview(self.data)[at : at + size], n * width), width)
+        if name == "t":
+            self._t = raw
+        elif name == "t_end":
+            t = self._t if self._t is not None else self.column("t")
+            raw = _add(raw, int.from_bytes(t, sys.byteorder))
+        elif name == "partner":
+            raw = _add(raw, self.first_row * _ones(n, 4) + _rows(n))
+        return raw
+
+    def piece(self, channel: int, k: int, capture: int) -> bytes:
+        """The `k`-th piece of the block's bytes of its `channel`-th channel; `capture`:
+        a descriptor of the capture its regions are in."""
+        _first_byte, size, where, span, packed = self.pieces[channel][k]
+        at = self.piece_at[channel][k]
+        if where >= 0:
+            region = _pread(capture, span, where)
+            if len(region) != span:
+                raise ValueError("the capture is shorter than its sidecar says")
+            d = zlib.decompressobj(wbits=-15, zdict=region)
+        else:
+            d = zlib.decompressobj(wbits=-15)
+        out = d.decompress(memoryview(self.data)[at : at + packed], size + 1)
+        if len(out) != size:
+            raise ValueError("a piece of the wrong length")
+        return out
+
+    def share(self, channel: int, capture: int) -> bytes:
+        return b"".join(self.piece(channel, k, capture) for k in range(len(self.pieces[channel])))
+
+
+def _pread(fd: int, size: int, at: int) -> bytes:
+    parts = []
+    while size > 0:
+        got = os.pread(fd, size, at)
+        if not got:
+            break
+        parts.append(got)
+        size -= len(got)
+        at += len(got)
+    return b"".join(parts)
+
+
+class _Referrer:
+    """Where a capture holds the bytes of its channels, for pieces packed against it.
+
+    A piece of a channel's bytes (up to `PIECE`) is packed with zlib given the region
+    of the capture its bytes were read from as a dictionary: deflate then refers to the
+    capture for them (3 bytes or so for each run of bytes read), and the sidecar keeps
+    only those references. The region is found by looking for a row's bytes in the
+    capture, after where the bytes before were found: a row of the next few, the longest
+    (the most telling), its first `NEEDLE` bytes. Any region is correct (deflate checks
+    nothing but gives the same bytes back from the same region): one that does not hold
+    the piece's bytes (a capture that is not a byte-for-byte recording: text logs) only
+    packs them worse, as plain zlib. The capture must stay as it was: a sidecar is used
+    only while the capture's size, time and head are those it was written against, and
+    each block's bytes carry their own CRC-32."""
+
+    def __init__(self, path: Path) -> None:
+        self.map: mmap.mmap | None = None
+        self.anchors: dict[int, tuple[int, int]] = {}  # channel: (stream byte, at or after)
+        self.ratios: dict[int, float] = {}
+        try:
+            with path.open("rb") as handle:
+                self.map = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ)
+        except (OSError, ValueError):  # (an empty file cannot be mapped)
+            self.map = None
+
+    def close(self) -> None:
+        if self.map is not None:
+            with contextlib.suppress(BufferError):
+                self.map.close()
+            self.map = None
+
+    def _locate(
+        self, ch: int, share: bytes, start: int, offs: Sequence[int], lens: Sequence[int], row: int
+    ) -> tuple[int, int] | None:
+        """A row from `row` on found in the capture: (its row, where), or None."""
+        capture = self.map
+        if capture is None:
+            return None
+        anchor_s, anchor_f = self.anchors.get(ch, (0, 0))
+        # the four longest of the next 16 rows (a long row may be cut by a read's end)
+        near = range(row, min(row + 16, len(offs)))
+        for q in sorted(near, key=lens.__getitem__, reverse=True)[:4]:
+            size = min(lens[q], NEEDLE)
+            if size < 6:
+                continue
+            o = offs[q] - start
+            low = anchor_f + max(0, offs[q] - anchor_s)  # its bytes come after those before
+            far = low + (1 << 16) + min(8 * max(0, offs[q] - anchor_s), 1 << 20)
+            where = capture.find(share[o : o + size], low, far)
+            if where >= 0:
+                return q, where
+        return None
+
+    def pieces(
+        self, ch: int, share: bytes, start: int, offs: Sequence[int], lens: Sequence[int]
+    ) -> list[tuple[int, int, int, bytes]]:
+        """The pieces of `share` (the block's bytes of channel `ch`, from byte `start`
+        of its stream), packed: (bytes, region, region's length, packed). `offs` and
+        `lens`: the block's rows of the channel (offsets in the stream, lengths)."""
+        end = start + len(share)
+        cuts: list[tuple[int, int]] = []  # (stream byte, where in the capture or -1)
+        s, where, row = start, -1, 0
+        # rows that begin before the share (the answer to a row of the block before)
+        row = bisect_left(offs, start)
+        got = self._locate(ch, share, start, offs, lens, row) if self.map is not None else None
+        ratio = self.ratios.get(ch, 2.0)
+        if got is not None and offs[got[0]] > s:
+            # the share's first bytes are a little before the row found: its region
+            # starts early enough for them (a region too long only misses references)
+            anchor_s, anchor_f = self.anchors.get(ch, (0, 0))
+            early = got[1] - int(ratio * (offs[got[0]] - s)) - 256
+            where = max(early, anchor_f + max(0, s - anchor_s), 0)
+            if where > got[1]:
+                where = -1
+        while s < end:
+            if got is not None and offs[got[0]] == s:
+                where = got[1]
+                self.anchors[ch] = (s, where)
+            cuts.append((s, where))
+            step = int(max(min(1024, PIECE), min(PIECE, (WINDOW - 4096) / ratio)))
+            row = bisect_left(offs, s + step, row)
+            got = self._locate(ch, share, start, offs, lens, row) if row < len(offs) else None
+            e = offs[got[0]] if got is not None else min(end, s + PIECE)
+            if got is not None and e <= s:
+                got, e = None, min(end, s + PIECE)
+            if got is not None and where >= 0 and got[1] > where:
+                ratio = max(1.0, (got[1] - where) / (e - s))
+            s, where = min(e, end), -1
+        self.ratios[ch] = ratio
+        out = []
+        for k, (s, where) in enumerate(cuts):
+            e = cuts[k + 1][0] if k + 1 < len(cuts) else end
+            data = memoryview(share)[s - start : e - start]
+            span = 0
+            if where >= 0 and self.map is not None:
+                after = cuts[k + 1][1] if k + 1 < len(cuts) else -1
+                far = after + NEEDLE if after > where else where + int(ratio * len(data)) + 4096
+                span = min(far - where, WINDOW, len(self.map) - where)
+            if span > 0 and self.map is not None:
+                region = memoryview(self.map)[where : where + span]  # (not copied)
+                packer = zlib.compressobj(LEVEL, zlib.DEFLATED, -15, zdict=region)
+            else:
+                where, span = -1, 0
+                packer = zlib.compressobj(LEVEL, zlib.DEFLATED, -15)
+            out.append((len(data), where, span, packer.compress(data) + packer.flush()))
+        return out
+
+
+def _pack_block(
+    store: FrameStore,
+    a: int,
+    b: int,
+    pieces: list[list[int]],
+    parts: list[memoryview],
+    at: dict[int, int],
+    base: int,
+    bases: Mapping[int, int],
+    referrer: _Referrer,
+) -> list[bytes]:
+    """Rows `a`..`b` of the store as written: the block's table, its packed columns,
+    then its packed pieces of bytes. `parts` as `_block_parts` gives them (offsets and
+    partners numbered in the whole capture), `at`: where each channel's share starts in
+    the store's stream."""
+    n = b - a
+    col = {name: bytes(parts[k]) for k, name in enumerate(COLUMNS)}
+    packed = _pack_columns(col, n, base + a)
+    offset = memoryview(col["offset"]).cast("Q")
+    length = memoryview(col["length"]).cast("H")
+    channels = store.channel[a:b].tobytes()
+    present = set(channels)
+    table = []
+    crc = 0
+    packed_pieces: list[bytes] = []
+    offs: Sequence[int]
+    lens: Sequence[int]
+    for k, (ch, _size) in enumerate(pieces):
+        share = bytes(parts[len(COLUMNS) + k])
+        crc = zlib.crc32(share, crc)
+        if present == {ch}:
+            offs, lens = offset, length
+        else:
+            mask = channels.translate(marking((ch,)))
+            offs = array("Q", compress(offset, mask))
+            lens = array("H", compress(length, mask))
+        listed = referrer.pieces(ch, share, bases.get(ch, 0) + at[ch], offs, lens)
+        table.append(_COUNT.pack(len(listed)))
+        for size, where, span, data in listed:
+            table.append(_PIECE.pack(size, where, span, len(data)))
+            packed_pieces.append(data)
+    head = _BLOCK_HEAD.pack(crc, len(pieces)) + _SIZES.pack(*map(len, packed))
+    return [head + b"".join(table), *packed, *packed_pieces]
+
+
+def _pack_tail(values: array[float]) -> bytes:
+    """Latencies or request times: in byte planes, with zlib."""
+    return _pack(_planes(values.tobytes(), 8))
+
+
+def _unpack_tail(packed: bytes, count: int) -> array[float]:
+    out = array("d")
+    out.frombytes(_unplanes(_unpack(packed, 8 * count), 8))
+    return out
+
+
 # -------------------------------------------------------------------------- reading
 
 
@@ -658,6 +988,30 @@ def load(
     who = identity(path)
     if who is None:
         return None
+    try:
+        source = path.open("rb")  # (pieces of bytes are read from it)
+    except OSError:
+        return None
+    with source:
+        return _load(
+            state, capture, path, key, who, source.fileno(),
+            progress, should_stop, shown, segment, opened,
+        )  # fmt: skip
+
+
+def _load(
+    state: SessionState,
+    capture: Capture,
+    path: Path,
+    key: str,
+    who: dict[str, Any],
+    source: int,
+    progress: Progress | None,
+    should_stop: Callable[[], bool] | None,
+    shown: bool,
+    segment: Callable[[], None] | None,
+    opened: Callable[[Path, int, int, dict[str, Any]], None] | None,
+) -> Path | None:
     for candidate in sidecars(path):
         sweep(candidate.parent)  # what killed writers left (see the module doc)
         try:
@@ -673,10 +1027,10 @@ def load(
             if found is None:
                 continue
             header, counts = found
-            if opened is not None:
-                opened(candidate, handle.fileno(), handle.tell(), header)
+            if opened is not None:  # (with the capture's descriptor, valid during the call)
+                opened(candidate, handle.fileno(), handle.tell(), dict(header, capture_fd=source))
             filling = _Filling(
-                state, capture, header, handle, progress, shown, who["size"], segment
+                state, capture, header, handle, progress, shown, who["size"], segment, source
             )
             try:
                 if filling.run(should_stop):
@@ -686,7 +1040,7 @@ def load(
                         return candidate
                 if filling.stopped:
                     return candidate
-            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
+            except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError, zlib.error):
                 pass
             _refused.add(stamp)
             if filling.handed_out:
@@ -721,19 +1075,21 @@ def _header(
     for name in COLUMNS:
         if header["columns"].get(name) != getattr(model, name).typecode:
             return None
-    row_bytes = _row_bytes()
     body = 0
     rows = 0
-    for count, pieces, _crc in header["blocks"]:
+    for count, _pieces, _crc, length in header["blocks"]:
         rows += int(count)
-        body += int(count) * row_bytes + sum(int(size) for _ch, size in pieces)
+        body += int(length)
     if rows != int(header["rows"]) or any(int(s) < 0 for _ch, s in header["streams"]):
         return None
     counts = [
         int(u[name]) for u in header["stats"]["units"] for name in ("latencies", "request_times")
     ]
+    tail = [int(length) for length in header["tail"]]
+    if len(tail) != len(counts) or min(tail, default=0) < 0:
+        return None
     start = len(MAGIC) + _PREFIX.size + size
-    if start + body + 8 * sum(counts) != file_size:
+    if start + body + sum(tail) != file_size:
         return None  # cut short, or more than the header says
     return header, counts
 
@@ -751,8 +1107,11 @@ class _Filling:
         shown: bool,
         capture_size: int,
         segment: Callable[[], None] | None = None,
+        source: int = -1,
     ) -> None:
         self.state, self.capture, self.header, self.handle = state, capture, header, handle
+        self.source = source  # the capture, where the pieces of bytes refer to
+        self.first_row = 0  # the next block's first row in the capture
         self.progress, self.shown = progress, shown
         self.segment = segment
         self.notes: dict[int, str] = {}  # (with `segment`) those of rows still to come
@@ -762,7 +1121,6 @@ class _Filling:
         self.before = (store.stamps, store.resolution, store.fill_channel)
         self.streams_before = {ch: len(data) for ch, data in store.streams.items()}
         self.rows = int(header["rows"])
-        self.row_bytes = _row_bytes()
         self.file_size = os.fstat(handle.fileno()).st_size
         self.capture_size = capture_size
 
@@ -784,12 +1142,12 @@ class _Filling:
         reach = {ch: len(store.streams[ch]) for ch in streams}
         state = self.state
         blocks = header["blocks"]
-        for k, (count, pieces, crc) in enumerate(blocks):
+        for k, (count, pieces, crc, length) in enumerate(blocks):
             if k and self.segment is not None:  # the rows before go (see `load`)
                 self.segment()
                 _drop(state)
                 self.handed_out = True
-            if not self._block(int(count), pieces, int(crc), streams, reach):
+            if not self._block(int(count), pieces, int(crc), int(length), streams, reach):
                 return False
             if self.progress is not None:
                 done = self.capture_size * self.handle.tell() // max(1, self.file_size)
@@ -809,29 +1167,33 @@ class _Filling:
         count: int,
         pieces: list[list[int]],
         crc: int,
+        length: int,
         streams: dict[int, int],
         reach: dict[int, int],
     ) -> bool:
         store = self.state.store
-        size = count * self.row_bytes + sum(int(s) for _ch, s in pieces)
-        data = self.handle.read(size)
-        if len(data) != size or zlib.crc32(data) != crc:
+        data = self.handle.read(length)
+        if len(data) != length or zlib.crc32(data) != crc:
             return False  # damaged on the way
-        view = memoryview(data)
+        packed = Packed(data, count, self.first_row, len(pieces))
+        self.first_row += count
         columns: dict[str, memoryview] = {}  # checked where they are, then copied once
-        at = 0
         for name in COLUMNS:
-            col = getattr(store, name)
-            columns[name] = view[at : at + count * col.itemsize].cast(col.typecode)
-            at += count * col.itemsize
-        added: list[tuple[int, memoryview]] = []
-        for ch, piece in pieces:
+            columns[name] = memoryview(packed.column(name)).cast(getattr(store, name).typecode)
+        added: list[tuple[int, bytes]] = []
+        crc = 0
+        for k, (ch, piece) in enumerate(pieces):
             ch, piece = int(ch), int(piece)
             if ch not in streams or reach[ch] + piece > streams[ch]:
                 return False
-            added.append((ch, view[at : at + piece]))
+            share = packed.share(k, self.source)
+            if len(share) != piece:
+                return False
+            crc = zlib.crc32(share, crc)
+            added.append((ch, share))
             reach[ch] += piece
-            at += piece
+        if crc != packed.bytes_crc:
+            return False  # the capture's bytes are not those the sidecar was written from
         if count and not _consistent(columns, reach, self.rows):
             return False
         state = self.state
@@ -859,14 +1221,15 @@ class _Filling:
     def tail(self, counts: list[int]) -> list[array[float]] | None:
         """The per-unit latencies and request times, after the last block (None: damaged;
         last, not first: they grow with the capture, and the first rows should not wait)."""
-        tail = []
+        packed = []
         crc = 0
-        for count in counts:
-            col = array("d")
-            col.fromfile(self.handle, count) if count else None
-            crc = zlib.crc32(memoryview(col).cast("B"), crc)
-            tail.append(col)
-        return tail if crc == self.header["tail_crc32"] else None
+        for length in self.header["tail"]:
+            part = self.handle.read(int(length))
+            crc = zlib.crc32(part, crc)
+            packed.append(part)
+        if crc != self.header["tail_crc32"]:
+            return None
+        return [_unpack_tail(part, count) for part, count in zip(packed, counts, strict=True)]
 
     def finish(self, tail: list[array[float]]) -> None:
         """What needs every row: pairing's and the annotator's state, the statistics, the
@@ -946,6 +1309,21 @@ def _drop(state: SessionState) -> None:
     state.forget_annotation()
 
 
+def _ends(offset: Any, length: Any) -> memoryview:
+    """Each row's `offset + length` (offsets: 8-byte words, lengths: 2-byte words), added
+    as two integers of the whole column (lengths spread to 8-byte words first, by
+    bytes): a sum in C rather than a Python step a row. No word carries into the next
+    (an offset and a length never reach 2**64)."""
+    spread = bytearray(8 * len(length))
+    raw = memoryview(length).cast("B")
+    low = 0 if sys.byteorder == "little" else 6  # where a word's two low bytes are
+    spread[low::8] = raw[0::2]
+    spread[low + 1 :: 8] = raw[1::2]
+    total = int.from_bytes(memoryview(offset).cast("B"), sys.byteorder)
+    total += int.from_bytes(spread, sys.byteorder)
+    return memoryview(total.to_bytes(len(spread), sys.byteorder)).cast("Q")
+
+
 def _consistent(
     columns: Mapping[str, array[Any] | memoryview], streams: Mapping[int, int], n: int
 ) -> bool:
@@ -956,7 +1334,7 @@ def _consistent(
         return False
     offset, length, channel = columns["offset"], columns["length"], columns["channel"]
     if len(channels) == 1:
-        if max(map(operator.add, offset, length)) > streams[channel[0]]:
+        if max(_ends(offset, length)) > streams[channel[0]]:
             return False
     else:
         ends = map(operator.add, offset, length)

@@ -5,8 +5,9 @@ about 65 bytes each, 2 GB. The TUI's views scan only a few narrow columns over e
 row (kind, unit, function, flags, channel, partner, status: 13 bytes a row, 390 MB for
 the day); the rest (offsets, lengths, times, and the bytes themselves) they need only for
 the rows on screen or in the detail pane. So `PagedStore` keeps those narrow columns in
-memory and reads the others from the sidecar index (`sniffer.session.index`) a block at a time
-when a row is looked at, with a small cache of blocks.
+memory and reads the others from the sidecar index (`sniffer.session.index`) when a row
+is looked at: a block's column unpacked whole (a block's times are some 120 KB packed), a
+piece of its bytes (at most `index.PIECE`) from the capture, with a small cache.
 
 It fills as a windowed `Session.ingest` goes (a segment at a time, `take`): each
 segment's rows are in the sidecar being written by then; or, while a sidecar is read
@@ -24,7 +25,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import struct
 import threading
+import zlib
 from array import array
 from bisect import bisect_right
 from collections import OrderedDict
@@ -35,33 +38,24 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from sniffer.framing.pipeline import Pipeline
 from sniffer.framing.store import COLUMNS, FrameStore
 from sniffer.model import Stamp
-from sniffer.session.index import shifted_partners
+from sniffer.session.index import Packed, shifted_partners
 
 if TYPE_CHECKING:
     from sniffer.session.index import Writer
     from sniffer.session.session import Session
 
-_T = TypeVar("_T", bytes, "array[Any]")
+_T = TypeVar("_T", bytes, "array[Any]", Packed)
 
 # in memory for every row: what the filters, the transactions and problems views, the
 # ladder's pairing and the units pane scan
 HOT: tuple[str, ...] = ("kind", "unit", "fc", "flags", "channel", "partner", "status")
 # read from the sidecar for the rows looked at
 COLD: tuple[str, ...] = ("offset", "length", "t", "t_end")
-# what is read from the sidecar at a time: a page of a column (4096 rows: 32 KiB of
-# times) or of a block's bytes (64 KiB). Whole blocks (512 KiB of times, some 2 MB of
-# bytes) would have the screen that follows the newest rows of a day's indexing read a
-# quarter as much again as the capture itself.
-PAGE = 4096
-BYTES_PAGE = 1 << 16
 # bytes of pages kept
 CACHE_BYTES = 32 << 20
 
 _TYPECODES = {name: getattr(FrameStore(), name).typecode for name in COLUMNS}
 _SIZES = {name: array(code).itemsize for name, code in _TYPECODES.items()}
-_ROW_BYTES = sum(_SIZES.values())
-# where each column's values start in a block of `count` rows: count * _BEFORE[name]
-_BEFORE = {name: sum(_SIZES[n] for n in COLUMNS[: COLUMNS.index(name)]) for name in COLUMNS}
 
 
 def wanted(session: Session, live: bool, speed: float | None) -> bool:
@@ -75,7 +69,7 @@ class _Block:
     """Where one block's rows are: in a file (`fd`, `pos`) or in memory (`columns`, the
     cold columns, and `pieces`, each channel's bytes)."""
 
-    __slots__ = ("columns", "count", "fd", "kept", "pieces", "pos", "start")
+    __slots__ = ("columns", "count", "fd", "kept", "pieces", "pos", "size", "start")
 
     def __init__(
         self,
@@ -86,8 +80,9 @@ class _Block:
         pieces: list[tuple[int, int, int]],
         columns: dict[str, array[Any]] | None = None,
         kept: dict[int, bytes] | None = None,
+        size: int = 0,
     ) -> None:
-        self.start, self.count, self.fd, self.pos = start, count, fd, pos
+        self.start, self.count, self.fd, self.pos, self.size = start, count, fd, pos, size
         # (channel, its bytes' first offset in the whole capture, size)
         self.pieces = pieces
         self.columns = columns
@@ -191,6 +186,7 @@ class PagedStore(FrameStore):
         self._file: tuple[int, int, list[Any]] | None = None
         self._writer: Writer | None = None
         self._writer_fd = -1
+        self._source = -1  # the capture, which the sidecar's pieces of bytes refer to
         self._taken = 0  # blocks of either taken in
         self._next_pos = 0
         self._cache: OrderedDict[tuple[int, str | int, int], Any] = (
@@ -228,6 +224,8 @@ class PagedStore(FrameStore):
             raise ValueError("a paged store takes one sidecar, before any other rows")
         own = os.dup(fd)
         self._fds.append(own)
+        self._source = os.dup(int(header["capture_fd"]))
+        self._fds.append(self._source)
         self._file = (own, start, list(header["blocks"]))
         self._taken = 0
         self._next_pos = start
@@ -244,8 +242,8 @@ class PagedStore(FrameStore):
             return
         fd, _start, blocks = self._file
         while self._rows < rows and self._taken < len(blocks):
-            count, pieces, _crc = blocks[self._taken]
-            self._place(fd, int(count), [(int(ch), int(size)) for ch, size in pieces])
+            count, pieces, _crc, length = blocks[self._taken]
+            self._place(fd, int(count), [(int(ch), int(size)) for ch, size in pieces], int(length))
             self._taken += 1
 
     # -- filling: as a windowed ingest writes the sidecar ------------------------------------
@@ -274,15 +272,18 @@ class PagedStore(FrameStore):
             self._writer, self._taken = writer, 0
             self._writer_fd = os.open(writer.tmp, os.O_RDONLY)
             self._fds.append(self._writer_fd)
+            self._source = os.open(writer.path, os.O_RDONLY)
+            self._fds.append(self._source)
             self._next_pos = writer.first_block
         # the segment's columns as they are in memory now (not read back from the file)
         n = len(store)
         hot = self._hot_of(store, n, base)
         at = 0
-        for count, pieces, _crc in writer.blocks[self._taken :]:
+        for count, pieces, _crc, length in writer.blocks[self._taken :]:
             count = int(count)
             part = {name: values[at : at + count] for name, values in hot.items()}
-            self._place(self._writer_fd, count, [(int(c), int(z)) for c, z in pieces], part)
+            listed = [(int(c), int(z)) for c, z in pieces]
+            self._place(self._writer_fd, count, listed, int(length), part)
             self._taken += 1
             at += count
         if at != n:
@@ -327,20 +328,21 @@ class PagedStore(FrameStore):
         fd: int,
         count: int,
         pieces: list[tuple[int, int]],
+        length: int,
         hot: Mapping[str, Any] | None = None,
     ) -> None:
         """The next block of the file `fd`, `count` rows carrying `pieces` (channel,
-        bytes); its hot columns `hot`, or read from the file."""
+        bytes), `length` bytes packed; its hot columns `hot`, or read from the file."""
         pos = self._next_pos
         placed = []
         for ch, size in pieces:
             stream = self._stream(ch)
             placed.append((ch, stream.size, size))
-        block = _Block(self._rows, count, fd, pos, placed)
+        block = _Block(self._rows, count, fd, pos, placed, size=length)
         if hot is None:
-            hot = {name: self._read_column(block, name, 0, count) for name in HOT}
+            hot = {name: self._read_column(block, name) for name in HOT}
         self._add_hot(block, hot)
-        self._next_pos = pos + count * _ROW_BYTES + sum(size for _ch, size in pieces)
+        self._next_pos = pos + length
 
     def _add_hot(self, block: _Block, hot: Mapping[str, Any]) -> None:
         """Append a block's hot columns (partners numbered in the capture) and publish
@@ -374,28 +376,40 @@ class PagedStore(FrameStore):
 
     def column(self, block: _Block, name: str, row: int) -> tuple[array[Any], int]:
         """Values of a cold column around row `row` of `block` (counted from its first):
-        an array, and the row of the block its first value is (a page of `PAGE` rows
-        read from the file, or all of a block kept in memory)."""
+        an array, and the row of the block its first value is (all of the block's, read
+        from the file and unpacked, or kept in memory)."""
+        del row
         if block.columns is not None:
             return block.columns[name], 0
-        page = row // PAGE
-        first = page * PAGE
-        values = self._through_cache(
-            (id(block), name, page),
-            lambda: self._read_column(block, name, first, min(PAGE, block.count - first)),
-        )
-        return values, first
+        values = self._through_cache((id(block), name, 0), lambda: self._read_column(block, name))
+        return values, 0
 
     def piece(self, block: _Block, channel: int, at: int) -> tuple[bytes, int]:
         """Bytes of `channel` that `block` carries, around its `at`-th: the bytes, and
-        where they start among the block's (a page of `BYTES_PAGE`, or all of them)."""
+        where they start among the block's (one of its packed pieces, or all of them)."""
         if block.kept is not None:
             return block.kept.get(channel, b""), 0
-        page = at // BYTES_PAGE
+        k = next((j for j, (ch, _start, _size) in enumerate(block.pieces) if ch == channel), -1)
+        if k < 0:
+            return b"", 0
+        packed = self._packed(block)
+        firsts = [first for first, *_rest in packed.pieces[k]]
+        j = bisect_right(firsts, at) - 1
+        if j < 0:
+            return b"", 0
         data = self._through_cache(
-            (id(block), -1 - channel, page), lambda: self._read_piece(block, channel, page)
+            (id(block), -1 - channel, j), lambda: packed.piece(k, j, self._source)
         )
-        return data, page * BYTES_PAGE
+        return data, firsts[j]
+
+    def _packed(self, block: _Block) -> Packed:
+        """The block as in the file, its table read (kept in the cache, packed)."""
+        return self._through_cache(
+            (id(block), "", 0),
+            lambda: Packed(
+                _pread(block.fd, block.size, block.pos), block.count, block.start, len(block.pieces)
+            ),
+        )
 
     def _through_cache(self, whose: tuple[int, str | int, int], read: Callable[[], _T]) -> _T:
         with self._lock:
@@ -414,25 +428,15 @@ class PagedStore(FrameStore):
                     self._cached -= len(old) * getattr(old, "itemsize", 1)
         return value
 
-    def _read_column(self, block: _Block, name: str, first: int, count: int) -> array[Any]:
-        """Rows `first`.. (`count` of them) of `block`'s column `name`."""
-        size = _SIZES[name]
-        at = block.pos + block.count * _BEFORE[name] + first * size
-        data = _pread(block.fd, count * size, at)
+    def _read_column(self, block: _Block, name: str) -> array[Any]:
+        """`block`'s column `name`, unpacked (zeros for a file cut short under us: not a
+        crash)."""
         values = array(_TYPECODES[name])
-        values.frombytes(data[: len(data) - len(data) % size])
-        if len(values) < count:  # the file was cut short under us: zeros, not a crash
-            values.frombytes(bytes(size * (count - len(values))))
+        try:
+            values.frombytes(self._packed(block).column(name))
+        except (ValueError, zlib.error, struct.error):
+            values.frombytes(bytes(_SIZES[name] * block.count))
         return values
-
-    def _read_piece(self, block: _Block, channel: int, page: int) -> bytes:
-        at = block.pos + block.count * _ROW_BYTES
-        for ch, _start, size in block.pieces:
-            if ch == channel:
-                first = page * BYTES_PAGE
-                return _pread(block.fd, min(BYTES_PAGE, size - first), at + first)
-            at += size
-        return b""
 
     @property
     def bytes_total(self) -> int:

@@ -2,17 +2,24 @@
 bytes flipped, set, inserted or deleted anywhere (header, a later block, the tail), the
 file cut short or grown. `replay --format jsonl` must list every row, the same rows and
 the same exit status as with no sidecar at all, whatever the sidecar holds.
+
+The sidecar's bytes are packed against the capture (format 3): the capture's own bytes
+changed under a good sidecar, its size, time and head kept (so that the sidecar still
+seems to fit), must list either the rows the sidecar was written from or, where a
+block's bytes no longer check, the changed capture's own rows, never a mix of both.
 """
 
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Iterator
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import pytest
 from hypothesis import example, given
+from hypothesis import strategies as st
 
 from sniffer.cli import main
 from sniffer.session import index
@@ -116,5 +123,67 @@ def test_damaged_sidecars_list_every_row_as_without_one(bench: Bench) -> None:
     @example(_later_block_flip(bench.good))
     def run(damaged: bytes) -> None:
         _check(bench, damaged)
+
+    run()
+
+
+class Loose(Bench):
+    """A bench whose sidecar trusts all but the capture's first 256 bytes (`HEAD`), so
+    that changes to the capture's bytes reach the sidecar's reading."""
+
+    def __init__(self, folder: Path) -> None:
+        super().__init__(folder)
+        self.bytes = self.capture.read_bytes()
+        self.stat = self.capture.stat()
+
+
+@pytest.fixture(scope="module")
+def loose(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Loose]:
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(index, "MIN_SIZE", 0)
+        mp.setattr(index, "BLOCK", BLOCK)
+        mp.setattr(index, "HEAD", 256)
+        folder = tmp_path_factory.mktemp("loose")
+        mp.setenv("XDG_CACHE_HOME", str(folder / "cache"))
+        mp.delenv("MODSCOPE_NO_INDEX", raising=False)
+        yield Loose(folder)
+
+
+def _changed(bench: Loose, changes: list[tuple[int, int]]) -> tuple[int, str]:
+    """The capture with bytes past its head changed, its size and time kept, beside its
+    good sidecar: listed with the sidecar (what `replay` says), then restored."""
+    data = bytearray(bench.bytes)
+    for at, mask in changes:
+        data[256 + at % (len(data) - 256)] ^= mask
+    try:
+        bench.capture.write_bytes(bytes(data))
+        os.utime(bench.capture, ns=(bench.stat.st_atime_ns, bench.stat.st_mtime_ns))
+        bench.sidecar.write_bytes(bench.good)
+        listed = _replay(bench.capture)
+        os.environ["MODSCOPE_NO_INDEX"] = "1"
+        try:
+            own = _replay(bench.capture)
+        finally:
+            del os.environ["MODSCOPE_NO_INDEX"]
+    finally:
+        bench.capture.write_bytes(bench.bytes)
+        os.utime(bench.capture, ns=(bench.stat.st_atime_ns, bench.stat.st_mtime_ns))
+        bench.sidecar.write_bytes(bench.good)
+    assert listed in (bench.plain, own)
+    return listed
+
+
+def test_a_capture_changed_under_its_sidecar_lists_its_rows_or_the_sidecars(
+    loose: Loose,
+) -> None:
+    # every byte of the bus from the middle on: the sidecar's regions changed
+    middle = (len(loose.bytes) - 256) // 2
+    changes = [(middle + k, 0x55) for k in range(len(loose.bytes) // 4)]
+    assert _changed(loose, changes) != loose.plain  # (the changed capture's own rows)
+
+    @budget(40)
+    @given(st.lists(st.tuples(st.integers(0, 1 << 20), st.integers(1, 255)), min_size=1))
+    def run(changes: list[tuple[int, int]]) -> None:
+        _changed(loose, changes)
 
     run()

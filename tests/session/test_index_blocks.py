@@ -26,8 +26,8 @@ def _block_start(side: Path, k: int) -> int:
     start = len(index.MAGIC) + index._PREFIX.size
     header = json.loads(data[start : start + size])
     at = start + size
-    for count, pieces, _ in header["blocks"][:k]:
-        at += int(count) * index._row_bytes() + sum(int(s) for _ch, s in pieces)
+    for _count, _pieces, _crc, length in header["blocks"][:k]:
+        at += int(length)
     return at
 
 

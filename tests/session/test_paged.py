@@ -292,8 +292,7 @@ def test_pages_smaller_than_a_block_read_the_same_rows_and_bytes(
     block or a slice give the same values."""
     import sniffer.session.paged as paged_module
 
-    monkeypatch.setattr(paged_module, "PAGE", 7)
-    monkeypatch.setattr(paged_module, "BYTES_PAGE", 13)
+    monkeypatch.setattr(index, "PIECE", 13)  # bytes packed in pieces of 13
     monkeypatch.setattr(paged_module, "CACHE_BYTES", 200)  # pages come and go
     full = whole(demo)
     for _pass in ("written", "read back"):

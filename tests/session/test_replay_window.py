@@ -324,8 +324,8 @@ def test_a_sidecar_damaged_after_blocks_were_counted_is_indexed_again(
     assert isinstance(blocks, list) and len(blocks) > 4
     start = len(index.MAGIC) + index._PREFIX.size
     at = start + index._PREFIX.unpack_from(data, len(index.MAGIC))[0]
-    for count, pieces, _ in blocks[: len(blocks) // 2]:
-        at += int(count) * index._row_bytes() + sum(int(s) for _ch, s in pieces)
+    for _count, _pieces, _crc, length in blocks[: len(blocks) // 2]:
+        at += int(length)
     data[at + 10] ^= 0xFF  # a block halfway: the blocks before it were counted
     side.write_bytes(bytes(data))
     assert replayed([str(path)], 5) == whole  # counted again from the capture
