@@ -7,6 +7,7 @@ numbered Write Register requests to; the files are read back as `modscope replay
 
 from __future__ import annotations
 
+import asyncio
 import os
 import threading
 import time
@@ -100,9 +101,13 @@ async def test_r_and_q_ask_first_and_a_new_file_begins_before_the_old_one_ends(
                 burst(app, ["r", "n"])
                 await wait_until(pilot, lambda: app.main.prompt.open)
                 app.main.prompt.input.value = ""
+                # typed as a terminal delivers a person's keys, 10 ms apart: `Pilot.press`
+                # also waits for the screen's animations, which live traffic keeps
+                # starting (about 1 s a key at 125 frames/s, 100 s for this name)
                 for char in str(second):
-                    await pilot.press(char)
-                    await pilot.pause(0.01)
+                    burst(app, [char])
+                    await asyncio.sleep(0.01)
+                await wait_until(pilot, lambda: app.main.prompt.input.value == str(second))
                 typed_at = master.sent
                 await pilot.press("enter")
                 await wait_until(pilot, lambda: live.recorder is not recording)
