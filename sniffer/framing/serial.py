@@ -543,7 +543,8 @@ class RtuFramer(_Framer):
         `end`, or over the reads of the batch from read `k` on (`prev`: the end of read
         k - 1 in the batch), adding each to the timeline. What they found goes into the
         store, the pairs and the framer's and timeline's state, as the loop in
-        `_scan_bytes` would have left them. Returns whether the slow path must decide at
+        `_scan_bytes` would have left them, the noise span it may leave under way
+        (`self.noise_start`) among them. Returns whether the slow path must decide at
         `self.pos`, the next read, the end of the last read added, and the scan's end."""
         tl = self.timeline
         out = self.out
@@ -585,6 +586,9 @@ class RtuFramer(_Framer):
             first_too_fast,
             spans,
             boundaries,
+            self.noise_start,
+            noise_rows,
+            unit0,
         ) = fast.rtu_scan(
             buf,
             self.lengths.table_bytes,
@@ -620,6 +624,9 @@ class RtuFramer(_Framer):
             held.end,
             held.t_start,
             held.t_end,
+            self.lengths.rule_bytes,
+            True,  # the search where the fast paths cannot decide, and noise, too
+            tl.boundaries[-1] if tl.boundaries else -1,
         )
         self.pos = pos
         self.scan_end = end
@@ -629,6 +636,11 @@ class RtuFramer(_Framer):
             tl.spans.extend([_Span(*span) for span in spans])
             tl.starts.extend([span[0] for span in spans])
             tl.boundaries.extend(boundaries)
+        keep0 = True
+        if noise_rows:
+            # its noise rows (unit 0 in the column) leave the units seen as _emit_noise does
+            self.flush()
+            keep0 = unit0 or 0 in self.units_seen
         if offsets:
             out.offset.frombytes(offsets)
             out.length.frombytes(lengths)
@@ -639,8 +651,11 @@ class RtuFramer(_Framer):
             out.fc.frombytes(codes)
         if pairs:
             self.pairs.frombytes(pairs)
+        if not keep0:
+            self.flush()
+            self.units_seen.discard(0)
         if reads is not None and len(tl.spans) > 64:
-            tl.forget_before(self.pos)
+            tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
         return slow, k, prev, end
 
     def flush(self) -> None:
