@@ -552,24 +552,43 @@ static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
 enum { SEARCH_NONE, SEARCH_FOUND, SEARCH_WAIT, SEARCH_UNSURE };
 
 /* the timeline as rtu_scan knows it: its reads (see span_at) and the silences before
- * them (_Timeline.boundaries: the last one it was given, then its own reads' gaps) */
+ * them (_Timeline.boundaries as it was given, a sorted list of ints, then its own reads'
+ * gaps, all of them after those) */
 typedef struct {
     const Span *entry, *spans;
-    Py_ssize_t n_spans, last_boundary;
+    Py_ssize_t n_spans;
+    PyObject *bounds;
     double t35;
 } Times;
 
-/* _Timeline.is_boundary: 1 or 0; -1 before the last boundary given (not known here) */
+/* the index of the first boundary given after pos (`after`), or at or after it */
+static Py_ssize_t times_bisect(PyObject *bounds, Py_ssize_t pos, int after) {
+    Py_ssize_t lo = 0, hi = PyList_GET_SIZE(bounds);
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        Py_ssize_t b = PyLong_AsSsize_t(PyList_GET_ITEM(bounds, mid));
+        if (after ? b <= pos : b < pos)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* _Timeline.is_boundary */
 static int times_boundary(const Times *tm, Py_ssize_t pos) {
-    if (pos < tm->last_boundary) return -1;
-    if (pos == tm->last_boundary) return 1;
+    Py_ssize_t i = times_bisect(tm->bounds, pos, 0);
+    if (i < PyList_GET_SIZE(tm->bounds))
+        return PyLong_AsSsize_t(PyList_GET_ITEM(tm->bounds, i)) == pos;
     for (Py_ssize_t j = tm->n_spans - 1; j >= 0 && tm->spans[j].start >= pos; j--)
         if (tm->spans[j].start == pos && tm->spans[j].gap >= tm->t35) return 1;
     return 0;
 }
 
-/* _Timeline.next_boundary, for pos at or after the last boundary given: -1 for None */
+/* _Timeline.next_boundary: -1 for None */
 static Py_ssize_t times_next_boundary(const Times *tm, Py_ssize_t pos) {
+    Py_ssize_t i = times_bisect(tm->bounds, pos, 1);
+    if (i < PyList_GET_SIZE(tm->bounds)) return PyLong_AsSsize_t(PyList_GET_ITEM(tm->bounds, i));
     Py_ssize_t next = -1;
     for (Py_ssize_t j = tm->n_spans - 1; j >= 0 && tm->spans[j].start > pos; j--)
         if (tm->spans[j].gap >= tm->t35) next = tm->spans[j].start;
@@ -662,9 +681,7 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
     }
     if (waiting) return SEARCH_WAIT;
     /* RtuLengths.silence_framed */
-    int b = times_boundary(tm, pos);
-    if (b < 0) return SEARCH_UNSURE;
-    if (b == 0) return SEARCH_NONE;
+    if (!times_boundary(tm, pos)) return SEARCH_NONE;
     Py_ssize_t next = times_next_boundary(tm, pos);
     if (next < 0) return end - pos <= MAX_RTU ? SEARCH_WAIT : SEARCH_NONE;
     Py_ssize_t length = next - pos;
@@ -676,7 +693,8 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
 /* rtu_scan(buf, tables, pos, end, final, batch, pu, pf, pl, pdl, pr, row, timeout,
  *          cur_start, cur_t0, cur_rate, offset, last_end, slack, char_time, t35,
  *          too_fast, first_too_fast, ends, t_starts, t_ends, k, prev, base, split,
- *          held_start, held_end, held_t0, held_t1, rules, noise, last_boundary)
+ *          held_start, held_end, held_t0, held_t1, rules, noise, boundaries,
+ *          noise_start)
  * See RtuFramer._fast_scan, which calls it and applies what it returns. NaN stands for
  * None in last_end, first_too_fast and t_starts.
  *
@@ -690,9 +708,9 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
  * request as _emit_frame does. Anywhere else it stops for the slow path as before.
  *
  * With `noise` (and `split`, and not `final`), where the fast paths cannot decide, the
- * slow path's search is made here too (rtu_search, given `rules` and the last of the
- * timeline's boundaries): bytes it finds no frame at are noise (a span under way is
- * returned as noise_start, which the framer keeps), and the frame found after them is
+ * slow path's search is made here too (rtu_search, given `rules` and the timeline's
+ * boundaries, a list it only reads): bytes it finds no frame at are noise (a span under way is
+ * returned as noise_start, which the framer keeps and gives back), and the frame found after them is
  * framed as _emit_noise and _emit_frame frame them: the noise row (kind, unit and code
  * 0, no flags, while it is shorter than a frame: a longer one needs the units seen) and
  * the frame's row timed by the spans (_Timeline.start_time, end_time), unpaired, setting
@@ -701,21 +719,23 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
 static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     Py_buffer view, tview, eview, sview, teview;
     Py_ssize_t pos, end, pu, pf, pl, pr, row, cur_start, offset, too_fast, k, prev, base;
+    Py_ssize_t noise_start; /* where the noise span under way began (-1: none) */
     int final, batch, split;
-    Py_ssize_t held_start, held_end, last_boundary;
+    Py_ssize_t held_start, held_end;
+    PyObject *old_bounds;
     int noise;
     Py_buffer rview;
     double held_t0, held_t1;
     double pdl, timeout, cur_t0, cur_rate, last_end, slack, char_time, t35, first_too_fast;
-    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnnddy*pn", &view, &tview,
+    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnnddy*pO!n", &view, &tview,
                           &pos, &end, &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout,
                           &cur_start, &cur_t0, &cur_rate, &offset, &last_end, &slack, &char_time,
                           &t35, &too_fast, &first_too_fast, &eview, &sview, &teview, &k, &prev,
                           &base, &split, &held_start, &held_end, &held_t0, &held_t1, &rview,
-                          &noise, &last_boundary))
+                          &noise, &PyList_Type, &old_bounds, &noise_start))
         return NULL;
     const int64_t *rules = (const int64_t *)rview.buf;
-    Py_ssize_t noise_start = -1, noise_rows = 0; /* the noise span under way; rows of noise */
+    Py_ssize_t noise_rows = 0;
     const unsigned char *buf = (const unsigned char *)view.buf;
     const int64_t *tab = (const int64_t *)tview.buf;
     const int64_t *request_base = tab, *request_count = tab + 256, *answer_pos = tab + 512,
@@ -977,7 +997,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                 goto stopped;
             }
             {
-                Times tm = {entry, spans, n_spans, last_boundary, t35};
+                Times tm = {entry, spans, n_spans, old_bounds, t35};
                 Py_ssize_t found = 0;
                 int fkind = 0;
                 int got = rtu_search(buf, pos, end, rules, answer_pos, pu, pf, pl, pdl, &tm,

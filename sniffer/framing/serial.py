@@ -354,22 +354,25 @@ class RtuFramer(_Framer):
         count = len(reads.ends) if reads is not None else 0
         fast = core.FAST
         k = prev = 0
+        slow = True  # whether the loop below has anything to decide
         while True:  # once, or once a read of the batch
             if (
                 fast is not None
-                and self.noise_start < 0
                 and not exact
                 and (reads is not None or end - self.pos >= FAST_MIN_BYTES)
             ):
-                # the compiled copy of the fast paths below (and, over a batch, of
-                # add_read): it stops where the slow path must decide, and this loop goes
+                # the compiled copy of the fast paths below, of the search where they
+                # cannot decide (noise among what it finds) and, over a batch, of
+                # add_read: it stops where the slow path must decide, and this loop goes
                 # on from there in the current read
                 if reads is not None and k == count:
                     break
                 slow, k, prev, end = self._fast_scan(fast, buf, final, end, reads, k, prev, base)
                 if not slow and reads is not None:
                     break  # every read is done
-                # (done without a batch: the loop below finds nothing more to do)
+                # (done without a batch: the loop below has nothing more to decide, as
+                # the compiled scan stopped only where it would stop too, and is skipped:
+                # it would make the same search again)
             elif reads is not None:
                 if k == count:
                     break
@@ -393,7 +396,7 @@ class RtuFramer(_Framer):
             # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this
             # time they are the master's retry, not the answer (inf for every other code)
             pdl = self.pending_deadline
-            while end - pos >= MIN_RTU:
+            while slow and end - pos >= MIN_RTU:
                 unit = buf[pos]
                 fc = buf[pos + 1]
                 if unit == pu and fc == pf and pdl != INF:
@@ -550,9 +553,10 @@ class RtuFramer(_Framer):
         out = self.out
         last_end = tl.last_end
         first_too_fast = tl.first_too_fast
-        # the read holding the first undecided byte, when older than the newest read: a
-        # frame begun there is timed by it (see rtu_scan)
-        held = tl._span(self.pos) if tl.spans and self.pos < tl.cur_start else _NO_SPAN
+        # the read holding the first undecided byte (noise under way, if any), when older
+        # than the newest read: a frame or noise begun there is timed by it (see rtu_scan)
+        first = self.noise_start if self.noise_start >= 0 else self.pos
+        held = tl._span(first) if tl.spans and first < tl.cur_start else _NO_SPAN
         if reads is not None:
             ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
         else:
@@ -626,7 +630,8 @@ class RtuFramer(_Framer):
             held.t_end,
             self.lengths.rule_bytes,
             True,  # the search where the fast paths cannot decide, and noise, too
-            tl.boundaries[-1] if tl.boundaries else -1,
+            tl.boundaries,
+            self.noise_start,
         )
         self.pos = pos
         self.scan_end = end
