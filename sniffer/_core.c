@@ -543,10 +543,158 @@ static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
     return q;
 }
 
+/* What the slow path's search finds at pos (RtuLengths.candidates, then, when it finds
+ * nothing and waits for nothing, RtuLengths.silence_framed), never at the end of the
+ * bytes (final): a frame (its length and kind), nothing (the byte is noise), a wait for
+ * more bytes, or "unsure" where the compiled copy does not know all Python knows (a
+ * length rule with a walker, a read older than those it was given, a frame only silence
+ * frames): the slow path decides those. */
+enum { SEARCH_NONE, SEARCH_FOUND, SEARCH_WAIT, SEARCH_UNSURE };
+
+/* the timeline as rtu_scan knows it: its reads (see span_at) and the silences before
+ * them (_Timeline.boundaries as it was given, a sorted list of ints, then its own reads'
+ * gaps, all of them after those) */
+typedef struct {
+    const Span *entry, *spans;
+    Py_ssize_t n_spans;
+    PyObject *bounds;
+    double t35;
+} Times;
+
+/* the index of the first boundary given after pos (`after`), or at or after it */
+static Py_ssize_t times_bisect(PyObject *bounds, Py_ssize_t pos, int after) {
+    Py_ssize_t lo = 0, hi = PyList_GET_SIZE(bounds);
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        Py_ssize_t b = PyLong_AsSsize_t(PyList_GET_ITEM(bounds, mid));
+        if (after ? b <= pos : b < pos)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* _Timeline.is_boundary */
+static int times_boundary(const Times *tm, Py_ssize_t pos) {
+    Py_ssize_t i = times_bisect(tm->bounds, pos, 0);
+    if (i < PyList_GET_SIZE(tm->bounds))
+        return PyLong_AsSsize_t(PyList_GET_ITEM(tm->bounds, i)) == pos;
+    for (Py_ssize_t j = tm->n_spans - 1; j >= 0 && tm->spans[j].start >= pos; j--)
+        if (tm->spans[j].start == pos && tm->spans[j].gap >= tm->t35) return 1;
+    return 0;
+}
+
+/* _Timeline.next_boundary: -1 for None */
+static Py_ssize_t times_next_boundary(const Times *tm, Py_ssize_t pos) {
+    Py_ssize_t i = times_bisect(tm->bounds, pos, 1);
+    if (i < PyList_GET_SIZE(tm->bounds)) return PyLong_AsSsize_t(PyList_GET_ITEM(tm->bounds, i));
+    Py_ssize_t next = -1;
+    for (Py_ssize_t j = tm->n_spans - 1; j >= 0 && tm->spans[j].start > pos; j--)
+        if (tm->spans[j].gap >= tm->t35) next = tm->spans[j].start;
+    return next;
+}
+
+static int any_nonzero(const unsigned char *p, Py_ssize_t n) {
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (p[i]) return 1;
+    return 0;
+}
+
+/* `rules`: RtuLengths.rule_bytes, the length rules of each code (compile_rules), two
+ * slots of (kind, base, count_pos, count_size) int64; kind 0: no rule, -1: a rule this
+ * copy cannot follow (a walker). */
+static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
+                      const int64_t *rules, const int64_t *answer_pos, Py_ssize_t pu,
+                      Py_ssize_t pf, Py_ssize_t pl, double pdl, const Times *tm,
+                      Py_ssize_t *found, int *kind) {
+    int unit = buf[pos], fc = buf[pos + 1];
+    Py_ssize_t len[3];
+    int prio[3], knd[3], n = 0, waiting = 0;
+    if (unit == pu && (fc & 0x7F) == pf) { /* the answer the open request predicts */
+        int live = 1;
+        if (!(fc & EXCEPTION_BIT) && pdl != Py_HUGE_VAL) { /* RtuLengths._expired */
+            const Span *s = span_at(tm->entry, tm->spans, tm->n_spans, pos);
+            if (s == NULL) return SEARCH_UNSURE;
+            live = !(span_start(s, pos) > pdl);
+        }
+        if (live) {
+            if (fc & EXCEPTION_BIT) {
+                len[n] = EXCEPTION_LENGTH, prio[n] = 0, knd[n++] = K_EXCEPTION;
+            } else {
+                int agrees = answer_pos[fc] < 0 || buf[pos + 2] == pl - 5;
+                len[n] = pl, prio[n] = agrees ? 0 : 3, knd[n++] = K_RESPONSE;
+            }
+        }
+    }
+    for (int r = 0; r < 2; r++) {
+        const int64_t *rule = rules + ((Py_ssize_t)fc * 2 + r) * 4;
+        if (rule[0] == 0) continue;
+        if (rule[0] < 0) return SEARCH_UNSURE;
+        Py_ssize_t length = (Py_ssize_t)rule[1];
+        if (rule[3]) {
+            Py_ssize_t cp = pos + (Py_ssize_t)rule[2];
+            if (cp + rule[3] > end) { /* NEED_MORE */
+                waiting = 1;
+                continue;
+            }
+            length += rule[3] == 1 ? buf[cp] : (buf[cp] << 8 | buf[cp + 1]);
+        }
+        if (length >= MIN_RTU && length <= MAX_RTU) {
+            len[n] = length;
+            prio[n] = rule[0] == K_REQUEST ? 1 : 2; /* lengths.PREFERENCE */
+            knd[n++] = (int)rule[0];
+        }
+    }
+    /* sorted as Python sorts the tuples (length, preference, kind) */
+    for (int i = 1; i < n; i++)
+        for (int j = i; j > 0; j--) {
+            int after = len[j - 1] != len[j]     ? len[j - 1] > len[j]
+                        : prio[j - 1] != prio[j] ? prio[j - 1] > prio[j]
+                                                 : knd[j - 1] > knd[j];
+            if (!after) break;
+            Py_ssize_t tl = len[j];
+            int tp = prio[j], tk = knd[j];
+            len[j] = len[j - 1], prio[j] = prio[j - 1], knd[j] = knd[j - 1];
+            len[j - 1] = tl, prio[j - 1] = tp, knd[j - 1] = tk;
+        }
+    for (int i = 0; i < n; i++) {
+        if (pos + len[i] > end) return SEARCH_WAIT;
+        if (crc16_4(buf + pos, len[i]) != 0) continue;
+        Py_ssize_t length = len[i], best_len = len[i];
+        int best_prio = prio[i], best_kind = knd[i];
+        if (prio[i])
+            for (int j = i + 1; j < n; j++) { /* lengths._zero_trap */
+                if (prio[j] >= best_prio || len[j] == length) continue;
+                if (pos + len[j] > end) {
+                    if (pos + length < end && any_nonzero(buf + pos + length, end - pos - length))
+                        continue;
+                    return SEARCH_WAIT;
+                }
+                if (!any_nonzero(buf + pos + length, len[j] - length) &&
+                    crc16_4(buf + pos, len[j]) == 0)
+                    best_len = len[j], best_prio = prio[j], best_kind = knd[j];
+            }
+        *found = best_len;
+        *kind = best_kind;
+        return SEARCH_FOUND;
+    }
+    if (waiting) return SEARCH_WAIT;
+    /* RtuLengths.silence_framed */
+    if (!times_boundary(tm, pos)) return SEARCH_NONE;
+    Py_ssize_t next = times_next_boundary(tm, pos);
+    if (next < 0) return end - pos <= MAX_RTU ? SEARCH_WAIT : SEARCH_NONE;
+    Py_ssize_t length = next - pos;
+    if (length >= MIN_RTU && length <= MAX_RTU && crc16_4(buf + pos, length) == 0)
+        return SEARCH_UNSURE; /* a frame silence frames: the slow path's */
+    return SEARCH_NONE;
+}
+
 /* rtu_scan(buf, tables, pos, end, final, batch, pu, pf, pl, pdl, pr, row, timeout,
  *          cur_start, cur_t0, cur_rate, offset, last_end, slack, char_time, t35,
  *          too_fast, first_too_fast, ends, t_starts, t_ends, k, prev, base, split,
- *          held_start, held_end, held_t0, held_t1)
+ *          held_start, held_end, held_t0, held_t1, rules, noise, boundaries,
+ *          noise_start)
  * See RtuFramer._fast_scan, which calls it and applies what it returns. NaN stands for
  * None in last_end, first_too_fast and t_starts.
  *
@@ -557,20 +705,37 @@ static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
  * call adds, the newest read before it, and `held`, the read holding pos when the call
  * began, if older; a frame begun in any other read goes the slow way), left unpaired
  * (RtuFramer._emit_frame leaves slow-path rows to the Pairer) and setting the open
- * request as _emit_frame does. Anywhere else it stops for the slow path as before. */
+ * request as _emit_frame does. Anywhere else it stops for the slow path as before.
+ *
+ * With `noise` (and `split`, and not `final`), where the fast paths cannot decide, the
+ * slow path's search is made here too (rtu_search, given `rules` and the timeline's
+ * boundaries, a list it only reads): bytes it finds no frame at are noise (a span under way is
+ * returned as noise_start, which the framer keeps and gives back), and the frame found after them is
+ * framed as _emit_noise and _emit_frame frame them: the noise row (kind, unit and code
+ * 0, no flags, while it is shorter than a frame: a longer one needs the units seen) and
+ * the frame's row timed by the spans (_Timeline.start_time, end_time), unpaired, setting
+ * the open request. Where the search is unsure it stops for the slow path, the noise
+ * under way handed back. */
 static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     Py_buffer view, tview, eview, sview, teview;
     Py_ssize_t pos, end, pu, pf, pl, pr, row, cur_start, offset, too_fast, k, prev, base;
+    Py_ssize_t noise_start; /* where the noise span under way began (-1: none) */
     int final, batch, split;
     Py_ssize_t held_start, held_end;
+    PyObject *old_bounds;
+    int noise;
+    Py_buffer rview;
     double held_t0, held_t1;
     double pdl, timeout, cur_t0, cur_rate, last_end, slack, char_time, t35, first_too_fast;
-    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnndd", &view, &tview, &pos,
-                          &end, &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout,
+    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnnddy*pO!n", &view, &tview,
+                          &pos, &end, &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout,
                           &cur_start, &cur_t0, &cur_rate, &offset, &last_end, &slack, &char_time,
                           &t35, &too_fast, &first_too_fast, &eview, &sview, &teview, &k, &prev,
-                          &base, &split, &held_start, &held_end, &held_t0, &held_t1))
+                          &base, &split, &held_start, &held_end, &held_t0, &held_t1, &rview,
+                          &noise, &PyList_Type, &old_bounds, &noise_start))
         return NULL;
+    const int64_t *rules = (const int64_t *)rview.buf;
+    Py_ssize_t noise_rows = 0;
     const unsigned char *buf = (const unsigned char *)view.buf;
     const int64_t *tab = (const int64_t *)tview.buf;
     const int64_t *request_base = tab, *request_count = tab + 256, *answer_pos = tab + 512,
@@ -588,8 +753,8 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     int slow = 0;
     const double INF = Py_HUGE_VAL;
 
-    if (tview.len != 7 * 256 * 8) {
-        PyErr_SetString(PyExc_ValueError, "tables must be 7 x 256 int64");
+    if (tview.len != 7 * 256 * 8 || rview.len != 256 * 2 * 4 * 8) {
+        PyErr_SetString(PyExc_ValueError, "tables must be 7 x 256 int64, rules 256 x 8 int64");
         goto done;
     }
     if (batch && count > k) {
@@ -654,6 +819,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
         }
         while (end - pos >= MIN_RTU) {
             int unit = buf[pos], fc = buf[pos + 1];
+            int inl = noise_start < 0; /* rows framed inline (no noise under way) */
             if (unit == pu && fc == pf && pdl != INF) {
                 double t0;
                 if (pos >= cur_start) {
@@ -674,7 +840,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                 stop = pos + length;
                 if (stop > end) {
                     if (!final) break;
-                } else if (pos >= cur_start &&
+                } else if (inl && pos >= cur_start &&
                            (fc != pf || answer_pos[pf] < 0 || buf[pos + 2] == pl - 5) &&
                            crc16_4(buf + pos, length) == 0) {
                     double t0 = cur_t0 + (double)(pos - cur_start) * cur_rate;
@@ -696,7 +862,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     row += 1;
                     pos = stop;
                     continue;
-                } else if (split && !final && pos < cur_start &&
+                } else if (inl && split && !final && pos < cur_start &&
                            (fc != pf || answer_pos[pf] < 0 || buf[pos + 2] == pl - 5) &&
                            crc_only_at(buf + pos, length)) {
                     /* the answer, begun in an earlier read: as _emit_frame takes it */
@@ -721,7 +887,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     pos = stop;
                     continue;
                 }
-            } else { /* fast path 2 */
+            } else if (inl) { /* fast path 2 */
                 length = request_base[fc];
                 if (length) {
                     Py_ssize_t cpos = request_count[fc];
@@ -826,17 +992,112 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     }
                 }
             }
-            slow = 1; /* the slow path decides at pos */
-            goto stopped;
+            if (!noise || !split || final) {
+                slow = 1; /* the slow path decides at pos */
+                goto stopped;
+            }
+            {
+                Times tm = {entry, spans, n_spans, old_bounds, t35};
+                Py_ssize_t found = 0;
+                int fkind = 0;
+                int got = rtu_search(buf, pos, end, rules, answer_pos, pu, pf, pl, pdl, &tm,
+                                     &found, &fkind);
+                if (got == SEARCH_WAIT) break;
+                if (got == SEARCH_NONE) { /* noise: the search goes on at the next byte */
+                    if (noise_start < 0) noise_start = pos;
+                    pos += 1;
+                    continue;
+                }
+                /* the frame found, after the noise if any (_emit_noise, _emit_frame) */
+                const Span *n0 = NULL, *n1 = NULL, *s0 = NULL, *s1 = NULL;
+                if (got == SEARCH_FOUND) {
+                    s0 = span_at(entry, spans, n_spans, pos);
+                    s1 = span_at(entry, spans, n_spans, pos + found - 1);
+                    if (noise_start >= 0) {
+                        n0 = span_at(entry, spans, n_spans, noise_start);
+                        n1 = span_at(entry, spans, n_spans, pos - 1);
+                    }
+                }
+                Py_ssize_t fc7 = fc & 0x7F, ap = answer_pos[fc7];
+                if (got != SEARCH_FOUND || s0 == NULL || s1 == NULL ||
+                    (noise_start >= 0 &&
+                     (pos - noise_start >= MIN_RTU || n0 == NULL || n1 == NULL)) ||
+                    (fkind == K_REQUEST && unit && ap == WALKED)) {
+                    slow = 1; /* the slow path decides at pos */
+                    goto stopped;
+                }
+                if (noise_start >= 0) {
+                    double t0 = span_start(n0, noise_start), t1 = span_end(n1, pos - 1);
+                    uint64_t o = (uint64_t)noise_start;
+                    uint16_t l = (uint16_t)(pos - noise_start);
+                    unsigned char zero = 0, kind = K_NOISE;
+                    if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
+                        buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
+                        buf_put(&c_kind, &kind, 1) < 0 || buf_put(&c_unit, &zero, 1) < 0 ||
+                        buf_put(&c_fc, &zero, 1) < 0)
+                        goto done;
+                    row += 1;
+                    noise_rows += 1;
+                    noise_start = -1;
+                }
+                double t0 = span_start(s0, pos), t1 = span_end(s1, pos + found - 1);
+                uint64_t o = (uint64_t)pos;
+                uint16_t l = (uint16_t)found;
+                unsigned char kind = (unsigned char)fkind, u = (unsigned char)unit,
+                              f = (unsigned char)fc;
+                if (buf_put(&c_off, &o, 8) < 0 || buf_put(&c_len, &l, 2) < 0 ||
+                    buf_put(&c_t, &t0, 8) < 0 || buf_put(&c_te, &t1, 8) < 0 ||
+                    buf_put(&c_kind, &kind, 1) < 0 || buf_put(&c_unit, &u, 1) < 0 ||
+                    buf_put(&c_fc, &f, 1) < 0)
+                    goto done;
+                pr = -1; /* unpaired: the Pairer pairs it */
+                if (fkind == K_REQUEST) {
+                    pu = -1;
+                    pdl = INF;
+                    Py_ssize_t predicted = -1; /* RtuLengths.predict */
+                    if (unit) {
+                        if (ap >= 0) {
+                            if (found >= ap + 2) {
+                                Py_ssize_t q = buf[pos + ap] << 8 | buf[pos + ap + 1];
+                                predicted = (Py_ssize_t)answer_base[fc7] +
+                                            floordiv(q * (Py_ssize_t)answer_item[fc7] +
+                                                         (Py_ssize_t)answer_up[fc7],
+                                                     (Py_ssize_t)answer_byte[fc7]);
+                            }
+                        } else if (ap == FIXED) {
+                            predicted = (Py_ssize_t)answer_base[fc7];
+                        } else if (ap == ECHO) {
+                            predicted = found;
+                        }
+                    }
+                    if (predicted >= MIN_RTU && predicted <= MAX_RTU) {
+                        pu = unit;
+                        pf = fc7;
+                        pfx = fc7 | EXCEPTION_BIT;
+                        pl = predicted;
+                        if (ap == ECHO) pdl = t1 + timeout;
+                    }
+                } else if (unit == pu) { /* a response or an exception */
+                    pu = -1;
+                }
+                row += 1;
+                pos += found;
+                continue;
+            }
         }
         if (!batch) break;
     }
 stopped:;
     /* the reads' spans from the one holding pos on: the timeline forgets what lies
      * before pos (as forget_before does), and nothing asks about it */
-    Py_ssize_t first = 0;
+    Py_ssize_t first = 0, kept = noise_start >= 0 ? noise_start : pos;
     for (Py_ssize_t j = 0; j < n_spans; j++)
-        if (spans[j].start <= pos) first = j;
+        if (spans[j].start <= kept) first = j;
+    /* whether a row other than noise has unit 0 (the framer's units seen: noise has none) */
+    int unit0 = 0;
+    if (noise_rows)
+        for (Py_ssize_t i = 0; i < c_unit.n; i++)
+            if (c_unit.p[i] == 0 && c_kind.p[i] != K_NOISE) unit0 = 1;
     PyObject *span_list = PyList_New(0), *bounds = PyList_New(0);
     if (span_list == NULL || bounds == NULL) goto fail_lists;
     for (Py_ssize_t j = first; j < n_spans; j++) {
@@ -865,10 +1126,11 @@ stopped:;
         for (int i = 0; i < 8; i++) ok = ok && cols[i] != NULL;
         if (ok)
             result = Py_BuildValue(
-                "(OnnnnnnndnnOOOOOOOOnddndndOO)", slow ? Py_True : Py_False, pos, k, prev, end, pu,
-                pf, pl, pdl, pr, row, cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
+                "(OnnnnnnndnnOOOOOOOOnddndndOOnnO)", slow ? Py_True : Py_False, pos, k, prev, end,
+                pu, pf, pl, pdl, pr, row, cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
                 cols[6], cols[7], cur_start, cur_t0, cur_rate, offset, last_end, too_fast,
-                first_too_fast, span_list, bounds);
+                first_too_fast, span_list, bounds, noise_start, noise_rows,
+                unit0 ? Py_True : Py_False);
         for (int i = 0; i < 8; i++) Py_XDECREF(cols[i]);
     }
 fail_lists:
@@ -890,6 +1152,7 @@ done:
     PyBuffer_Release(&eview);
     PyBuffer_Release(&sview);
     PyBuffer_Release(&teview);
+    PyBuffer_Release(&rview);
     return result;
 }
 

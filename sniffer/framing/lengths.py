@@ -131,6 +131,7 @@ class RtuLengths:
             answer_byte,
         )
         self.table_bytes = array("q", [v for table in self.tables for v in table]).tobytes()
+        self.rule_bytes = _rule_bytes(rules)
 
     def predict(self, buf: bytearray, pos: int, length: int, fc: int) -> int | None:
         """The length of the answer the request at `pos` asks for (None: no rule says)."""
@@ -216,6 +217,22 @@ class RtuLengths:
         if MIN_RTU <= length <= MAX_RTU and crc16(buf[pos : pos + length]) == 0:
             return length, int(Kind.EXCEPTION if fc & 0x80 else Kind.UNKNOWN), False
         return 0, 0, False
+
+
+def _rule_bytes(rules: list[tuple[Rule, ...]]) -> bytes:
+    """The length rules by code, flat, for the compiled copy of the search
+    (`sniffer._core.rtu_search`): two slots a code of (kind, base, count_pos, count_size),
+    int64; kind 0 where the code has no rule in the slot, -1 where the copy cannot follow
+    the code's rules (a walker, or more rules than slots), so that it leaves the search
+    at that code to `candidates`."""
+    flat: list[int] = []
+    for table in rules:
+        slots = [(kind, rule.base, rule.count_pos, rule.count_size) for rule, kind in table]
+        if len(slots) > 2 or any(rule.walker is not None for rule, _ in table):
+            slots = [(-1, 0, 0, 0)]
+        slots += [(0, 0, 0, 0)] * (2 - len(slots))
+        flat.extend(v for slot in slots for v in slot)
+    return array("q", flat).tobytes()
 
 
 def _zero_trap(

@@ -354,22 +354,25 @@ class RtuFramer(_Framer):
         count = len(reads.ends) if reads is not None else 0
         fast = core.FAST
         k = prev = 0
+        slow = True  # whether the loop below has anything to decide
         while True:  # once, or once a read of the batch
             if (
                 fast is not None
-                and self.noise_start < 0
                 and not exact
                 and (reads is not None or end - self.pos >= FAST_MIN_BYTES)
             ):
-                # the compiled copy of the fast paths below (and, over a batch, of
-                # add_read): it stops where the slow path must decide, and this loop goes
+                # the compiled copy of the fast paths below, of the search where they
+                # cannot decide (noise among what it finds) and, over a batch, of
+                # add_read: it stops where the slow path must decide, and this loop goes
                 # on from there in the current read
                 if reads is not None and k == count:
                     break
                 slow, k, prev, end = self._fast_scan(fast, buf, final, end, reads, k, prev, base)
                 if not slow and reads is not None:
                     break  # every read is done
-                # (done without a batch: the loop below finds nothing more to do)
+                # (done without a batch: the loop below has nothing more to decide, as
+                # the compiled scan stopped only where it would stop too, and is skipped:
+                # it would make the same search again)
             elif reads is not None:
                 if k == count:
                     break
@@ -393,7 +396,7 @@ class RtuFramer(_Framer):
             # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this
             # time they are the master's retry, not the answer (inf for every other code)
             pdl = self.pending_deadline
-            while end - pos >= MIN_RTU:
+            while slow and end - pos >= MIN_RTU:
                 unit = buf[pos]
                 fc = buf[pos + 1]
                 if unit == pu and fc == pf and pdl != INF:
@@ -543,15 +546,17 @@ class RtuFramer(_Framer):
         `end`, or over the reads of the batch from read `k` on (`prev`: the end of read
         k - 1 in the batch), adding each to the timeline. What they found goes into the
         store, the pairs and the framer's and timeline's state, as the loop in
-        `_scan_bytes` would have left them. Returns whether the slow path must decide at
+        `_scan_bytes` would have left them, the noise span it may leave under way
+        (`self.noise_start`) among them. Returns whether the slow path must decide at
         `self.pos`, the next read, the end of the last read added, and the scan's end."""
         tl = self.timeline
         out = self.out
         last_end = tl.last_end
         first_too_fast = tl.first_too_fast
-        # the read holding the first undecided byte, when older than the newest read: a
-        # frame begun there is timed by it (see rtu_scan)
-        held = tl._span(self.pos) if tl.spans and self.pos < tl.cur_start else _NO_SPAN
+        # the read holding the first undecided byte (noise under way, if any), when older
+        # than the newest read: a frame or noise begun there is timed by it (see rtu_scan)
+        first = self.noise_start if self.noise_start >= 0 else self.pos
+        held = tl._span(first) if tl.spans and first < tl.cur_start else _NO_SPAN
         if reads is not None:
             ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
         else:
@@ -585,6 +590,9 @@ class RtuFramer(_Framer):
             first_too_fast,
             spans,
             boundaries,
+            self.noise_start,
+            noise_rows,
+            unit0,
         ) = fast.rtu_scan(
             buf,
             self.lengths.table_bytes,
@@ -620,6 +628,10 @@ class RtuFramer(_Framer):
             held.end,
             held.t_start,
             held.t_end,
+            self.lengths.rule_bytes,
+            True,  # the search where the fast paths cannot decide, and noise, too
+            tl.boundaries,
+            self.noise_start,
         )
         self.pos = pos
         self.scan_end = end
@@ -629,6 +641,11 @@ class RtuFramer(_Framer):
             tl.spans.extend([_Span(*span) for span in spans])
             tl.starts.extend([span[0] for span in spans])
             tl.boundaries.extend(boundaries)
+        keep0 = True
+        if noise_rows:
+            # its noise rows (unit 0 in the column) leave the units seen as _emit_noise does
+            self.flush()
+            keep0 = unit0 or 0 in self.units_seen
         if offsets:
             out.offset.frombytes(offsets)
             out.length.frombytes(lengths)
@@ -639,8 +656,11 @@ class RtuFramer(_Framer):
             out.fc.frombytes(codes)
         if pairs:
             self.pairs.frombytes(pairs)
+        if not keep0:
+            self.flush()
+            self.units_seen.discard(0)
         if reads is not None and len(tl.spans) > 64:
-            tl.forget_before(self.pos)
+            tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
         return slow, k, prev, end
 
     def flush(self) -> None:
