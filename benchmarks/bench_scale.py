@@ -323,15 +323,14 @@ def measure_mix(
     them, nothing else. `only_listings`: the listings and the export alone (no index
     figures), with `--jobs jobs`."""
     print(f"{mix.name}: {mix.describe()}", flush=True)
-    if only_export:
-        return _measure_export(mix, folder, runs, tshark, listings)
     reads10, one10 = make_mix_files(folder, mix, SMALL)
     ix = ix1 = ts = None
-    if not only_listings:
+    if not (only_listings or only_export):
         ix, ix1, ts = _index_figures(mix, n, folder, runs, tshark, reads10, one10)
     rows: dict[str, tuple[Figure, Figure | None]] = {}
     if listings:
-        rows = _listing_figures(mix, listings, folder, runs, tshark, reads10, one10, jobs)
+        kinds = ("export",) if only_export else ("jsonl", "text", "export")
+        rows = _listing_figures(mix, listings, folder, runs, tshark, reads10, one10, jobs, kinds)
     return MixResult(mix, n, ix, ix1, ts, rows)
 
 
@@ -382,9 +381,10 @@ def _listing_figures(
     reads10: Path,
     one10: Path,
     jobs: str,
+    kinds: tuple[str, ...] = ("jsonl", "text", "export"),
 ) -> dict[str, tuple[Figure, Figure | None]]:
-    """The JSONL and text listings and the export of `listings` frames of the mix (as
-    recorded), each with tshark's figure on the same frames one per packet."""
+    """The JSONL and text listings and the export (those of `kinds`) of `listings` frames
+    of the mix (as recorded), each with tshark's figure on the same frames one per packet."""
     rows: dict[str, tuple[Figure, Figure | None]] = {}
     lreads, lone = make_mix_files(folder, mix, listings)
     out = folder / "out.pcapng"
@@ -397,18 +397,21 @@ def _listing_figures(
             [*TSHARK, "-r", str(one10)],
             runs,
         )
-        ek = measure(
-            "tshark -T ek",
-            listings,
-            [*TSHARK, "-T", "ek", "-r", str(lone)],
-            [*TSHARK, "-T", "ek", "-r", str(one10)],
-            runs,
-        )
+        if "jsonl" in kinds:
+            ek = measure(
+                "tshark -T ek",
+                listings,
+                [*TSHARK, "-T", "ek", "-r", str(lone)],
+                [*TSHARK, "-T", "ek", "-r", str(one10)],
+                runs,
+            )
     for label, argv, peer in (
         ("jsonl", ("replay", "--format", "jsonl"), ek),
         ("text", ("replay", "--format", "text"), plain),
         ("export", ("export", "-o", str(out)), plain),
     ):
+        if label not in kinds:
+            continue
         verb, *rest = argv
         rest = [*rest, "--jobs", jobs]
         fig = measure(
@@ -423,38 +426,6 @@ def _listing_figures(
             print(f"  => {_ratio(fig, peer):.1f}x tshark", flush=True)
     out.unlink(missing_ok=True)
     return rows
-
-
-def _export_figure(folder: Path, lreads: Path, reads10: Path, listings: int, runs: int) -> Figure:
-    out = folder / "out.pcapng"
-    fig = measure(
-        "export -o x.pcapng",
-        listings,
-        modscope("export", str(lreads), "-o", str(out)),
-        modscope("export", str(reads10), "-o", str(out)),
-        runs,
-    )
-    out.unlink(missing_ok=True)
-    return fig
-
-
-def _measure_export(mix: Mix, folder: Path, runs: int, tshark: int, listings: int) -> MixResult:
-    """`measure_mix` with `only_export`: tshark first, then the export, as there."""
-    lreads, lone = make_mix_files(folder, mix, listings)
-    reads10, one10 = make_mix_files(folder, mix, SMALL)
-    plain = None
-    if tshark:
-        plain = measure(
-            "tshark plain summary (listing frames)",
-            listings,
-            [*TSHARK, "-r", str(lone)],
-            [*TSHARK, "-r", str(one10)],
-            runs,
-        )
-    fig = _export_figure(folder, lreads, reads10, listings, runs)
-    if plain is not None:
-        print(f"  => {_ratio(fig, plain):.1f}x tshark's plain summary", flush=True)
-    return MixResult(mix, listings, None, None, None, {"export": (fig, plain)})
 
 
 def summarize(results: list[MixResult]) -> None:
