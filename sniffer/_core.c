@@ -543,6 +543,26 @@ static Py_ssize_t floordiv(Py_ssize_t a, Py_ssize_t b) {
     return q;
 }
 
+/* The length of the answer a request of `length` bytes at `frame` asks for
+ * (RtuLengths.predict), from the rule table's answer columns; -1 when its rule predicts
+ * none or the request is too short to hold the quantity the rule reads. */
+static inline Py_ssize_t predict_answer(const int64_t *tab, const unsigned char *frame,
+                                        Py_ssize_t length, Py_ssize_t fc) {
+    const int64_t *answer_pos = tab + 512, *answer_base = tab + 768, *answer_item = tab + 1024,
+                  *answer_up = tab + 1280, *answer_byte = tab + 1536;
+    Py_ssize_t ap = answer_pos[fc];
+    if (ap >= 0) {
+        if (length < ap + 2) return -1;
+        Py_ssize_t q = frame[ap] << 8 | frame[ap + 1];
+        return (Py_ssize_t)answer_base[fc] +
+               floordiv(q * (Py_ssize_t)answer_item[fc] + (Py_ssize_t)answer_up[fc],
+                        (Py_ssize_t)answer_byte[fc]);
+    }
+    if (ap == FIXED) return (Py_ssize_t)answer_base[fc];
+    if (ap == ECHO) return length;
+    return -1;
+}
+
 /* What the slow path's search finds at pos (RtuLengths.candidates, then, when it finds
  * nothing and waits for nothing, RtuLengths.silence_framed), never at the end of the
  * bytes (final): a frame (its length and kind), nothing (the byte is noise), a wait for
@@ -738,9 +758,8 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     Py_ssize_t noise_rows = 0;
     const unsigned char *buf = (const unsigned char *)view.buf;
     const int64_t *tab = (const int64_t *)tview.buf;
-    const int64_t *request_base = tab, *request_count = tab + 256, *answer_pos = tab + 512,
-                  *answer_base = tab + 768, *answer_item = tab + 1024, *answer_up = tab + 1280,
-                  *answer_byte = tab + 1536;
+    /* the rule table's columns; the answer's, past answer_pos, are read by predict_answer */
+    const int64_t *request_base = tab, *request_count = tab + 256, *answer_pos = tab + 512;
     const int64_t *r_ends = (const int64_t *)eview.buf;
     const double *r_starts = (const double *)sview.buf;
     const double *r_tends = (const double *)teview.buf;
@@ -918,26 +937,13 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         pdl = INF;
                         if (unit) { /* a broadcast gets no answer */
                             pr = row;
-                            if (ap >= 0) {
-                                Py_ssize_t q = buf[pos + ap] << 8 | buf[pos + ap + 1];
-                                pl = (Py_ssize_t)answer_base[fc] +
-                                     floordiv(q * (Py_ssize_t)answer_item[fc] +
-                                                  (Py_ssize_t)answer_up[fc],
-                                              (Py_ssize_t)answer_byte[fc]);
+                            Py_ssize_t predicted = predict_answer(tab, buf + pos, length, fc);
+                            if (predicted >= 0) {
                                 pu = unit;
                                 pf = fc;
                                 pfx = fc | EXCEPTION_BIT;
-                            } else if (ap == FIXED) {
-                                pu = unit;
-                                pf = fc;
-                                pfx = fc | EXCEPTION_BIT;
-                                pl = (Py_ssize_t)answer_base[fc];
-                            } else if (ap == ECHO) {
-                                pu = unit;
-                                pf = fc;
-                                pfx = fc | EXCEPTION_BIT;
-                                pl = length;
-                                pdl = t0 + (double)length * cur_rate + timeout;
+                                pl = predicted;
+                                if (ap == ECHO) pdl = t0 + (double)length * cur_rate + timeout;
                             }
                             if (pl > MAX_RTU) pu = -1;
                         }
@@ -966,18 +972,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         pr = pu = -1; /* unpaired: the Pairer pairs it */
                         pdl = INF;
                         if (unit) { /* a broadcast gets no answer */
-                            Py_ssize_t predicted = -1;
-                            if (ap >= 0) {
-                                Py_ssize_t q = buf[pos + ap] << 8 | buf[pos + ap + 1];
-                                predicted = (Py_ssize_t)answer_base[fc] +
-                                            floordiv(q * (Py_ssize_t)answer_item[fc] +
-                                                         (Py_ssize_t)answer_up[fc],
-                                                     (Py_ssize_t)answer_byte[fc]);
-                            } else if (ap == FIXED) {
-                                predicted = (Py_ssize_t)answer_base[fc];
-                            } else if (ap == ECHO) {
-                                predicted = length;
-                            }
+                            Py_ssize_t predicted = predict_answer(tab, buf + pos, length, fc);
                             if (predicted >= MIN_RTU && predicted <= MAX_RTU) {
                                 pu = unit;
                                 pf = fc;
@@ -1054,22 +1049,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                 if (fkind == K_REQUEST) {
                     pu = -1;
                     pdl = INF;
-                    Py_ssize_t predicted = -1; /* RtuLengths.predict */
-                    if (unit) {
-                        if (ap >= 0) {
-                            if (found >= ap + 2) {
-                                Py_ssize_t q = buf[pos + ap] << 8 | buf[pos + ap + 1];
-                                predicted = (Py_ssize_t)answer_base[fc7] +
-                                            floordiv(q * (Py_ssize_t)answer_item[fc7] +
-                                                         (Py_ssize_t)answer_up[fc7],
-                                                     (Py_ssize_t)answer_byte[fc7]);
-                            }
-                        } else if (ap == FIXED) {
-                            predicted = (Py_ssize_t)answer_base[fc7];
-                        } else if (ap == ECHO) {
-                            predicted = found;
-                        }
-                    }
+                    Py_ssize_t predicted = unit ? predict_answer(tab, buf + pos, found, fc7) : -1;
                     if (predicted >= MIN_RTU && predicted <= MAX_RTU) {
                         pu = unit;
                         pf = fc7;
