@@ -52,6 +52,7 @@ from sniffer import __version__
 from sniffer.errors import UserError
 from sniffer.live.port import PortSpec
 from sniffer.model import Chunk
+from sniffer.session.index import sweep_unlocked
 from sniffer.sources.linktypes import RTAC_CAPTURE_COMPLETE
 from sniffer.sources.pcapng_writer import (
     EPB_FLAG_INBOUND,
@@ -242,25 +243,7 @@ def _write_zeros(fd: int, size: int) -> None:
 
 def sweep_reserves(folder: Path) -> int:
     """Remove the reserves of recorders that died (their lock is free); how many."""
-    removed = 0
-    try:
-        names = list(folder.glob(f".*{RESERVE_SUFFIX}"))
-    except OSError:
-        return 0
-    for name in names:
-        try:
-            fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW)
-        except OSError:
-            continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: its recorder is gone
-            os.unlink(name)
-            removed += 1
-        except OSError:  # held: a recorder is at work (BlockingIOError)
-            pass
-        finally:
-            os.close(fd)
-    return removed
+    return sweep_unlocked(folder, f".*{RESERVE_SUFFIX}")
 
 
 def write_failure(path: str | Path, exc: OSError, packets: int, room: str = "") -> str:

@@ -113,9 +113,16 @@ TEMP_PREFIX = ".modscope-index-"
 def sweep(folder: Path) -> int:
     """Remove the temporary files of sidecar writers that died (their lock is free);
     how many were removed."""
+    return sweep_unlocked(folder, TEMP_PREFIX + "*")
+
+
+def sweep_unlocked(folder: Path, pattern: str) -> int:
+    """Remove the files of `folder` matching `pattern` whose writer died: each holds an
+    exclusive flock while its writer lives, so a lock taken at once means none does
+    (sidecar temporaries here, a recorder's disk reserve); how many were removed."""
     removed = 0
     try:
-        names = list(folder.glob(TEMP_PREFIX + "*"))
+        names = list(folder.glob(pattern))
     except OSError:
         return 0
     for name in names:
