@@ -421,6 +421,7 @@ class Writer:
         except OSError:
             self.abandon()
             return
+        self.capture.release()
         self.rows = base + n
         self.notes.update({str(base + i): text for i, text in store.notes.items()})
         for ch, data in store.streams.items():
@@ -804,6 +805,17 @@ class _Referrer:
             with contextlib.suppress(BufferError):
                 self.map.close()
             self.map = None
+
+    def release(self) -> None:
+        """Let go of the capture's pages this process has touched (after each segment).
+        They are the kernel's page cache, clean and reclaimable, but counted in the
+        process's resident size while mapped: writing a day's sidecar showed the whole
+        capture in it (the TUI on 30M frames peaked at 1.89 GB against 0.78 GB with the
+        sidecar of before, 2026-12-06). Pages looked at again come back from the page
+        cache (a minor fault each)."""
+        if self.map is not None and hasattr(mmap, "MADV_DONTNEED"):
+            with contextlib.suppress(OSError, ValueError):
+                self.map.madvise(mmap.MADV_DONTNEED)
 
     def _locate(
         self, ch: int, share: bytes, start: int, offs: Sequence[int], lens: Sequence[int], row: int
