@@ -6,6 +6,7 @@ from array import array
 from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from itertools import compress, islice, repeat
 from math import ceil, isnan
 from operator import lt, ne, not_, sub
@@ -28,6 +29,10 @@ from sniffer.framing.pairing import (
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Flag, Kind, Status
+
+# what a spill is handed (see `Stats.bound`): a unit's latencies or its request times
+LATENCIES, REQUEST_TIMES = 0, 1
+Spill = Callable[[int, int, Sequence[float]], None]
 
 RECENT = 1024  # newest latencies and request times a bounded unit keeps (the MQTT status)
 
@@ -68,6 +73,7 @@ class Tallies:
         "recent_latencies",
         "recent_requests",
         "requests",
+        "spill",
     )
 
     def __init__(self) -> None:
@@ -78,9 +84,14 @@ class Tallies:
         self.last_request: float | None = None
         self.recent_latencies: deque[float] = deque(maxlen=RECENT)
         self.recent_requests: deque[float] = deque(maxlen=RECENT)
+        # where every value is handed as it is counted, if anywhere (a sidecar being
+        # written keeps them on disk: `Stats.bound`): (LATENCIES or REQUEST_TIMES, values)
+        self.spill: Callable[[int, Sequence[float]], None] | None = None
 
     def add_latencies(self, values: Sequence[float]) -> None:
         """Count latencies (seconds)."""
+        if self.spill is not None and len(values):
+            self.spill(LATENCIES, values)
         fast = core.FAST
         if fast is not None and isinstance(values, array) and values.typecode == "d":
             # the counting in C (sniffer/_core.c: tally_latencies), the figures rounded
@@ -100,6 +111,8 @@ class Tallies:
         """Count request times (seconds, in the order they came): their gaps."""
         if not times:
             return
+        if self.spill is not None:
+            self.spill(REQUEST_TIMES, times)
         self.requests += len(times)
         self.recent_requests.extend(_tail(times))
         last = self.last_request
@@ -214,12 +227,15 @@ class UnitStats:
             self.request_times if self.tallies is None else self.tallies.recent_requests, k
         )
 
-    def bound(self) -> None:
+    def bound(self, spill: Spill | None = None) -> None:
         """Count latencies and request times in `Tallies` from now on (those so far
-        included) instead of keeping them all."""
+        included) instead of keeping them all; each value also handed to `spill`
+        (with the unit), if given."""
         if self.tallies is not None:
             return
         self.tallies = Tallies()
+        if spill is not None:
+            self.tallies.spill = partial(spill, self.unit)
         self.tallies.add_latencies(self.latencies)
         self.tallies.add_requests(self.request_times)
         self.latencies, self.request_times = array("d"), array("d")
@@ -336,25 +352,31 @@ class Stats:
         self._timed_out: set[int] = set()
         self._open: set[int] = set()
         self.bounded = False  # see `bound`
+        self.spill: Spill | None = None
         # what the table's timing line says besides the store's stamps and resolution:
         # the response timeout and what the resolution was measured from (the session's)
         self.timeout: float | None = None
         self.clock: StampClock | None = None
 
-    def bound(self) -> None:
+    def bound(self, spill: Spill | None = None) -> None:
         """Keep each unit's latencies and request times in the bounded form (`Tallies`)
         from now on: what a headless live capture does, so that its statistics do not
-        grow with every frame. The table prints the same; the arrays stay empty."""
+        grow with every frame. The table prints the same; the arrays stay empty.
+
+        `spill(unit, LATENCIES or REQUEST_TIMES, values)`: given every value as it is
+        counted, those so far first, in the order the arrays would have them (a sidecar
+        being written keeps them on disk: `sniffer.session.index.Spill`)."""
         self.bounded = True
+        self.spill = spill
         for unit in self.units.values():
-            unit.bound()
+            unit.bound(spill)
 
     def unit(self, u: int) -> UnitStats:
         found = self.units.get(u)
         if found is None:
             found = self.units[u] = UnitStats(u)
             if self.bounded:
-                found.bound()
+                found.bound(self.spill)
         return found
 
     def update(self) -> None:

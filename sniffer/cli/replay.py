@@ -212,10 +212,10 @@ def _windowed(
     session: Session, capture: Capture, reading: Callable[[int, int], None]
 ) -> tuple[PollCycles, SpeedCheck, float | None]:
     """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle and
-    the baud check count each segment before it goes, the statistics carry on (bounded
-    when no sidecar keeps their values), the sidecar index is written (or read) a
-    segment at a time. The network server table and a network capture's rows are not
-    windowed (`Session.settled`: they stay in one store)."""
+    the baud check count each segment before it goes, the statistics carry on, bounded
+    (their values kept on disk for a sidecar being written: `index.Spill`), the sidecar
+    index is written (or read) a segment at a time. The network server table and a
+    network capture's rows are not windowed (`Session.settled`: they stay in one store)."""
     cycles, speed = PollCycles(), SpeedCheck()
     first: list[float] = []  # the first row's time, from the first segment that has rows
 
@@ -225,9 +225,8 @@ def _windowed(
         cycles.add(s.store)
         speed.add(s.store)
 
-    if not session.indexing:
-        session.stats.bound()  # (a sidecar saves the values themselves)
-    session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=segment)
+    # the statistics bounded, a sidecar being written given their values on disk
+    session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=segment, bounded=True)
     return cycles, speed, first[0] if first else None
 
 

@@ -293,6 +293,7 @@ class Session:
         segment: Callable[[Session], None] | None = None,
         written: Callable[[Session, Writer | None], None] | None = None,
         opened: Callable[[Path, int, int, dict[str, Any]], None] | None = None,
+        bounded: bool = False,
     ) -> None:
         """Feed all `chunks`, refreshing and reporting progress every `every` seconds.
 
@@ -317,13 +318,19 @@ class Session:
         in the sidecar being written (`writer`, None when none is: the rows are only in
         `session.store`), before they are dropped, and once with the last segment's.
         `opened(path, fd, start, header)`: the sidecar being read back (see
-        `sniffer.session.index.load`). Both feed `sniffer.session.paged.PagedStore`."""
+        `sniffer.session.index.load`). Both feed `sniffer.session.paged.PagedStore`.
+
+        `bounded`: the statistics count latencies and request times in their bounded form
+        (`Stats.bound`), read back from a sidecar as written to one: the sidecar being
+        written is then handed every value (`sniffer.session.index.Spill`, on disk)."""
         if not index:
             self._sidecar = None
         if self._sidecar is not None and self.indexed_from is None and not len(self.store):
             # read back from the sidecar index where one fits: every row is there already
             # (here rather than in open_session: the TUI draws while this thread reads)
             path, capture, key = self._sidecar
+            if bounded:
+                self.stats.bound()  # (the values read back are counted as they come)
             blocks = None  # each block read back is a segment (windowed)
             if segment is not None and window is not None:
                 blocks = partial(segment, self)
@@ -349,6 +356,10 @@ class Session:
         writer = None
         if window is not None and self._sidecar is not None:
             writer = Writer(self._sidecar[0])
+        if bounded:
+            self.stats.bound(
+                writer.spill if writer is not None and writer.out is not None else None
+            )
         retry = window or 0  # rows in the store before the next try at a new segment
         try:
             # readers may pass runs of reads as one batch (sniffer.sources.reads): the

@@ -98,7 +98,7 @@ def replayed(argv: list[str], window: int | None) -> tuple[str, str, int]:
     try:
         if window is None:
             replay_cli.REPLAY_WINDOW = None  # type: ignore[assignment]
-            Stats.bound = lambda self: None  # type: ignore[method-assign]
+            Stats.bound = lambda self, spill=None: None  # type: ignore[method-assign]
         else:
             replay_cli.REPLAY_WINDOW = window
         status = args.func(args, out, err)
