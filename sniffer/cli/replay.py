@@ -148,7 +148,21 @@ def _read(
     elif not capture.info.network:
         # a listing: a first pass keeping a window of rows, then the rows listed a
         # segment at a time by a second one (network captures are not windowed)
-        learnt = learn(session, capture, reading)
+        try:
+            learnt = learn(session, capture, reading)
+        except DamagedError:  # as for --stats: indexed, and the sidecar written anew
+            learnt = None
+        if learnt is None or learnt.unsure:  # (unsure: learnt again from the capture)
+            session, capture = open_session(
+                path,
+                options,
+                bindings=bindings,
+                timeout=args.timeout,
+                index=not args.no_index and learnt is None,
+            )
+            if metrics is not None:
+                metrics.rewatch(path.name, session)
+            learnt = learn(session, capture, reading)
         speed = learnt.speed
     else:
         session.ingest(capture.chunks(), reading)

@@ -1006,23 +1006,6 @@ def load(
         )  # fmt: skip
 
 
-def fits(path: Path, key: str) -> bool:
-    """Whether a sidecar of `path` fits it and `key` (what `load` would read back): its
-    header alone is read."""
-    who = identity(path)
-    if who is None:
-        return False
-    for candidate in sidecars(path):
-        try:
-            with candidate.open("rb") as handle:
-                stamp = _stamp(handle, candidate)
-                if stamp not in _refused and _header(handle, key, who, stamp[1]) is not None:
-                    return True
-        except (OSError, ValueError, KeyError, TypeError, OverflowError, EOFError):
-            continue
-    return False
-
-
 def _load(
     state: SessionState,
     capture: Capture,

@@ -139,13 +139,6 @@ class Session:
         """Whether `ingest` will read or write a sidecar index (see `open_session`)."""
         return self._sidecar is not None
 
-    def index_fits(self) -> bool:
-        """Whether `ingest` would read its rows back from a sidecar index that fits."""
-        if self._sidecar is None or self.indexed_from is not None:
-            return False
-        path, _capture, key = self._sidecar
-        return sidecar.fits(path, key)
-
     @property
     def mode(self) -> str:
         return self.pipeline.mode or self.line.mode

@@ -20,11 +20,14 @@ capture the first pass gives. The contents the describer shares among rows hold 
 number, so one describer serves every segment (its store and annotator set anew for
 each), as one describer serves a whole store.
 
-Why the second pass frames the capture rather than reading the sidecar back, and the
-first one frames it even when a sidecar fits: a sidecar read back a block at a time may
-cut a request from its answer at a block's start (`sniffer.session.index.load`), and a
-SunSpec read so cut would not be learnt. Framing costs about what reading a sidecar
-back does (docs/performance.md)."""
+Why the second pass frames the capture rather than reading the sidecar back: a sidecar
+read back a block at a time may cut a request from its answer at a block's start
+(`sniffer.session.index.load`), and the answer would be listed unpaired. The first pass
+reads a sidecar that fits (as `replay --stats`, rebuilding one found damaged), but a
+SunSpec read so cut would not be learnt: where a block begins with the answer to a read
+of registers of a unit with no dictionary, the first pass is done again by framing the
+capture (`Learnt.unsure`). Framing costs about what reading a sidecar back does
+(docs/performance.md)."""
 
 from __future__ import annotations
 
@@ -32,10 +35,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from sniffer.analysis.baud import SpeedCheck
+from sniffer.framing.store import NO_PARTNER
 from sniffer.meaning.annotate import Annotator
 from sniffer.meaning.describe import Describer
+from sniffer.meaning.sunspec import READS
 from sniffer.session.session import Progress, Session
 from sniffer.sources import Capture
+from sniffer.vocab import Kind
 
 # rows the first pass keeps (as `replay --stats`: about 4 MB of store)
 LEARN_WINDOW = 1 << 16
@@ -52,6 +58,9 @@ class Learnt:
     origin: float | None  # the first row's time (None: no row)
     speed: SpeedCheck  # the line-speed check of every row
     rows: int  # rows of the capture
+    # read back from a sidecar whose blocks cut a read of registers of a unit with no
+    # dictionary from its request: learn again from the capture itself (see above)
+    unsure: bool = False
 
 
 def learn(
@@ -63,22 +72,50 @@ def learn(
     """The first pass: `session` ingests `capture` keeping `window` rows; its warnings,
     notes and statistics are then those of the whole capture, its store the last
     segment's. A sidecar index is written if `session` may index and none fits; one
-    that fits is not read (see the module's doc)."""
+    that fits is read back (`Learnt.unsure` says when to learn again with a new session
+    that may not: see the module's doc)."""
     speed = SpeedCheck()
     first: list[float] = []
+    cut: list[bool] = []
 
     def segment(s: Session) -> None:
         if not first and len(s.store):
             first.append(s.store.t[0])
         speed.add(s.store)
+        if s.base and not cut and _cut_read(s):
+            cut.append(True)
 
-    index = session.indexing and not session.index_fits()
-    if not index:
-        session.stats.bound()  # (a sidecar being written saves the values themselves)
-    session.ingest(capture.chunks(), progress, window=window, segment=segment, index=index)
+    if not session.indexing:
+        session.stats.bound()  # (a sidecar being written or read saves the values)
+    session.ingest(capture.chunks(), progress, window=window, segment=segment)
     return Learnt(
-        session.annotator, first[0] if first else None, speed, session.base + len(session.store)
+        session.annotator,
+        first[0] if first else None,
+        speed,
+        session.base + len(session.store),
+        unsure=bool(cut) and session.indexed_from is not None,
     )
+
+
+def _cut_read(session: Session) -> bool:
+    """Whether the store's rows begin (before their first request) with an answer to a
+    read of registers (`READS`) of a unit with no dictionary, given with no request: as
+    a block read back from a sidecar begins when its request ended the block before."""
+    store = session.store
+    bound = session.annotator.bindings
+    kinds, partners, fcs, units = store.kind, store.partner, store.fc, store.unit
+    for i in range(len(store)):
+        kind = kinds[i]
+        if kind == Kind.REQUEST:
+            return False
+        if (
+            kind == Kind.RESPONSE
+            and partners[i] == NO_PARTNER
+            and fcs[i] in READS
+            and units[i] not in bound
+        ):
+            return True
+    return False
 
 
 def segments(
