@@ -67,13 +67,13 @@ def learn(
     session: Session,
     capture: Capture,
     progress: Progress | None = None,
-    window: int = LEARN_WINDOW,
+    window: int | None = None,
 ) -> Learnt:
-    """The first pass: `session` ingests `capture` keeping `window` rows; its warnings,
-    notes and statistics are then those of the whole capture, its store the last
-    segment's. A sidecar index is written if `session` may index and none fits; one
-    that fits is read back (`Learnt.unsure` says when to learn again with a new session
-    that may not: see the module's doc)."""
+    """The first pass: `session` ingests `capture` keeping `window` rows (default
+    LEARN_WINDOW); its warnings, notes and statistics are then those of the whole
+    capture, its store the last segment's. A sidecar index is written if `session` may
+    index and none fits; one that fits is read back (`Learnt.unsure` says when to learn
+    again with a new session that may not: see the module's doc)."""
     speed = SpeedCheck()
     first: list[float] = []
     cut: list[bool] = []
@@ -87,6 +87,7 @@ def learn(
 
     if not session.indexing:
         session.stats.bound()  # (a sidecar being written or read saves the values)
+    window = window or LEARN_WINDOW  # (read now: tests set it)
     session.ingest(capture.chunks(), progress, window=window, segment=segment)
     return Learnt(
         session.annotator,
@@ -123,13 +124,13 @@ def segments(
     capture: Capture,
     learnt: Learnt,
     each: Callable[[Session, Describer], bool],
-    window: int = LIST_WINDOW,
+    window: int | None = None,
 ) -> None:
     """The second pass: `session`, new on the same capture, ingests `capture` keeping
-    `window` rows, and `each(session, describer)` is called with each segment's rows in
-    `session.store` (row `i` is row `session.base + i` of the capture), `describer`
-    describing them as after the whole capture (`learnt`, from `learn`). Stops reading
-    once `each` returns False."""
+    `window` rows (default LIST_WINDOW), and `each(session, describer)` is called with
+    each segment's rows in `session.store` (row `i` is row `session.base + i` of the
+    capture), `describer` describing them as after the whole capture (`learnt`, from
+    `learn`). Stops reading once `each` returns False."""
     describer = Describer(session.store, session.annotator, size=0)  # (no row is read twice)
     done = False
 
@@ -144,7 +145,7 @@ def segments(
     session.stats.bound()  # (nothing reads them)
     session.ingest(
         capture.chunks(),
-        window=window,
+        window=window or LIST_WINDOW,
         segment=segment,
         index=False,
         should_stop=lambda: done,
