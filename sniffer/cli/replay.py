@@ -29,7 +29,7 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
-from sniffer.cli.replaying import stdin_copy, write_listing, write_streamed
+from sniffer.cli.replaying import first_pass, stdin_copy, write_listing, write_streamed
 from sniffer.cli.together import replay_together
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
@@ -38,7 +38,7 @@ from sniffer.outputs.metrics import Metrics
 from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
 from sniffer.session.index import DamagedError
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
-from sniffer.session.streamed import Learnt, learn
+from sniffer.session.streamed import Learnt
 from sniffer.sources import Capture, ReadOptions
 from sniffer.sources.net import summary as net_summary
 from sniffer.text import plain
@@ -148,21 +148,15 @@ def _read(
     elif not capture.info.network:
         # a listing: a first pass keeping a window of rows, then the rows listed a
         # segment at a time by a second one (network captures are not windowed)
-        try:
-            learnt = learn(session, capture, reading)
-        except DamagedError:  # as for --stats: indexed, and the sidecar written anew
-            learnt = None
-        if learnt is None or learnt.unsure:  # (unsure: learnt again from the capture)
-            session, capture = open_session(
-                path,
-                options,
-                bindings=bindings,
-                timeout=args.timeout,
-                index=not args.no_index and learnt is None,
+        def anew(index: bool) -> tuple[Session, Capture]:
+            opened = open_session(
+                path, options, bindings=bindings, timeout=args.timeout, index=index
             )
             if metrics is not None:
-                metrics.rewatch(path.name, session)
-            learnt = learn(session, capture, reading)
+                metrics.rewatch(path.name, opened[0])
+            return opened
+
+        session, capture, learnt = first_pass(session, capture, reading, anew, not args.no_index)
         speed = learnt.speed
     else:
         session.ingest(capture.chunks(), reading)

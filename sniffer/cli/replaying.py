@@ -7,7 +7,7 @@ import argparse
 import shutil
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
@@ -18,8 +18,9 @@ from sniffer.meaning.describe import Describer
 from sniffer.meaning.query import Query
 from sniffer.outputs.listing import Lister
 from sniffer.outputs.parallel import workers_for, write_text
-from sniffer.session.session import Session
-from sniffer.session.streamed import Learnt, segments
+from sniffer.session.index import DamagedError
+from sniffer.session.session import Progress, Session
+from sniffer.session.streamed import Learnt, learn, segments
 from sniffer.sources import Capture
 
 
@@ -63,24 +64,49 @@ def write_listing(
     out.flush()
 
 
+def first_pass(
+    session: Session,
+    capture: Capture,
+    progress: Progress,
+    reopen: Callable[[bool], tuple[Session, Capture]],
+    index: bool,
+) -> tuple[Session, Capture, Learnt]:
+    """The first pass of a listing a segment at a time (`sniffer.session.streamed.learn`),
+    the session and capture it ends with: `reopen(index)` a new session on the capture,
+    taken where a sidecar read back was found damaged (indexed again, the sidecar
+    written anew, as for `replay --stats`) or cut a read it should have learnt from
+    (`Learnt.unsure`: learnt again from the capture itself)."""
+    try:
+        learnt: Learnt | None = learn(session, capture, progress)
+    except DamagedError:
+        learnt = None
+    if learnt is None or learnt.unsure:
+        session, capture = reopen(index and learnt is None)
+        learnt = learn(session, capture, progress)
+    return session, capture, learnt
+
+
 def write_streamed(
     out: TextIO,
     args: argparse.Namespace,
     learnt: Learnt,
     second: tuple[Session, Capture],
     query: Query | None,
-) -> None:
+    fmt: str | None = None,
+) -> int:
     """`write_listing` of a capture a segment at a time, in memory flat in its size:
     `learnt` from a first pass over it (`sniffer.session.streamed.learn`), `second` a
     new session on it, which lists each segment as it drops it (`segments`). The bytes
     are those `write_listing` writes of one store of every row: relative times count
     from the capture's first row, a filter's times too, rows are numbered in the whole
     capture (`Lister.base`) and described as after every row; `--jobs` processes share
-    each segment's rows."""
-    fmt = args.format or "text"
+    each segment's rows. `fmt`: the format, if not `args.format` (text by default).
+    Returns how many rows were listed."""
+    fmt = fmt or args.format or "text"
     session, capture = second
     selection = Selection(session, query, args.count, first=learnt.origin)
     listed = [False]  # whether the header went out (the first segment's range)
+    count = [0]
 
     def each(s: Session, describer: Describer) -> bool:
         if selection.done:
@@ -104,7 +130,7 @@ def write_streamed(
             return lister.write(part, flush=False)
 
         jobs = workers_for(getattr(args, "jobs", 1), len(rows), out)
-        write_text(out, rows, jobs, write)
+        count[0] += write_text(out, rows, jobs, write)
         listed[0] = True
         return not selection.done
 
@@ -112,3 +138,4 @@ def write_streamed(
     if not listed[0] and fmt == "csv":  # no row: the header alone, as of an empty store
         Lister(out, fmt, Describer(FrameStore()), raw_csv=args.raw_csv)
     out.flush()
+    return count[0]

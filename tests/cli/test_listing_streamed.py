@@ -226,3 +226,21 @@ def test_a_sidecar_read_back_in_the_first_pass(
     assert Path(str(path) + index.SUFFIX).exists()
     assert listed(argv, monkeypatch, 7, 5) == first
     assert first[0] == whole(argv)
+
+
+@pytest.mark.parametrize("fmt", ["text", "jsonl", "csv"])
+def test_export_of_frames_in_segments(
+    tmp_path: Path, fmt: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`export -o x.jsonl` (text, csv) writes the listing replay writes, a segment at a
+    time too."""
+    frames = [(f.raw, f.t) for f in polling_frames(1500, line=LINE)]
+    path = recorded(tmp_path / "poll.pcapng", reads_of(frames, 0.016))
+    monkeypatch.setattr(streamed, "LEARN_WINDOW", 40)
+    monkeypatch.setattr(streamed, "LIST_WINDOW", 60)
+    target = tmp_path / f"out.{'txt' if fmt == 'text' else fmt}"
+    args = build_parser().parse_args(["export", str(path), "-o", str(target), "--jobs", "1"])
+    err = io.StringIO()
+    assert args.func(args, io.StringIO(), err) == 0
+    assert target.read_bytes().decode("utf-8") == whole([str(path), "--format", fmt])
+    assert Kept.cuts > 20 and f": 1500 frames ({fmt})" in err.getvalue()
