@@ -25,7 +25,7 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
-from sniffer.cli.replaying import stdin_copy
+from sniffer.cli.replaying import first_pass, stdin_copy, write_streamed
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.outputs.export import (
@@ -43,7 +43,8 @@ from sniffer.outputs.export import (
 from sniffer.outputs.listing import Lister
 from sniffer.outputs.parallel import workers_for, write_binary, write_text
 from sniffer.outputs.parquet import ParquetError, write_parquet
-from sniffer.session.session import open_session
+from sniffer.session.session import Session, open_session
+from sniffer.sources import Capture
 from sniffer.text import plain
 
 EXPORT_EXAMPLES = """\
@@ -102,13 +103,39 @@ def _export(
     told = line_warnings(options, capture.info.recorded_line, given or str(source))
     progress = Progress(err, given or source.name, None if given else source)
     settle()
-    session.ingest(capture.chunks(), progress.reading)
+    # frames as text, JSONL or CSV: listed a segment at a time, as replay lists them
+    # (`sniffer.session.streamed`); the other exports read every row from one store
+    learnt = None
+    if fmt in ("text", "jsonl", "csv") and what == "frames" and not capture.info.network:
+
+        def anew(index: bool) -> tuple[Session, Capture]:
+            return open_session(
+                source, options, bindings=bindings, timeout=args.timeout, index=index
+            )
+
+        session, capture, learnt = first_pass(
+            session, capture, progress.reading, anew, not args.no_index
+        )
+    else:
+        session.ingest(capture.chunks(), progress.reading)
     progress.done()
     session.warnings.extend(capture.warnings)
     for note in [*capture.info.notes, *session.notes]:
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
+    if learnt is not None:
+        status = finish_read(capture, session, err)
+        text = out if args.output == "-" else _open_text(args.output)
+        try:
+            second = anew(False)
+            n = write_streamed(text, args, learnt, second, query, fmt)
+        finally:
+            if text is not out:
+                text.close()
+        if args.output != "-":
+            err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
+        return status
     chosen = Selection(session, query, args.count).take(len(session.store), final=True)
     status = finish_read(capture, session, err)
     describer = session.describer

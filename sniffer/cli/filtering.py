@@ -9,6 +9,7 @@ from array import array
 from collections.abc import Sequence
 
 from sniffer.errors import UsageError
+from sniffer.meaning.annotate import Annotator
 from sniffer.meaning.query import Query, QueryError, parse_query
 from sniffer.meaning.select import FilterJob, Options  # the TUI's matcher, in the core
 from sniffer.session.session import Session
@@ -48,14 +49,35 @@ class Selection:
     `take(upto, final)` returns the rows below `upto` not handed out before. With a query,
     rows whose request still waits for its answer are held until it is decided (as the
     TUI does), unless `final`.
+
+    A capture taken a segment at a time (`sniffer.session.streamed`): `next_segment` once
+    the session's store holds the next segment's rows, which `take` then numbers from 0;
+    `first` is the capture's first time (what a query's times count from) and
+    `annotator` the one the segment's rows are described with.
     """
 
-    def __init__(self, session: Session, query: Query | None, count: int | None) -> None:
+    def __init__(
+        self,
+        session: Session,
+        query: Query | None,
+        count: int | None,
+        *,
+        first: float | None = None,
+        annotator: Annotator | None = None,
+    ) -> None:
         self.session = session
         self.query = query
         self.left = count
         self.given = 0  # rows (or matches) handed out so far
         self.job: FilterJob | None = None
+        self.first = first
+        self.annotator = annotator
+
+    def next_segment(self, annotator: Annotator | None = None) -> None:
+        """The session's store now holds the next segment's rows (see above)."""
+        self.given = 0
+        self.job = None
+        self.annotator = annotator
 
     @property
     def done(self) -> bool:
@@ -63,6 +85,8 @@ class Selection:
 
     def origin(self) -> float | None:
         """The capture's first time: filtered listings count time from it, as the TUI."""
+        if self.first is not None:
+            return self.first
         store = self.session.store
         return store.t[0] if len(store) else None
 
@@ -77,9 +101,10 @@ class Selection:
             self.given = max(self.given, upto)
         else:
             if self.job is None:
-                origin = store.t[0] if len(store) else 0.0
-                bound = Options(bound=self.session.annotator.bindings)
-                self.job = FilterJob(store, self.query, bound, self.session.annotator, origin)
+                origin = self.origin()
+                annotator = self.annotator or self.session.annotator
+                bound = Options(bound=annotator.bindings)
+                self.job = FilterJob(store, self.query, bound, annotator, origin or 0.0)
             while self.job.advance(upto, budget=1.0, final=final):
                 pass
             found: array[int] = self.job.rows

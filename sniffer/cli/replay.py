@@ -29,7 +29,7 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
-from sniffer.cli.replaying import stdin_copy, write_listing
+from sniffer.cli.replaying import first_pass, stdin_copy, write_listing, write_streamed
 from sniffer.cli.together import replay_together
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
@@ -38,6 +38,7 @@ from sniffer.outputs.metrics import Metrics
 from sniffer.outputs.mqtt.command import add_mqtt_options, cmd_replay_mqtt
 from sniffer.session.index import DamagedError
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
+from sniffer.session.streamed import Learnt
 from sniffer.sources import Capture, ReadOptions
 from sniffer.sources.net import summary as net_summary
 from sniffer.text import plain
@@ -128,6 +129,7 @@ def _read(
     settle()
     cycles = speed = None
     origin: float | None = None  # the first row's time: where the listing counts from
+    learnt: Learnt | None = None  # a listing's first pass (see sniffer.session.streamed)
     if published:
         # --mqtt publishes every row as it is read; the statistics or the listing asked
         # for alongside (--stats, --format) are made from the same rows afterwards
@@ -143,6 +145,19 @@ def _read(
             if metrics is not None:
                 metrics.rewatch(path.name, session)
             cycles, speed, origin = _windowed(session, capture, reading)
+    elif not capture.info.network:
+        # a listing: a first pass keeping a window of rows, then the rows listed a
+        # segment at a time by a second one (network captures are not windowed)
+        def anew(index: bool) -> tuple[Session, Capture]:
+            opened = open_session(
+                path, options, bindings=bindings, timeout=args.timeout, index=index
+            )
+            if metrics is not None:
+                metrics.rewatch(path.name, opened[0])
+            return opened
+
+        session, capture, learnt = first_pass(session, capture, reading, anew, not args.no_index)
+        speed = learnt.speed
     else:
         session.ingest(capture.chunks(), reading)
     progress.done()
@@ -176,6 +191,10 @@ def _read(
         out.write(cycle_table(found, labels, origin or 0.0) + "\n")
         return status
     if published and not args.format:
+        return status
+    if learnt is not None:
+        second = open_session(path, options, bindings=bindings, timeout=args.timeout, index=False)
+        write_streamed(out, args, learnt, second, query)
         return status
     write_listing(out, args, session, query)
     return status

@@ -9,8 +9,9 @@ and the device's own timing rules (answer time, quiet time after writes).
 from __future__ import annotations
 
 import bisect
+import copy
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import compress
 from pathlib import Path
 
@@ -173,6 +174,23 @@ class Annotator:
             store.flags[i] |= Flag.DEVICE_SLOW
         if fc in timing.quiet_after_functions and not store.fc[i] & 0x80:
             self.last_write[unit] = (store.t_end[i], fc)
+
+    def knowing(self, whole: Annotator) -> Annotator:
+        """This annotator, following a capture a segment at a time (a windowed pass), as
+        one that saw every row describes the rows: with what `whole` (the same bindings,
+        after every row of the capture) found of SunSpec devices (which units, their
+        models, the names they gave), and this one's own state for what depends on the
+        row (the parameter a window had selected, a scale factor's value): those count
+        only the rows before it, which this one has seen. Shares this one's state (it
+        goes on as this one follows more rows); make it anew for each segment."""
+        made = copy.copy(self)
+        tracker = made.sunspec = copy.copy(whole.sunspec)
+        mine = self.sunspec.units
+        tracker.units = {
+            unit: replace(found, scale=mine[unit].scale if unit in mine else {})
+            for unit, found in whole.sunspec.units.items()
+        }
+        return made
 
     def selected(self, unit: int, window_index: int, row: int) -> int | None:
         """The parameter a window had selected when `row` was sent."""

@@ -7,6 +7,7 @@ import json
 import math
 import struct
 from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import replace
 from datetime import UTC, datetime
 from math import ceil, log10
 from typing import Any, TextIO
@@ -426,22 +427,23 @@ _STATUS_JSON = tuple(json.dumps(name) for name in STATUS_NAMES)
 
 
 def _transaction_json(
-    store: FrameStore, i: int, kind: int, ms: float | None, max_ms: float | None
+    store: FrameStore, i: int, kind: int, ms: float | None, max_ms: float | None, base: int = 0
 ) -> str:
     """`, "transaction": {...}` of row `i` as `transaction_of` gives it (empty when
-    there is none), from the store's columns and the row's measured latency."""
+    there is none), from the store's columns and the row's measured latency; rows
+    numbered `base` on (see `Lister.base`)."""
     status = store.status[i]
     if kind not in _TRANSACTION_KINDS or not status:
         return ""
     partner = store.partner[i]
     request = kind == Kind.REQUEST
-    req = i if request or partner == NO_PARTNER else partner
+    req = (i if request or partner == NO_PARTNER else partner) + base
     shown = "null" if ms is None else _json_float(round(ms, 3))
     bound = "null" if max_ms is None else _json_float(round(max_ms, 3))
     return (
         f', "transaction": {{"id": {req}, "role": "{"request" if request else "response"}", '
         f'"latency_ms": {shown}, "latency_max_ms": {bound}, "status": {_STATUS_JSON[status]}, '
-        f'"partner": {"null" if partner == NO_PARTNER else partner}}}'
+        f'"partner": {"null" if partner == NO_PARTNER else partner + base}}}'
     )
 
 
@@ -554,6 +556,9 @@ class Lister:
         self._cited: set[int] = set()
         self.updates = updates
         self._latencies = Latencies()
+        # the row number of the store's first row: rows of a segment of a capture (a
+        # windowed pass, `sniffer.session.streamed`) are numbered as in the whole capture
+        self.base = 0
         if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
@@ -698,10 +703,10 @@ class Lister:
                 return None
             first, second = _splice(spliced, raw)
         line = (
-            f'{{"index": {i}, "t": {_json_float(round(store.t[i], 6))}, '
+            f'{{"index": {i + self.base}, "t": {_json_float(round(store.t[i], 6))}, '
             f'"t_end": {_json_float(round(store.t_end[i], 6))}, {first}, '
             f'"channel": {store.channel[i]}, {second}'
-            f"{_transaction_json(store, i, kind, ms, max_ms)}"
+            f"{_transaction_json(store, i, kind, ms, max_ms, self.base)}"
         )
         if registers:
             line += ", " + registers
@@ -726,6 +731,10 @@ class Lister:
         """Row `d` as a text or JSONL line, or written as a CSV record (None)."""
         store = self.describer.store
         i = d.view.index
+        if self.base:  # numbered as in the whole capture (the store's rows are read as i)
+            v = d.view
+            partner = v.partner if v.partner == NO_PARTNER else v.partner + self.base
+            d = replace(d, view=replace(v, index=i + self.base, partner=partner))
         if self.fmt == "text":
             # with network rows about, the others name their channel in that column
             where = peer or (f"ch{store.channel[i]}" if store.peers else "")
