@@ -85,10 +85,9 @@ def learn(
         if s.base and not cut and _cut_read(s):
             cut.append(True)
 
-    if not session.indexing:
-        session.stats.bound()  # (a sidecar being written or read saves the values)
     window = window or LEARN_WINDOW  # (read now: tests set it)
-    session.ingest(capture.chunks(), progress, window=window, segment=segment)
+    # the statistics bounded, a sidecar being written given their values on disk
+    session.ingest(capture.chunks(), progress, window=window, segment=segment, bounded=True)
     return Learnt(
         session.annotator,
         first[0] if first else None,
