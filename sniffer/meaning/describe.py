@@ -474,7 +474,12 @@ class Describer:
             else:
                 made = self._found(i, None, key, found, kind, partner, unit, asked)
             if free is not None:
-                if len(valueless) >= self.shared_size:
+                # four times the contents kept: one-off shapes (writes to addresses
+                # written once, as FC 5, 6, 15 and 16 often are) filled a table of
+                # `shared_size` and cleared it, the shapes that recur with it; contents
+                # described for the listings of 200k frames of mix619758287: 8,576 ->
+                # 3,496, mix843779584 7,310 -> 2,443 (docs/performance.md, h-fc56)
+                if len(valueless) >= 4 * self.shared_size:
                     valueless.clear()
                 valueless[free] = made
             yield i, made

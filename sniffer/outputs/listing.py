@@ -745,8 +745,7 @@ class Lister:
         store = self.describer.store
         parts = shared.memo.get("text")
         if parts is None:
-            bare = self._bare(i, shared)
-            head, tail = _text_parts(bare)
+            head, tail = _text_parts(self._bare(i, shared))
             parts = shared.memo["text"] = (head, tail, head + tail, _text_spliced(tail, shared))
         single: tuple[str, ...] | None = parts[3]
         if single is not None:  # an FC 5/6 write: the row's value may not be the content's
