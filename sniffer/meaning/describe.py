@@ -126,6 +126,22 @@ def _write_request(raw: bytes) -> bool:
     return len(raw) == 9 + raw[6] and raw[6] == need
 
 
+_SINGLE_WRITES = (5, 6)
+_COIL_STATES = (b"\xff\x00", b"\x00\x00")  # ON, OFF: any other value is a problem
+
+
+def _single_write(raw: bytes) -> bool:
+    """Whether `raw`, an RTU frame, is a well-formed FC 5 or 6 write (request or echo):
+    8 bytes and, for FC 5, a coil value of 0xFF00 (ON) or 0x0000 (OFF). For a unit with
+    no dictionary (and not followed as SunSpec) its name, summary and problems read only
+    its head (unit, code, address) and the value, which is said once in the summary
+    (`0x1234`, `ON`): writes of other values share a content for the listings, which
+    splice each row's own value into what they keep (`sniffer.outputs.listing`). An
+    echo is only such when it is its request's bytes, as its description then reads
+    nothing of the request but that they are the same."""
+    return len(raw) == 8 and (raw[1] == 6 or raw[4:6] in _COIL_STATES)
+
+
 def _explained(unit: int, asked_unit: int, bound: Container[int], sunspec: Container[int]) -> bool:
     """Whether an exception of `unit` to a request of `asked_unit` may be explained by
     its request (`Describer._content`: the problems of the request's registers), which
@@ -337,7 +353,10 @@ class Describer:
         line has the row's own values spliced in), a well-formed FC 15 or 16 write of a
         unit with no dictionary may be given the content of another write of other
         values (`_write_request`): the same head, length, flags, status and, for FC 15,
-        padding bits."""
+        padding bits; and a well-formed FC 5 or 6 write, or its echo of the same bytes,
+        the content of another of the same unit, code, address, flags and status that
+        writes another value (`_single_write`): their text and JSONL lines say the value
+        (`write 0x1234 to register ...`, `coil ... ON`), which the listings splice in."""
         if type(self).shared is not Describer.shared or self.shared_size <= 0:
             for i in rows:  # a subclass's own contents (the live window's numbering)
                 yield i, self.shared(i)
@@ -407,10 +426,17 @@ class Describer:
             if sharing and unit and unit not in bound and not flag & VALUED_FLAGS:
                 fc = fcs[i]
                 if kind == _REQUEST:
-                    if writes and fc in _WRITES and _write_request(raw):
-                        free = (_REQUEST, kept, status, *_write_key(raw))
+                    if writes:
+                        if fc in _SINGLE_WRITES:
+                            if _single_write(raw):
+                                free = (_REQUEST, kept, status, raw[:4])
+                        elif fc in _WRITES and _write_request(raw):
+                            free = (_REQUEST, kept, status, *_write_key(raw))
                 elif asked is not None and kind == _RESPONSE and not flags[partner] & VALUED_FLAGS:
-                    if fc in _READS:
+                    if fc in _SINGLE_WRITES:
+                        if writes and raw == asked and _single_write(raw):
+                            free = (_RESPONSE, kept, status, raw[:4])
+                    elif fc in _READS:
                         if _valueless(raw, asked):
                             free = (raw[:3], len(raw), kept, status, asked)
                     elif fc in _WRITES:
@@ -448,7 +474,12 @@ class Describer:
             else:
                 made = self._found(i, None, key, found, kind, partner, unit, asked)
             if free is not None:
-                if len(valueless) >= self.shared_size:
+                # four times the contents kept: one-off shapes (writes to addresses
+                # written once, as FC 5, 6, 15 and 16 often are) filled a table of
+                # `shared_size` and cleared it, the shapes that recur with it; contents
+                # described for the listings of 200k frames of mix619758287: 8,576 ->
+                # 3,496, mix843779584 7,310 -> 2,443 (docs/performance.md, h-fc56)
+                if len(valueless) >= 4 * self.shared_size:
                     valueless.clear()
                 valueless[free] = made
             yield i, made

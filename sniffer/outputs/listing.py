@@ -7,7 +7,7 @@ import json
 import math
 import struct
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from math import ceil, log10
 from typing import Any, TextIO
@@ -308,6 +308,28 @@ def _text_parts(d: FrameDetail) -> tuple[str, str]:
     return head, tail
 
 
+def _text_spliced(tail: str, shared: Shared) -> tuple[str, ...] | None:
+    """How the text line's part after its latency (`_text_parts`) is made of a content's
+    value where it says one: for an FC 5 or 6 write or echo of 8 RTU bytes (`raw`),
+    what comes before and after the value as its summary says it (`write 0x1234 to
+    register 0x0064`, `coil 0x000A ON`: the first time the summary says it, before the
+    address), checked by making the part again; `()` where it is not so made (rows of
+    that content with other bytes are then listed on their own), None for any other
+    content, whose text no value decides."""
+    raw = shared.raw
+    if len(raw) != 8 or raw[1] not in _SINGLE_WRITES:
+        return None
+    said = _said(raw)
+    if said is None:
+        return ()
+    where = shared.summary.find(said)
+    if where < 0 or not tail.startswith("  " + shared.summary):
+        return ()
+    where += 2
+    made = (tail[:where], tail[where + len(said) :])
+    return made if made[0] + said + made[1] == tail else ()
+
+
 def _latency_text(ms: float | None, max_ms: float | None) -> str:
     shown = latency_words(ms, max_ms)
     return f" {shown:>9}" if shown else ""
@@ -352,7 +374,36 @@ _BYTE_BITS = tuple("".join("1" if b >> k & 1 else "0" for k in range(8)) for b i
 _BYTE_LIST = tuple(", ".join(bits) for bits in _BYTE_BITS)
 
 
-def _spliced(first: str, second: str, d: FrameDetail) -> _Spliced | None:
+_SINGLE_WRITES = frozenset((5, 6))  # FC 5/6 writes and their echoes: one value, said
+# as a FC 6 write's text says it, `0x1234`, from the two bytes' halves
+_HEX_HIGH = tuple(f"0x{b:02X}" for b in range(256))
+_HEX_LOW = tuple(f"{b:02X}" for b in range(256))
+_COIL_SAID = {b"\xff\x00": "ON", b"\x00\x00": "OFF"}  # FC 5's well-formed values
+
+
+def _said(raw: bytes) -> str | None:
+    """How the text of `raw`, an 8-byte RTU FC 5 or 6 write or echo, says its value:
+    `0x1234` for a register, `ON` or `OFF` for a coil (None for another coil value: a
+    malformed write, whose text says more)."""
+    if raw[1] == 6:
+        return _HEX_HIGH[raw[4]] + _HEX_LOW[raw[5]]
+    return _COIL_SAID.get(raw[4:6])
+
+
+@dataclass(frozen=True, slots=True)
+class _Single:
+    """How the JSONL parts of an FC 5 or 6 write are made of its bytes (see
+    `_single_spliced`): the first part after the hex of its bytes; the second part
+    before the value as its summary says it, between that and the value field's number,
+    and after the field's text (which says the value as the summary does)."""
+
+    after_hex: str
+    before_said: str
+    before_number: str
+    after_text: str
+
+
+def _spliced(first: str, second: str, d: FrameDetail) -> _Spliced | _Single | None:
     """How the JSONL parts (`_json_parts`) of row `d`, an RTU frame whose `values` field
     holds words or bits of its own bytes (an answer to an FC 1-4 read, an FC 15 or 16
     write), are made of its bytes: so that `_splice` makes those of a frame with other
@@ -365,6 +416,8 @@ def _spliced(first: str, second: str, d: FrameDetail) -> _Spliced | None:
     if dissection is None or d.registers or d.view.flags & _MODE or n < 5:
         return None
     fc = raw[1]
+    if fc in _SINGLE_WRITES:
+        return _single_spliced(first, second, d)
     words = fc in _WORD_VALUES
     if not words and fc not in _BIT_VALUES:
         return None
@@ -412,8 +465,50 @@ def _values_text(raw: bytes, at: int, count: int, words: bool) -> str:
     return f'{listed}], "text": "{listed.replace(", ", " ")}'
 
 
-def _splice(spliced: _Spliced, raw: bytes) -> tuple[str, str]:
-    """The JSONL parts of `raw`, a frame with other values (see `_spliced`)."""
+def _single_spliced(first: str, second: str, d: FrameDetail) -> _Single | None:
+    """`_spliced` for row `d`, an FC 5 or 6 write or echo of 8 bytes whose value its
+    summary says (`write 0x1234 to register 0x0064`, `coil 0x000A ON`; the first time
+    the summary says it is the value, which it says before the address) and whose
+    `value` field holds it (its number, and its text as the summary says it). None if
+    the parts are not so made (checked by making them again)."""
+    raw = d.view.raw
+    if len(raw) != 8:
+        return None
+    said = _said(raw)
+    head = f'"raw": "{raw.hex()}"'
+    summary = _json_item("summary", d.summary)
+    at = second.find(summary)
+    if said is None or not first.startswith(head) or at < 0:
+        return None
+    where = summary.find(said, len('"summary": "'))
+    before = '{"name": "value", "value": '
+    value = f'{before}{raw[4] << 8 | raw[5]}, "text": "{said}'
+    field = second.find(value + '"', at + len(summary))
+    if where < 0 or field < 0:
+        return None
+    where += at
+    made = _Single(
+        first[len(head) - 1 :],
+        second[:where],
+        second[where + len(said) : field + len(before)],
+        second[field + len(value) :],
+    )
+    return made if _splice(made, raw) == (first, second) else None
+
+
+def _splice(spliced: _Spliced | _Single, raw: bytes) -> tuple[str, str] | None:
+    """The JSONL parts of `raw`, a frame with other values (see `_spliced`); None for
+    an FC 5 write of a value that is neither ON nor OFF (never given a content of
+    other values: its text says more)."""
+    if isinstance(spliced, _Single):
+        said = _said(raw)
+        if said is None:
+            return None
+        return (
+            f'"raw": "{raw.hex()}{spliced.after_hex}',
+            f"{spliced.before_said}{said}{spliced.before_number}{raw[4] << 8 | raw[5]}"
+            f', "text": "{said}{spliced.after_text}',
+        )
     after_hex, before_values, after_text, at, count, words = spliced
     return (
         f'"raw": "{raw.hex()}{after_hex}',
@@ -643,17 +738,29 @@ class Lister:
             return f"{line}  #{i}"
         return line
 
-    def _text_line(self, i: int, shared: Shared, peer: str) -> str:
+    def _text_line(self, i: int, shared: Shared, peer: str) -> str | None:
         """Row `i`'s text line from what rows with its content share (see
         `Describer.shared`): made once per content, with the time and latency of the
         row put in; a request's line shows no latency, so none is measured for it.
         A polling capture repeats a few contents all day, so most rows cost only the
-        formatting of their time."""
+        formatting of their time. An FC 5/6 write's content is shared by writes of
+        other values, whose own value is spliced into its summary (`_text_spliced`);
+        None (`_line` makes it) where that cannot be."""
         store = self.describer.store
         parts = shared.memo.get("text")
         if parts is None:
             head, tail = _text_parts(self._bare(i, shared))
-            parts = shared.memo["text"] = (head, tail, head + tail)
+            parts = shared.memo["text"] = (head, tail, head + tail, _text_spliced(tail, shared))
+        single: tuple[str, ...] | None = parts[3]
+        if single is not None:  # an FC 5/6 write: the row's value may not be the content's
+            at = store.offset[i]
+            raw = bytes(store.streams[store.channel[i]][at : at + store.length[i]])
+            if raw != shared.raw:
+                said = _said(raw) if single else None
+                if said is None:
+                    return None
+                tail = single[0] + said + single[1]
+                parts = (parts[0], tail, parts[0] + tail, single)
         assert self.origin is not None
         t = store.t[i]
         when = time_text(t, self.origin, True) if self.absolute else f"{t - self.origin:12.6f}"
@@ -699,9 +806,10 @@ class Lister:
             memo["jsonl"] = json_parts = (first, second, registers, spliced)
         first, second, registers, spliced = json_parts
         if raw != shared.raw:  # an answer with other values (see Describer.contents)
-            if spliced is None:
+            made = None if spliced is None else _splice(spliced, raw)
+            if made is None:
                 return None
-            first, second = _splice(spliced, raw)
+            first, second = made
         line = (
             f'{{"index": {i + self.base}, "t": {_json_float(round(store.t[i], 6))}, '
             f'"t_end": {_json_float(round(store.t_end[i], 6))}, {first}, '
