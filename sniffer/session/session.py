@@ -175,8 +175,6 @@ class Session:
         store = self.store
         if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
             return False  # network captures (several open requests) are not windowed
-        if store.status.tobytes().find(bytes([Status.OPEN])) >= 0:
-            return False
         if pipeline.holding:  # bytes read but not framed yet
             return False
         for ch in pipeline.channels.values():
@@ -185,7 +183,9 @@ class Session:
                 return False
             if ch.staging is not None and ch.read < len(ch.staging):
                 return False
-        return True
+        # the scan of every row last: a replay waiting for a settled moment tries often
+        # (see ingest), and the framers say no at most tries
+        return store.status.tobytes().find(bytes([Status.OPEN])) < 0
 
     def new_segment(self) -> bool:
         """Forget the rows framed so far and go on in an empty store, numbering rows on
