@@ -49,6 +49,9 @@ LIVE_MERGE_SLACK = 0.05  # live ports share one clock: a little is enough
 # up to this many bytes: the framer's cost per call, paid once for many (what is left
 # per batch is the reader's)
 HOLD_BYTES = 1 << 19
+# ... and while a windowed replay waits for a settled moment to drop its rows at
+# (`sniffer.session.session.Session.ingest`), this many: see `Pipeline.hold_bytes`
+SETTLING_HOLD_BYTES = 1 << 15
 
 
 @dataclass
@@ -120,6 +123,12 @@ class Pipeline:
         # whatever looks at the framers or the store frames them first (`_frame_held`)
         self._held: list[Reads] = []
         self._held_bytes = 0
+        # how many bytes are held before they are framed (None: HOLD_BYTES). A store
+        # is dropped only where the framers stand settled at the end of what they were
+        # given (`Session.settled`): a held 512 KiB ends wherever its last read ends,
+        # mid-frame as often as not in 16 ms reads of a slow line, so the replay that
+        # waits for a settled moment looks at the end of smaller holds
+        self.hold_bytes: int | None = None
         self._chunks_fed = 0  # chunks fed so far: the order rows of one time merge in
 
     @property
@@ -210,7 +219,8 @@ class Pipeline:
         # so the rows are the same however the reads are cut into batches
         self._held.append(reads)
         self._held_bytes += len(reads.data)
-        if self._held_bytes >= HOLD_BYTES:
+        hold = self.hold_bytes
+        if self._held_bytes >= (HOLD_BYTES if hold is None else hold):
             self._frame_held()
 
     def _frame_held(self) -> None:

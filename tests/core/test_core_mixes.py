@@ -7,6 +7,7 @@ frames a frame split across reads itself, where the pure-Python core's slow path
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 
@@ -95,3 +96,68 @@ def test_the_compiled_core_frames_frames_split_across_reads(
     assert comp.store.t == pure.store.t
     assert comp.store.partner == pure.store.partner
     assert comp.store.status == pure.store.status
+
+
+def _searches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """A counter of the slow path's searches (`RtuLengths.candidates` calls) in Python."""
+    count = [0]
+    search = RtuLengths.candidates
+
+    def counted(self: RtuLengths, *args: object) -> tuple[int, int, bool]:
+        count[0] += 1
+        return search(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(RtuLengths, "candidates", counted)
+    return count
+
+
+@pytest.mark.parametrize("seed", [843779584, 186255415])
+def test_slow_buses_of_many_slaves_keep_their_split_frames_compiled(
+    tmp_path: Path, compiled: ModuleType, monkeypatch: pytest.MonkeyPatch, seed: int
+) -> None:
+    """32 slaves at 38400 baud in 16 ms reads, timeouts among them (two of the
+    benchmark's mixes): a read holds a few frames, so about one frame in three is split
+    across reads, and a request that times out is followed by a poll that may be of the
+    same unit and code. The compiled core frames those itself (its search, where the
+    fast paths cannot take a frame begun in an earlier read), the rows the same."""
+    path = _file(tmp_path, random_mix(seed), 3000)
+    searches = _searches(monkeypatch)
+    _ingest(path, None)
+    split = searches[0]
+    searches[0] = 0
+    _assert_same(path, compiled)
+    # _assert_same ran both cores: what the compiled one left to Python is the rest
+    left = searches[0] - split
+    assert split > 500  # the pure-Python core searched at each split frame
+    assert left * 100 < split
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 10**9),
+    frames=st.integers(50, 500),
+    baud=st.sampled_from((9600, 19200, 38400)),
+    timeouts=st.sampled_from((0.0, 0.01, 0.05, 0.2)),
+    read_max=st.sampled_from((0, 3, 16, 64)),
+)
+def test_split_frames_of_any_slow_bus_are_the_same_with_either_core(
+    tmp_path_factory: pytest.TempPathFactory,
+    seed: int,
+    frames: int,
+    baud: int,
+    timeouts: float,
+    read_max: int,
+) -> None:
+    """A random bus made slow (reads of 16 ms, or of 1..read_max bytes, cut most frames)
+    with timeouts up to one poll in five: the same rows, times, pairs and statistics
+    from the compiled core as from the pure-Python one."""
+    mix = random_mix(seed)
+    mix = replace(
+        mix,
+        line=replace(mix.line, baud=baud),
+        timeout_rate=timeouts,
+        reads="random" if read_max else "usb",
+        read_max=read_max,
+    )
+    path = _file(tmp_path_factory.mktemp("slow"), mix, frames)
+    _assert_same(path, _compiled())
