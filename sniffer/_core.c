@@ -2551,6 +2551,73 @@ static int ls_round(double x, int nd, double *out) {
     return 0;
 }
 
+/* round(|x| * 10**nd) to the nearest integer, ties to even, exactly (from x's binary
+ * value, as the correctly rounded formats and round() take it): 1 with it in *k when it
+ * is below 2**52, else 0 (not finite, or too large: the slow path formats it). nd <= 9. */
+static const double LS_POW10[10] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+static const uint64_t LS_IPOW10[10] = {1ull,      10ull,      100ull,      1000ull,      10000ull,
+                                       100000ull, 1000000ull, 10000000ull, 100000000ull,
+                                       1000000000ull};
+#define LS_EXACT (1ull << 52)
+
+static int ls_scaled(double x, int nd, uint64_t *k) {
+    double a = fabs(x);
+    if (!(a < 4503599627370496.0) || nd < 0 || nd > 9) return 0; /* 2**52; NaN too */
+    if (a == 0.0) {
+        *k = 0;
+        return 1;
+    }
+    int e;
+    double f = frexp(a, &e);              /* a = f * 2**e, 0.5 <= f < 1 */
+    uint64_t m = (uint64_t)ldexp(f, 53); /* a = m * 2**(e - 53), exactly */
+    int shift = 53 - e;                   /* > 0: a < 2**52 */
+    if (shift >= 120) {                   /* a * 10**9 < 2**-60: rounds to 0 */
+        *k = 0;
+        return 1;
+    }
+    unsigned __int128 p = (unsigned __int128)m * LS_IPOW10[nd];
+    unsigned __int128 q = p >> shift, r = p - (q << shift);
+    unsigned __int128 half = (unsigned __int128)1 << (shift - 1);
+    if (r > half || (r == half && (q & 1))) q += 1;
+    if (q >= LS_EXACT) return 0;
+    *k = (uint64_t)q;
+    return 1;
+}
+
+/* `round(x, nd)`: from ls_scaled's integer, k / 10**nd, one correctly rounded division of
+ * two exact doubles, which is the double nearest the decimal (what round() reads back),
+ * signed as x (round(-1e-9, 6) is -0.0); the slow path where ls_scaled gives none. */
+static int ls_round_fast(double x, int nd, double *out) {
+    uint64_t k;
+    if (!ls_scaled(x, nd, &k)) return ls_round(x, nd, out);
+    double v = (double)k / LS_POW10[nd];
+    *out = signbit(x) ? -v : v;
+    return 0;
+}
+
+/* The digits of k / 10**nd (`%.{nd}f` of x, k from ls_scaled), signed, into b; with
+ * `shortest`, trailing zeros of the fraction dropped but one. */
+static int ls_put_fixed(Buf *b, int negative, uint64_t k, int nd, int shortest) {
+    char text[48];
+    int w = 0;
+    if (negative) text[w++] = '-';
+    uint64_t whole = k / LS_IPOW10[nd], frac = k % LS_IPOW10[nd];
+    w += snprintf(text + w, sizeof text - (size_t)w, "%llu", (unsigned long long)whole);
+    if (nd || shortest) text[w++] = '.';
+    char digits[10];
+    for (int d = nd - 1; d >= 0; d--) {
+        digits[d] = (char)('0' + frac % 10);
+        frac /= 10;
+    }
+    int used = nd;
+    if (shortest)
+        while (used > 1 && digits[used - 1] == '0') used--;
+    if (!nd && shortest) digits[used++] = '0';
+    memcpy(text + w, digits, (size_t)used);
+    w += used;
+    return buf_put(b, text, w);
+}
+
 /* `repr(x)` (what json.dumps writes of a finite float) into b. */
 static int ls_put_repr(Buf *b, double x) {
     char *s = PyOS_double_to_string(x, 'r', 0, Py_DTSF_ADD_DOT_0, NULL);
@@ -2560,17 +2627,80 @@ static int ls_put_repr(Buf *b, double x) {
     return r;
 }
 
-/* `repr(round(x, nd))`, x finite. */
+/* `repr(round(x, nd))`, x finite. Where ls_scaled gives k and the value is 0 or at least
+ * 1e-4 (repr's fixed notation), it is k's digits, the shortest: the decimal D = k / 10**nd
+ * is what round() reads back, and, as k < 2**52, the doubles about D are closer together
+ * than 10**-nd, so that no other multiple of 10**-nd, nor any decimal of fewer digits (each
+ * such a multiple), reads back as the same double: repr's shortest digits are D's. */
 static int ls_put_rounded(Buf *b, double x, int nd) {
+    uint64_t k;
+    if (ls_scaled(x, nd, &k) && (k == 0 || nd < 4 || k >= LS_IPOW10[nd - 4]))
+        return ls_put_fixed(b, signbit(x) != 0, k, nd, 1);
     double r;
     if (ls_round(x, nd, &r) < 0) return -1;
     return ls_put_repr(b, r);
 }
 
+/* `f"{x:12.{nd}f}"` into b. */
+static int ls_put_time(Buf *b, double x, int nd) {
+    uint64_t k;
+    Buf one = {NULL, 0, 0};
+    char *slow = NULL;
+    const char *text;
+    Py_ssize_t n;
+    if (ls_scaled(x, nd, &k)) {
+        char room[48];
+        one.p = room;
+        one.cap = sizeof room;
+        if (ls_put_fixed(&one, signbit(x) != 0, k, nd, 0) < 0) return -1;
+        text = one.p;
+        n = one.n;
+    } else {
+        slow = PyOS_double_to_string(x, 'f', nd, 0, NULL);
+        if (slow == NULL) return -1;
+        text = slow;
+        n = (Py_ssize_t)strlen(slow);
+    }
+    int bad = 0;
+    for (Py_ssize_t pad = n; pad < 12 && !bad; pad++) bad = buf_put(b, " ", 1) < 0;
+    bad = bad || buf_put(b, text, n) < 0;
+    PyMem_Free(slow);
+    return bad ? -1 : 0;
+}
+
+/* listing_floats(x, nd) -> (round(x, nd), repr(round(x, nd)), f"{x:12.{nd}f}") as
+ * listing_rows makes them: for tests/outputs/test_listing_compiled.py, which holds them to
+ * Python's. */
+static PyObject *py_listing_floats(PyObject *self, PyObject *args) {
+    double x, r;
+    int nd;
+    if (!PyArg_ParseTuple(args, "di", &x, &nd)) return NULL;
+    if (!isfinite(x) || nd < 0 || nd > 9) {
+        PyErr_SetString(PyExc_ValueError, "listing_floats: a finite x, 0 <= nd <= 9");
+        return NULL;
+    }
+    Buf a = {NULL, 0, 0}, b = {NULL, 0, 0};
+    PyObject *result = NULL;
+    if (ls_round_fast(x, nd, &r) == 0 && ls_put_rounded(&a, x, nd) == 0 &&
+        ls_put_time(&b, x, nd) == 0)
+        result = Py_BuildValue("(ds#s#)", r, a.p, a.n, b.p, b.n);
+    buf_free(&a);
+    buf_free(&b);
+    return result;
+}
+
+/* `str(v)`; by hand, as a splice writes up to 125 of them a row (snprintf's parsing of its
+ * format cost more than the digits). */
 static int ls_put_int(Buf *b, long long v) {
     char text[24];
-    int w = snprintf(text, sizeof text, "%lld", v);
-    return buf_put(b, text, w);
+    int w = sizeof text;
+    unsigned long long u = v < 0 ? 0ull - (unsigned long long)v : (unsigned long long)v;
+    do {
+        text[--w] = (char)('0' + u % 10);
+        u /= 10;
+    } while (u);
+    if (v < 0) text[--w] = '-';
+    return buf_put(b, text + w, (Py_ssize_t)sizeof text - w);
 }
 
 static int ls_put_str(Buf *b, PyObject *s) {
@@ -2608,17 +2738,17 @@ static int ls_latency(const LsLatency *lp, double t, double end, double *ms, int
     double raw = t - end;
     if (!(raw < lp->least)) {
         double a, b;
-        if (ls_round(t, 6, &a) < 0 || ls_round(end, 6, &b) < 0) return -1;
+        if (ls_round_fast(t, 6, &a) < 0 || ls_round_fast(end, 6, &b) < 0) return -1;
         double value = a - b;
         if (value == value) value = nearbyint(value / lp->step) * lp->step; /* half even */
         *bound = 0;
-        return ls_round(value * 1000, lp->digits, ms) < 0 ? -1 : 1;
+        return ls_round_fast(value * 1000, lp->digits, ms) < 0 ? -1 : 1;
     }
     double res = lp->resolution;
     if (res > 0 && raw + res > 0) {
         double up = ceil((raw + res) / lp->step - 1e-9) * lp->step * 1000;
         *bound = 1;
-        return ls_round(up, lp->digits, ms) < 0 ? -1 : 1;
+        return ls_round_fast(up, lp->digits, ms) < 0 ? -1 : 1;
     }
     return 0;
 }
@@ -2772,10 +2902,12 @@ static int ls_splice(Buf *first, Buf *second, PyObject *sp, const unsigned char 
                 return -1;
         }
         if (buf_put(second, "], \"text\": \"", 12) < 0) return -1;
+        static const char upper[] = "0123456789ABCDEF";
         for (Py_ssize_t k = 0; k < count; k++) {
-            char text[8];
-            int w = snprintf(text, sizeof text, "%s0x%04X", k ? " " : "", d[2 * k] << 8 | d[2 * k + 1]);
-            if (buf_put(second, text, w) < 0) return -1;
+            const unsigned char *h = d + 2 * k;
+            char text[7] = {' ', '0', 'x', upper[h[0] >> 4], upper[h[0] & 15], upper[h[1] >> 4],
+                            upper[h[1] & 15]};
+            if (buf_put(second, k ? text : text + 1, k ? 7 : 6) < 0) return -1;
         }
     } else {
         for (int pass = 0; pass < 2; pass++) {
@@ -2984,14 +3116,8 @@ static PyObject *py_listing_rows(PyObject *self, PyObject *args) {
             if (has_ms < 0) goto fail_item;
         }
         if (!json) {
-            char *when = PyOS_double_to_string(t_start[i] - origin, 'f', 6, 0, NULL);
-            if (when == NULL) goto fail_item;
-            Py_ssize_t wn = (Py_ssize_t)strlen(when);
+            if (ls_put_time(&out, t_start[i] - origin, 6) < 0) goto fail_item;
             int bad = 0;
-            for (Py_ssize_t pad = wn; pad < 12 && !bad; pad++) bad = buf_put(&out, " ", 1) < 0;
-            bad = bad || buf_put(&out, when, wn) < 0;
-            PyMem_Free(when);
-            if (bad) goto fail_item;
             PyObject *shown = NULL;
             int owned = 0;
             if (has_ms && ls_lat_text(lt, text, ms, bound_, &shown, &owned) < 0) goto fail_item;
@@ -3287,6 +3413,7 @@ static PyMethodDef methods[] = {
     {"export_rows", py_export_rows, METH_VARARGS, "PcapExporter.write's blocks of a run of rows."},
     {"export_moved", py_export_moved, METH_VARARGS, "exported_timing's largest move."},
     {"listing_table", py_listing_table, METH_NOARGS, "A table of the listings' line templates."},
+    {"listing_floats", py_listing_floats, METH_VARARGS, "listing_rows' round, repr and time of a float."},
     {"listing_rows", py_listing_rows, METH_VARARGS, "Lister.write's text or JSONL lines of a run of rows."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
     {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},

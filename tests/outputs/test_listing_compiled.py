@@ -175,3 +175,30 @@ def test_the_compiled_core_makes_the_lines_of_a_polling_capture(
         assert len(lines) == len(s.store)
         assert 0 < len(asked) <= 4, (fmt, asked)
     assert made == listing(s, "jsonl", False, 2048, [], monkeypatch)
+
+
+FLOATS = (
+    st.floats(allow_nan=False, allow_infinity=False)
+    | st.floats(-3e9, 3e9)
+    | st.floats(-1.0, 1.0)
+    # times to the microsecond and half a step off it: the ties of round()
+    | st.builds(
+        lambda whole, micros, off: whole + micros / 1e6 + off,
+        st.integers(0, 2_000_000_000),
+        st.integers(0, 999_999),
+        st.sampled_from([0.0, 5e-7, -5e-7, 5e-4, 1e-9]),
+    )
+)
+
+
+@settings(max_examples=3000, deadline=None)
+@given(FLOATS, st.sampled_from([0, 1, 3, 6, 9]))
+def test_compiled_floats_are_python_floats(x: float, nd: int) -> None:
+    """The compiled loop's `round(x, nd)` (to the bit), `repr` of it (JSONL's times and
+    latencies) and `%12.{nd}f` (the text listing's time) are Python's."""
+    assert FAST is not None
+    got, text, time = FAST.listing_floats(x, nd)
+    want = round(x, nd)
+    assert struct.pack(">d", got) == struct.pack(">d", want)
+    assert text == repr(want)
+    assert time == f"{x:12.{nd}f}"
