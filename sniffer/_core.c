@@ -19,6 +19,8 @@
  *    (sniffer/analysis/stats.py: Tallies.add_latencies, Tallies.add_requests);
  *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
  *    content it has a template for (sniffer/outputs/export.py: PcapExporter.write, _rows);
+ *  - listing_table, listing_rows: the text and JSONL listings' lines of the rows whose
+ *    content it has the parts of (sniffer/outputs/listing.py: Lister.write);
  *  - shift_partners: a sidecar block's partners renumbered (sniffer/session/index.py:
  *    shifted_partners);
  *  - constants: the product's numbers this file says itself, which
@@ -2024,6 +2026,22 @@ static int ex_packet_key(Buf *w, unsigned k, uint32_t fl, unsigned st, const uns
     return made;
 }
 
+/* A row's exact content key, as Describer.contents makes it, in bytes: "E" or, for an
+ * answer with a request, "A"; the row's kind, flags, status and bytes, and an answer's
+ * request's mode flags and bytes. 0, or -1 with no memory. */
+static int ex_exact_key(Buf *w, int answer, unsigned k, uint32_t fl, unsigned st,
+                        const char *raw, Py_ssize_t raw_n, uint32_t asked_mode,
+                        const char *asked, Py_ssize_t asked_n) {
+    w->n = 0;
+    if (buf_put(w, answer ? "A" : "E", 1) < 0 || ex_put_u8(w, k) < 0 || ex_put_u32(w, fl) < 0 ||
+        ex_put_u8(w, st) < 0 || ex_put_u16(w, raw_n) < 0 || buf_put(w, raw, raw_n) < 0)
+        return -1;
+    if (answer && (ex_put_u32(w, asked_mode) < 0 || ex_put_u16(w, asked_n) < 0 ||
+                   buf_put(w, asked, asked_n) < 0))
+        return -1;
+    return 0;
+}
+
 /* export_rows(table, store, rows, notes, apart, bound, alike, slow, mode, valued, miss,
  *             limit, char, mbap) -> (blocks, rows, found, more)
  * PcapExporter.write's loop (sniffer/outputs/export.py) over up to `limit` rows taken from the
@@ -2169,13 +2187,8 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             row_bytes(streams, channel, offset, length, p, &asked, &asked_n) < 0)
             goto fail_item;
         /* the keys: as Describer.contents makes them, in bytes */
-        exact.n = 0;
-        if (buf_put(&exact, answer ? "A" : "E", 1) < 0 || ex_put_u8(&exact, k) < 0 ||
-            ex_put_u32(&exact, flags[i]) < 0 || ex_put_u8(&exact, status[i]) < 0 ||
-            ex_put_u16(&exact, raw_n) < 0 || buf_put(&exact, raw, raw_n) < 0)
-            goto fail_item;
-        if (answer && (ex_put_u32(&exact, flags[p] & mode) < 0 ||
-                       ex_put_u16(&exact, asked_n) < 0 || buf_put(&exact, asked, asked_n) < 0))
+        if (ex_exact_key(&exact, answer, k, flags[i], status[i], raw, raw_n,
+                         answer ? flags[p] & mode : 0, asked, asked_n) < 0)
             goto fail_item;
         keyed = 1;
         const unsigned char *r = (const unsigned char *)raw, *q = (const unsigned char *)asked;
@@ -2398,6 +2411,768 @@ static PyObject *py_export_moved(PyObject *self, PyObject *args) {
     return PyFloat_FromDouble(moved);
 }
 
+/* ---- the text and JSONL listings' lines ------------------------------------------------- */
+
+/* listing_table() -> a table of the content keys one Lister met (sniffer/outputs/listing.py:
+ * Lister.write), each with the parts Python made for its content's lines: the export's
+ * table (ExTable, ex_slot, ex_keep), with the listings' own keys, and the latencies'
+ * texts a text listing showed (Latencies.text), by value. */
+#define LS_LAT_SLOTS 8192
+#define LS_LAT_MAX 4096 /* as Latencies.text keeps them */
+#define LS_RUN_BYTES (1 << 18)
+
+typedef struct {
+    uint64_t bits; /* the value's bits (only values > 0 are kept, as Latencies.text) */
+    int bound;
+    PyObject *text; /* NULL: an empty slot */
+} LsLat;
+
+typedef struct {
+    ExTable keys;
+    LsLat *lat;
+    Py_ssize_t lat_used;
+} LsTable;
+
+static void ls_table_free(PyObject *capsule) {
+    LsTable *lt = PyCapsule_GetPointer(capsule, "modscope.listing_table");
+    if (lt == NULL) return;
+    ExTable *et = &lt->keys;
+    if (et->slots != NULL) ex_clear(et);
+    PyMem_Free(et->slots);
+    buf_free(&et->arena);
+    buf_free(&et->out);
+    buf_free(&et->exact);
+    buf_free(&et->free_key);
+    buf_free(&et->packet_key);
+    if (lt->lat != NULL)
+        for (Py_ssize_t k = 0; k < LS_LAT_SLOTS; k++) Py_CLEAR(lt->lat[k].text);
+    PyMem_Free(lt->lat);
+    PyMem_Free(lt);
+}
+
+static PyObject *py_listing_table(PyObject *self, PyObject *unused) {
+    LsTable *lt = PyMem_Calloc(1, sizeof(LsTable));
+    if (lt == NULL) return PyErr_NoMemory();
+    lt->keys.slots = PyMem_Calloc(EX_SLOTS, sizeof(ExSlot));
+    lt->lat = PyMem_Calloc(LS_LAT_SLOTS, sizeof(LsLat));
+    if (lt->keys.slots == NULL || lt->lat == NULL) {
+        PyMem_Free(lt->keys.slots);
+        PyMem_Free(lt->lat);
+        PyMem_Free(lt);
+        return PyErr_NoMemory();
+    }
+    PyObject *capsule = PyCapsule_New(lt, "modscope.listing_table", ls_table_free);
+    if (capsule == NULL) {
+        PyMem_Free(lt->keys.slots);
+        PyMem_Free(lt->lat);
+        PyMem_Free(lt);
+    }
+    return capsule;
+}
+
+/* `round(x, nd)` as CPython's float.__round__ makes it for a finite x: the digits of
+ * the correctly rounded fixed format (the same _Py_dg_dtoa mode 3 digits), read back by
+ * the same correctly rounding strtod. 0, or -1 with an exception set. */
+static int ls_round(double x, int nd, double *out) {
+    char *s = PyOS_double_to_string(x, 'f', nd, 0, NULL);
+    if (s == NULL) return -1;
+    double r = PyOS_string_to_double(s, NULL, NULL);
+    PyMem_Free(s);
+    if (r == -1.0 && PyErr_Occurred()) return -1;
+    *out = r;
+    return 0;
+}
+
+/* round(|x| * 10**nd) to the nearest integer, ties to even, exactly (from x's binary
+ * value, as the correctly rounded formats and round() take it): 1 with it in *k when it
+ * is below 2**52, else 0 (not finite, or too large: the slow path formats it). nd <= 9. */
+static const double LS_POW10[10] = {1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+static const uint64_t LS_IPOW10[10] = {1ull,      10ull,      100ull,      1000ull,      10000ull,
+                                       100000ull, 1000000ull, 10000000ull, 100000000ull,
+                                       1000000000ull};
+#define LS_EXACT (1ull << 52)
+
+static int ls_scaled(double x, int nd, uint64_t *k) {
+    double a = fabs(x);
+    if (!(a < 4503599627370496.0) || nd < 0 || nd > 9) return 0; /* 2**52; NaN too */
+    if (a == 0.0) {
+        *k = 0;
+        return 1;
+    }
+    int e;
+    double f = frexp(a, &e);              /* a = f * 2**e, 0.5 <= f < 1 */
+    uint64_t m = (uint64_t)ldexp(f, 53); /* a = m * 2**(e - 53), exactly */
+    int shift = 53 - e;                   /* > 0: a < 2**52 */
+    if (shift >= 120) {                   /* a * 10**9 < 2**-60: rounds to 0 */
+        *k = 0;
+        return 1;
+    }
+    unsigned __int128 p = (unsigned __int128)m * LS_IPOW10[nd];
+    unsigned __int128 q = p >> shift, r = p - (q << shift);
+    unsigned __int128 half = (unsigned __int128)1 << (shift - 1);
+    if (r > half || (r == half && (q & 1))) q += 1;
+    if (q >= LS_EXACT) return 0;
+    *k = (uint64_t)q;
+    return 1;
+}
+
+/* `round(x, nd)`: from ls_scaled's integer, k / 10**nd, one correctly rounded division of
+ * two exact doubles, which is the double nearest the decimal (what round() reads back),
+ * signed as x (round(-1e-9, 6) is -0.0); the slow path where ls_scaled gives none. */
+static int ls_round_fast(double x, int nd, double *out) {
+    uint64_t k;
+    if (!ls_scaled(x, nd, &k)) return ls_round(x, nd, out);
+    double v = (double)k / LS_POW10[nd];
+    *out = signbit(x) ? -v : v;
+    return 0;
+}
+
+/* The digits of k / 10**nd (`%.{nd}f` of x, k from ls_scaled), signed, into b; with
+ * `shortest`, trailing zeros of the fraction dropped but one. */
+static int ls_put_fixed(Buf *b, int negative, uint64_t k, int nd, int shortest) {
+    char text[48];
+    int w = 0;
+    if (negative) text[w++] = '-';
+    uint64_t whole = k / LS_IPOW10[nd], frac = k % LS_IPOW10[nd];
+    w += snprintf(text + w, sizeof text - (size_t)w, "%llu", (unsigned long long)whole);
+    if (nd || shortest) text[w++] = '.';
+    char digits[10];
+    for (int d = nd - 1; d >= 0; d--) {
+        digits[d] = (char)('0' + frac % 10);
+        frac /= 10;
+    }
+    int used = nd;
+    if (shortest)
+        while (used > 1 && digits[used - 1] == '0') used--;
+    if (!nd && shortest) digits[used++] = '0';
+    memcpy(text + w, digits, (size_t)used);
+    w += used;
+    return buf_put(b, text, w);
+}
+
+/* `repr(x)` (what json.dumps writes of a finite float) into b. */
+static int ls_put_repr(Buf *b, double x) {
+    char *s = PyOS_double_to_string(x, 'r', 0, Py_DTSF_ADD_DOT_0, NULL);
+    if (s == NULL) return -1;
+    int r = buf_put(b, s, (Py_ssize_t)strlen(s));
+    PyMem_Free(s);
+    return r;
+}
+
+/* `repr(round(x, nd))`, x finite. Where ls_scaled gives k and the value is 0 or at least
+ * 1e-4 (repr's fixed notation), it is k's digits, the shortest: the decimal D = k / 10**nd
+ * is what round() reads back, and, as k < 2**52, the doubles about D are closer together
+ * than 10**-nd, so that no other multiple of 10**-nd, nor any decimal of fewer digits (each
+ * such a multiple), reads back as the same double: repr's shortest digits are D's. */
+static int ls_put_rounded(Buf *b, double x, int nd) {
+    uint64_t k;
+    if (ls_scaled(x, nd, &k) && (k == 0 || nd < 4 || k >= LS_IPOW10[nd - 4]))
+        return ls_put_fixed(b, signbit(x) != 0, k, nd, 1);
+    double r;
+    if (ls_round(x, nd, &r) < 0) return -1;
+    return ls_put_repr(b, r);
+}
+
+/* `f"{x:12.{nd}f}"` into b. */
+static int ls_put_time(Buf *b, double x, int nd) {
+    uint64_t k;
+    Buf one = {NULL, 0, 0};
+    char *slow = NULL;
+    const char *text;
+    Py_ssize_t n;
+    if (ls_scaled(x, nd, &k)) {
+        char room[48];
+        one.p = room;
+        one.cap = sizeof room;
+        if (ls_put_fixed(&one, signbit(x) != 0, k, nd, 0) < 0) return -1;
+        text = one.p;
+        n = one.n;
+    } else {
+        slow = PyOS_double_to_string(x, 'f', nd, 0, NULL);
+        if (slow == NULL) return -1;
+        text = slow;
+        n = (Py_ssize_t)strlen(slow);
+    }
+    int bad = 0;
+    for (Py_ssize_t pad = n; pad < 12 && !bad; pad++) bad = buf_put(b, " ", 1) < 0;
+    bad = bad || buf_put(b, text, n) < 0;
+    PyMem_Free(slow);
+    return bad ? -1 : 0;
+}
+
+/* listing_floats(x, nd) -> (round(x, nd), repr(round(x, nd)), f"{x:12.{nd}f}") as
+ * listing_rows makes them: for tests/outputs/test_listing_compiled.py, which holds them to
+ * Python's. */
+static PyObject *py_listing_floats(PyObject *self, PyObject *args) {
+    double x, r;
+    int nd;
+    if (!PyArg_ParseTuple(args, "di", &x, &nd)) return NULL;
+    if (!isfinite(x) || nd < 0 || nd > 9) {
+        PyErr_SetString(PyExc_ValueError, "listing_floats: a finite x, 0 <= nd <= 9");
+        return NULL;
+    }
+    Buf a = {NULL, 0, 0}, b = {NULL, 0, 0};
+    PyObject *result = NULL;
+    if (ls_round_fast(x, nd, &r) == 0 && ls_put_rounded(&a, x, nd) == 0 &&
+        ls_put_time(&b, x, nd) == 0)
+        result = Py_BuildValue("(ds#s#)", r, a.p, a.n, b.p, b.n);
+    buf_free(&a);
+    buf_free(&b);
+    return result;
+}
+
+/* `str(v)`; by hand, as a splice writes up to 125 of them a row (snprintf's parsing of its
+ * format cost more than the digits). */
+static int ls_put_int(Buf *b, long long v) {
+    char text[24];
+    int w = sizeof text;
+    unsigned long long u = v < 0 ? 0ull - (unsigned long long)v : (unsigned long long)v;
+    do {
+        text[--w] = (char)('0' + u % 10);
+        u /= 10;
+    } while (u);
+    if (v < 0) text[--w] = '-';
+    return buf_put(b, text + w, (Py_ssize_t)sizeof text - w);
+}
+
+static int ls_put_str(Buf *b, PyObject *s) {
+    Py_ssize_t n;
+    const char *p = PyUnicode_AsUTF8AndSize(s, &n);
+    if (p == NULL) return -1;
+    return buf_put(b, p, n);
+}
+
+/* `raw.hex()`: no separator. */
+static int ls_put_hex(Buf *b, const unsigned char *p, Py_ssize_t n) {
+    static const char digits[] = "0123456789abcdef";
+    if (b->n + 2 * n > b->cap && buf_grow(b, 2 * n) < 0) return -1;
+    char *w = b->p + b->n;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        *w++ = digits[p[k] >> 4];
+        *w++ = digits[p[k] & 15];
+    }
+    b->n += 2 * n;
+    return 0;
+}
+
+/* The latency parameters Latencies._settle gives a store's stamps and resolution: the
+ * step shown, its digits, the least value measured (RESOLVED resolutions) and the
+ * resolution. */
+typedef struct {
+    double step, least, resolution;
+    int digits;
+} LsLatency;
+
+/* Latencies.ms for stamps that are neither none nor print times: 1 with the value in ms
+ * and whether it is a bound, 0 for none, -1 with an exception set. `t` is the answer's
+ * start, `end` the request's end, both finite. */
+static int ls_latency(const LsLatency *lp, double t, double end, double *ms, int *bound) {
+    double raw = t - end;
+    if (!(raw < lp->least)) {
+        double a, b;
+        if (ls_round_fast(t, 6, &a) < 0 || ls_round_fast(end, 6, &b) < 0) return -1;
+        double value = a - b;
+        if (value == value) value = nearbyint(value / lp->step) * lp->step; /* half even */
+        *bound = 0;
+        return ls_round_fast(value * 1000, lp->digits, ms) < 0 ? -1 : 1;
+    }
+    double res = lp->resolution;
+    if (res > 0 && raw + res > 0) {
+        double up = ceil((raw + res) / lp->step - 1e-9) * lp->step * 1000;
+        *bound = 1;
+        return ls_round_fast(up, lp->digits, ms) < 0 ? -1 : 1;
+    }
+    return 0;
+}
+
+/* The text a text line shows of latency (ms, bound) (Latencies.text): kept by value
+ * once `text(ms, bound)` gave it, as Latencies.text keeps it (values > 0, at most
+ * LS_LAT_MAX). A borrowed or new reference in *out: *owned says which. */
+static int ls_lat_text(LsTable *lt, PyObject *text, double ms, int bound, PyObject **out,
+                       int *owned) {
+    uint64_t bits;
+    memcpy(&bits, &ms, 8);
+    int keep = ms > 0;
+    LsLat *s = NULL;
+    if (keep) {
+        Py_ssize_t k = (Py_ssize_t)((bits ^ (bits >> 29) ^ (uint64_t)bound) * 0x9E3779B97F4A7C15ull >> 51) &
+                       (LS_LAT_SLOTS - 1);
+        for (;;) {
+            s = &lt->lat[k];
+            if (s->text == NULL) break;
+            if (s->bits == bits && s->bound == bound) {
+                *out = s->text;
+                *owned = 0;
+                return 0;
+            }
+            k = (k + 1) & (LS_LAT_SLOTS - 1);
+        }
+    }
+    PyObject *got = PyObject_CallFunction(text, "dO", ms, bound ? Py_True : Py_False);
+    if (got == NULL) return -1;
+    if (!PyUnicode_Check(got)) {
+        Py_DECREF(got);
+        PyErr_SetString(PyExc_TypeError, "listing_rows: a latency's text is a str");
+        return -1;
+    }
+    if (keep && lt->lat_used < LS_LAT_MAX) {
+        s->bits = bits;
+        s->bound = bound;
+        Py_INCREF(got);
+        s->text = got;
+        lt->lat_used += 1;
+    }
+    *out = got;
+    *owned = 1;
+    return 0;
+}
+
+/* The listings' keys of a row besides the exact one (Describer.contents with values
+ * False and writes True, describe.py), each with what its Python key holds and more
+ * (the code, and all the row's flags): "F" an FC 3/4 answer (_valueless), "B" an FC 1/2
+ * answer and its padding bits (_bits_valueless), "R" an FC 15/16 answer echoing its
+ * write (_written, _write_key), "Q" an FC 15/16 write (_write_request, _write_key).
+ * Made for an RTU row of a unit other than 0 with no dictionary and none of the
+ * VALUED_FLAGS (nor, for an answer, its request), as Python makes its. 1: made; 0: none;
+ * -1: no memory. */
+static int ls_free_key(Buf *w, unsigned k, unsigned code, uint32_t fl, unsigned st,
+                       const unsigned char *r, Py_ssize_t rn, const unsigned char *q,
+                       Py_ssize_t qn) {
+    w->n = 0;
+    if (k == K_REQUEST) {
+        if (!FC_WRITE_MULTIPLE(code) || rn < 9 || !FC_WRITE_MULTIPLE(r[1])) return 0;
+        Py_ssize_t quantity = r[4] << 8 | r[5];
+        Py_ssize_t need = r[1] == 15 ? (quantity + 7) / 8 : 2 * quantity;
+        if (rn != 9 + r[6] || r[6] != need) return 0;
+        unsigned used = (unsigned)(quantity % 8);
+        unsigned padding = r[1] == 15 && used ? r[rn - 3] & (0xFFu << used) & 0xFFu : 0;
+        if (buf_put(w, "Q", 1) < 0 || ex_put_u8(w, code) < 0 || ex_put_u32(w, fl) < 0 ||
+            ex_put_u8(w, st) < 0 || buf_put(w, r, 7) < 0 || ex_put_u16(w, rn) < 0 ||
+            ex_put_u8(w, padding) < 0)
+            return -1;
+        return 1;
+    }
+    if (k != K_RESPONSE || q == NULL) return 0;
+    if (FC_READ_REGISTERS(code)) {
+        if (!(rn >= 5 && FC_READ_REGISTERS(r[1]) && qn >= 8 && q[1] == r[1] &&
+              rn == 5 + r[2] && r[2] == 2 * (q[4] << 8 | q[5])))
+            return 0;
+        if (buf_put(w, "F", 1) < 0 || ex_put_u8(w, code) < 0 || buf_put(w, r, 3) < 0 ||
+            ex_put_u16(w, rn) < 0 || ex_put_u32(w, fl) < 0 || ex_put_u8(w, st) < 0 ||
+            ex_put_u16(w, qn) < 0 || buf_put(w, q, qn) < 0)
+            return -1;
+        return 1;
+    }
+    if (FC_WRITE_MULTIPLE(code)) {
+        if (rn != 8 || !FC_WRITE_MULTIPLE(r[1]) || qn < 9 || memcmp(r, q, 6) != 0) return 0;
+        Py_ssize_t quantity = q[4] << 8 | q[5];
+        Py_ssize_t need = r[1] == 15 ? (quantity + 7) / 8 : 2 * quantity;
+        if (qn != 9 + q[6] || q[6] != need) return 0;
+        unsigned used = (unsigned)(quantity % 8);
+        unsigned padding = q[1] == 15 && used ? q[qn - 3] & (0xFFu << used) & 0xFFu : 0;
+        if (buf_put(w, "R", 1) < 0 || ex_put_u8(w, code) < 0 || ex_put_u32(w, fl) < 0 ||
+            ex_put_u8(w, st) < 0 || buf_put(w, r, rn) < 0 || buf_put(w, q, 7) < 0 ||
+            ex_put_u16(w, qn) < 0 || ex_put_u8(w, padding) < 0)
+            return -1;
+        return 1;
+    }
+    if (FC_READ_BITS(code)) {
+        if (rn < 6 || !FC_READ_BITS(r[1]) || qn < 8 || q[1] != r[1]) return 0;
+        Py_ssize_t quantity = q[4] << 8 | q[5];
+        if (!quantity || rn != 5 + r[2] || r[2] != (quantity + 7) / 8) return 0;
+        unsigned used = (unsigned)(quantity % 8);
+        unsigned padding = used ? r[rn - 3] & (0xFFu << used) & 0xFFu : 0;
+        if (buf_put(w, "B", 1) < 0 || ex_put_u8(w, code) < 0 || buf_put(w, r, 3) < 0 ||
+            ex_put_u16(w, rn) < 0 || ex_put_u32(w, fl) < 0 || ex_put_u8(w, st) < 0 ||
+            ex_put_u16(w, qn) < 0 || buf_put(w, q, qn) < 0 || ex_put_u8(w, padding) < 0)
+            return -1;
+        return 1;
+    }
+    return 0;
+}
+
+/* A template as listing.py's _template makes it, checked once when it is kept: text
+ * (head, tail, whole, raw, timed); JSONL (first, second, registers, spliced, raw, timed), spliced
+ * None or (after_hex, before_values, after_text, at, count, words) as _spliced makes it. */
+static int ls_template_ok(PyObject *t, int json) {
+    if (!PyTuple_CheckExact(t) || PyTuple_GET_SIZE(t) != (json ? 6 : 5)) return 0;
+    for (int k = 0; k < 3; k++)
+        if (!PyUnicode_CheckExact(PyTuple_GET_ITEM(t, k))) return 0;
+    if (!PyBool_Check(PyTuple_GET_ITEM(t, json ? 5 : 4))) return 0;
+    if (!PyBytes_CheckExact(PyTuple_GET_ITEM(t, json ? 4 : 3))) return 0;
+    if (!json) return 1;
+    PyObject *sp = PyTuple_GET_ITEM(t, 3);
+    if (sp == Py_None) return 1;
+    if (!PyTuple_CheckExact(sp) || PyTuple_GET_SIZE(sp) != 6) return 0;
+    for (int k = 0; k < 3; k++)
+        if (!PyUnicode_CheckExact(PyTuple_GET_ITEM(sp, k))) return 0;
+    return PyLong_CheckExact(PyTuple_GET_ITEM(sp, 3)) && PyLong_CheckExact(PyTuple_GET_ITEM(sp, 4)) &&
+           PyBool_Check(PyTuple_GET_ITEM(sp, 5));
+}
+
+/* The JSONL parts of `r`, a row whose content's parts were made from other bytes of the
+ * same length, as listing.py's _splice makes them (its values, from byte `at`: `count`
+ * big-endian words, or bits, first bit first) into `first` and `second`. 1: made; 0: the
+ * spliced parts do not fit these bytes (Python makes the line); -1: an error. */
+static int ls_splice(Buf *first, Buf *second, PyObject *sp, const unsigned char *r, Py_ssize_t rn) {
+    Py_ssize_t at = PyLong_AsSsize_t(PyTuple_GET_ITEM(sp, 3));
+    Py_ssize_t count = PyLong_AsSsize_t(PyTuple_GET_ITEM(sp, 4));
+    if ((at == -1 || count == -1) && PyErr_Occurred()) return -1;
+    int words = PyTuple_GET_ITEM(sp, 5) == Py_True;
+    Py_ssize_t size = words ? 2 * count : (count + 7) / 8;
+    if (count <= 0 || (words && count >= 128) || at < 0 || at + size != rn - 2) return 0;
+    first->n = second->n = 0;
+    if (buf_put(first, "\"raw\": \"", 8) < 0 || ls_put_hex(first, r, rn) < 0 ||
+        ls_put_str(first, PyTuple_GET_ITEM(sp, 0)) < 0 ||
+        ls_put_str(second, PyTuple_GET_ITEM(sp, 1)) < 0 ||
+        buf_put(second, "{\"name\": \"values\", \"value\": [", 29) < 0)
+        return -1;
+    const unsigned char *d = r + at;
+    if (words) {
+        for (Py_ssize_t k = 0; k < count; k++) {
+            if ((k && buf_put(second, ", ", 2) < 0) || ls_put_int(second, d[2 * k] << 8 | d[2 * k + 1]) < 0)
+                return -1;
+        }
+        if (buf_put(second, "], \"text\": \"", 12) < 0) return -1;
+        static const char upper[] = "0123456789ABCDEF";
+        for (Py_ssize_t k = 0; k < count; k++) {
+            const unsigned char *h = d + 2 * k;
+            char text[7] = {' ', '0', 'x', upper[h[0] >> 4], upper[h[0] & 15], upper[h[1] >> 4],
+                            upper[h[1] & 15]};
+            if (buf_put(second, k ? text : text + 1, k ? 7 : 6) < 0) return -1;
+        }
+    } else {
+        for (int pass = 0; pass < 2; pass++) {
+            for (Py_ssize_t k = 0; k < count; k++) {
+                char bit = (d[k / 8] >> (k % 8)) & 1 ? '1' : '0';
+                if ((k && buf_put(second, pass ? " " : ", ", pass ? 1 : 2) < 0) ||
+                    buf_put(second, &bit, 1) < 0)
+                    return -1;
+            }
+            if (!pass && buf_put(second, "], \"text\": \"", 12) < 0) return -1;
+        }
+    }
+    if (ls_put_str(second, PyTuple_GET_ITEM(sp, 2)) < 0) return -1;
+    return 1;
+}
+
+/* listing_rows(table, store, rows, notes, apart, bound, links, slow, mode, valued, miss,
+ *              limit, origin, json, latency, text, statuses, timing) -> (lines, rows, found, more)
+ * Lister.write's loop (sniffer/outputs/listing.py) over up to `limit` rows taken from the
+ * iterator `rows`, for a text (`json` false) or JSONL listing with no peers, relative
+ * times and no numbering: the lines of the rows whose content key `table` holds, made
+ * from the parts Python kept for it as Lister._text_line and _json_line make them (the
+ * time `%12.6f` from `origin`, `round` and `repr` of the JSONL times, the latency as
+ * Latencies.ms gives it, the transaction, and, for a JSONL row of other values than its
+ * content's first row, its bytes and values spliced in as _splice does). Every other row
+ * is handed to `miss(row)`, which returns (its line, the template of its content or
+ * None), kept under the row's keys: the exact one (the export's: the row's bytes, kind,
+ * flags, status and its request's bytes and mode) and, where Describer.contents would
+ * look one up, the listings' shape key (ls_free_key). A row Describer.contents gives no
+ * content (an event, a row with a note, a unit of `apart`, an exception its request may
+ * explain), a slow answer (`slow`), a JSONL row of `links` and a row whose latency the
+ * parameters `latency` (step, least, digits, resolution; None: Python measures) cannot
+ * give are always missed. `text(ms, bound)`: a latency's text (Latencies.text);
+ * `statuses`: the JSON of each status; `timing`: what every JSONL line ends with.
+ * `lines` is the rows' lines, each with its newline; `found` how many the table gave. */
+static PyObject *py_listing_rows(PyObject *self, PyObject *args) {
+    PyObject *capsule, *store, *rows, *notes, *apart, *bound, *links, *miss, *latency, *text,
+        *statuses, *timing;
+    int json;
+    unsigned int slow, mode, valued;
+    Py_ssize_t limit, base;
+    double origin;
+    if (!PyArg_ParseTuple(args, "OOOO!O!O!O!IIIOndpOOO!Un", &capsule, &store, &rows,
+                          &PyDict_Type, &notes, &PyTuple_Type, &apart, &PyDict_Type, &bound,
+                          &PyDict_Type, &links, &slow, &mode, &valued, &miss, &limit, &origin,
+                          &json, &latency, &text, &PyTuple_Type, &statuses, &timing, &base))
+        return NULL;
+    LsTable *lt = PyCapsule_GetPointer(capsule, "modscope.listing_table");
+    if (lt == NULL) return NULL;
+    ExTable *et = &lt->keys;
+    if (et->running) {
+        PyErr_SetString(PyExc_RuntimeError, "listing_rows: this table is in use");
+        return NULL;
+    }
+    if (!PyIter_Check(rows)) {
+        PyErr_SetString(PyExc_TypeError, "listing_rows: rows must be an iterator");
+        return NULL;
+    }
+    if (PyTuple_GET_SIZE(apart) < 1) {
+        PyErr_SetString(PyExc_TypeError, "listing_rows: apart starts with the SunSpec units");
+        return NULL;
+    }
+    for (Py_ssize_t k = 0; k < PyTuple_GET_SIZE(apart); k++) {
+        if (!PyDict_Check(PyTuple_GET_ITEM(apart, k))) {
+            PyErr_SetString(PyExc_TypeError, "listing_rows: apart holds dicts of units");
+            return NULL;
+        }
+    }
+    for (Py_ssize_t k = 0; k < PyTuple_GET_SIZE(statuses); k++) {
+        if (!PyUnicode_Check(PyTuple_GET_ITEM(statuses, k))) {
+            PyErr_SetString(PyExc_TypeError, "listing_rows: statuses are str");
+            return NULL;
+        }
+    }
+    LsLatency lp = {0.0, 0.0, 0.0, 0};
+    int measured = latency != Py_None;
+    if (measured &&
+        !PyArg_ParseTuple(latency, "ddid", &lp.step, &lp.least, &lp.digits, &lp.resolution))
+        return NULL;
+    if (!(origin == origin) || !isfinite(origin)) {
+        PyErr_SetString(PyExc_ValueError, "listing_rows: the origin is not finite");
+        return NULL;
+    }
+    static const ColSpec specs[] = {
+        {"kind", 'B', 0},   {"flags", 'I', 0},   {"t_end", 'd', 0},   {"offset", 'Q', 0},
+        {"length", 'H', 0}, {"channel", 'B', 0}, {"partner", 'i', 0}, {"status", 'B', 0},
+        {"unit", 'B', 0},   {"fc", 'B', 0},      {"t", 'd', 0},
+    };
+    Py_buffer c[11];
+    if (columns(store, specs, 11, c) < 0) return NULL;
+    et->running = 1;
+    const unsigned char *kind = c[0].buf, *channel = c[5].buf, *status = c[7].buf;
+    const unsigned char *unit = c[8].buf, *fc = c[9].buf;
+    const uint32_t *flags = c[1].buf;
+    const double *t_end = c[2].buf, *t_start = c[10].buf;
+    const uint64_t *offset = c[3].buf;
+    const uint16_t *length = c[4].buf;
+    const int32_t *partner = c[6].buf;
+    Py_ssize_t n = c[0].len;
+    if (c[7].len < n) n = c[7].len; /* the rows every column holds (see FrameStore.sync) */
+    if (c[1].len / 4 < n) n = c[1].len / 4;
+    if (c[2].len / 8 < n) n = c[2].len / 8;
+    if (c[3].len / 8 < n) n = c[3].len / 8;
+    if (c[4].len / 2 < n) n = c[4].len / 2;
+    if (c[5].len < n) n = c[5].len;
+    if (c[6].len / 4 < n) n = c[6].len / 4;
+    if (c[8].len < n) n = c[8].len;
+    if (c[9].len < n) n = c[9].len;
+    if (c[10].len / 8 < n) n = c[10].len / 8;
+    PyObject *result = NULL, *streams = NULL;
+    /* out: the lines; exact, free_key: the keys; packet_key: a splice's second part */
+    Buf out = et->out, exact = et->exact, free_key = et->free_key, spliced = et->packet_key;
+    Buf first = {NULL, 0, 0};
+    out.n = 0;
+    Py_ssize_t done = 0, found = 0;
+    int more = 1;
+    streams = PyObject_GetAttrString(store, "streams");
+    if (streams == NULL) goto fail;
+    if (!PyDict_Check(streams)) {
+        PyErr_SetString(PyExc_TypeError, "listing_rows: a store's streams are a dict");
+        goto fail;
+    }
+    while (done < limit && out.n < LS_RUN_BYTES) {
+        PyObject *item = PyIter_Next(rows);
+        if (item == NULL) {
+            if (PyErr_Occurred()) goto fail;
+            more = 0;
+            break;
+        }
+        done += 1;
+        Py_ssize_t line_at = out.n, last_n = 0;
+        int keyed = 0; /* 1: the exact key made, 2: the shape key too */
+        Py_ssize_t i = PyLong_Check(item) ? PyLong_AsSsize_t(item) : -1;
+        if (i == -1 && PyErr_Occurred()) PyErr_Clear(); /* Python says what is wrong */
+        if (i < 0 || i >= n) goto slow_path;
+        unsigned k = kind[i];
+        if (k == K_EVENT || (flags[i] & slow)) goto slow_path;
+        if (!isfinite(t_start[i]) || !isfinite(t_end[i])) goto slow_path;
+        if (PyDict_GET_SIZE(notes) || (json && PyDict_GET_SIZE(links))) {
+            PyObject *key = PyLong_FromSsize_t(i);
+            if (key == NULL) goto fail_item;
+            int in = PyDict_GET_SIZE(notes) ? PyDict_Contains(notes, key) : 0;
+            if (!in && json && PyDict_GET_SIZE(links)) in = PyDict_Contains(links, key);
+            Py_DECREF(key);
+            if (in < 0) goto fail_item;
+            if (in) goto slow_path;
+        }
+        int32_t p = partner[i];
+        if (p != -1 && (p < 0 || p >= n)) goto slow_path;
+        if (k != K_NOISE) {
+            int in = ex_in_any(apart, unit[i]);
+            if (in) goto in_or_fail;
+            if ((fc[i] & EXCEPTION_BIT) && p != -1) {
+                /* an exception its request may explain (describe.py: _explained) */
+                if ((in = ex_in(bound, unit[i])) || (in = ex_in(bound, unit[p])) ||
+                    (in = ex_in(PyTuple_GET_ITEM(apart, 0), unit[p])))
+                    goto in_or_fail;
+            }
+            goto placed;
+        in_or_fail:
+            if (in < 0) goto fail_item;
+            goto slow_path;
+        }
+    placed:;
+        const char *raw, *asked = NULL;
+        Py_ssize_t raw_n, asked_n = 0;
+        if (row_bytes(streams, channel, offset, length, i, &raw, &raw_n) < 0) goto fail_item;
+        int answer = (k == K_RESPONSE || k == K_EXCEPTION) && p != -1;
+        if (answer && row_bytes(streams, channel, offset, length, p, &asked, &asked_n) < 0)
+            goto fail_item;
+        if (ex_exact_key(&exact, answer, k, flags[i], status[i], raw, raw_n,
+                         answer ? flags[p] & mode : 0, asked, asked_n) < 0)
+            goto fail_item;
+        keyed = 1;
+        last_n = raw_n; /* the row's bytes are the exact key's from byte 9 (ex_exact_key) */
+        const unsigned char *r = (const unsigned char *)raw, *q = (const unsigned char *)asked;
+        ExSlot *s = NULL;
+        /* the shape key first, as Describer.contents looks its up first */
+        if (unit[i] && !(flags[i] & valued) && !(answer && (flags[p] & valued))) {
+            int in = ex_in(bound, unit[i]);
+            if (in < 0) goto fail_item;
+            int got = in ? 0 : ls_free_key(&free_key, k, fc[i], flags[i], status[i], r, raw_n,
+                                          answer ? q : NULL, asked_n);
+            if (got < 0) goto fail_item;
+            if (got) {
+                keyed |= 2;
+                s = ex_slot(et, ex_hash((const unsigned char *)free_key.p, free_key.n),
+                            free_key.p, free_key.n);
+                if (s->template == NULL) s = NULL;
+            }
+        }
+        if (s == NULL) {
+            s = ex_slot(et, ex_hash((const unsigned char *)exact.p, exact.n), exact.p, exact.n);
+            if (s->template == NULL) goto slow_path;
+        }
+        PyObject *tp = s->template;
+        int timed = PyTuple_GET_ITEM(tp, json ? 5 : 4) == Py_True;
+        /* the latency, where the line shows one */
+        double ms = 0.0;
+        int bound_ = 0, has_ms = 0;
+        if (timed && p != -1 && (json || k != K_REQUEST)) {
+            if (!measured) goto slow_path;
+            Py_ssize_t req = k != K_REQUEST ? p : i, resp = k != K_REQUEST ? i : p;
+            if (!isfinite(t_start[resp]) || !isfinite(t_end[req])) goto slow_path;
+            has_ms = ls_latency(&lp, t_start[resp], t_end[req], &ms, &bound_);
+            if (has_ms < 0) goto fail_item;
+        }
+        if (!json) {
+            if (ls_put_time(&out, t_start[i] - origin, 6) < 0) goto fail_item;
+            int bad = 0;
+            PyObject *shown = NULL;
+            int owned = 0;
+            if (has_ms && ls_lat_text(lt, text, ms, bound_, &shown, &owned) < 0) goto fail_item;
+            if (shown != NULL && PyUnicode_GET_LENGTH(shown) > 0) {
+                bad = ls_put_str(&out, PyTuple_GET_ITEM(tp, 0)) < 0 || ls_put_str(&out, shown) < 0 ||
+                      ls_put_str(&out, PyTuple_GET_ITEM(tp, 1)) < 0;
+            } else {
+                bad = ls_put_str(&out, PyTuple_GET_ITEM(tp, 2)) < 0;
+            }
+            if (owned) Py_DECREF(shown);
+            if (bad || buf_put(&out, "\n", 1) < 0) goto fail_item;
+        } else {
+            PyObject *kept = PyTuple_GET_ITEM(tp, 4);
+            int same = PyBytes_GET_SIZE(kept) == 0 ||
+                       (PyBytes_GET_SIZE(kept) == raw_n &&
+                        memcmp(PyBytes_AS_STRING(kept), raw, (size_t)raw_n) == 0);
+            if (!same) {
+                PyObject *sp = PyTuple_GET_ITEM(tp, 3);
+                if (sp == Py_None || PyBytes_GET_SIZE(kept) != raw_n) goto slow_path;
+                int got = ls_splice(&first, &spliced, sp, r, raw_n);
+                if (got < 0) goto fail_item;
+                if (!got) goto slow_path;
+            }
+            int request = k == K_REQUEST;
+            if (buf_put(&out, "{\"index\": ", 10) < 0 || ls_put_int(&out, base + i) < 0 ||
+                buf_put(&out, ", \"t\": ", 7) < 0 || ls_put_rounded(&out, t_start[i], 6) < 0 ||
+                buf_put(&out, ", \"t_end\": ", 11) < 0 || ls_put_rounded(&out, t_end[i], 6) < 0 ||
+                buf_put(&out, ", ", 2) < 0 ||
+                (same ? ls_put_str(&out, PyTuple_GET_ITEM(tp, 0)) : buf_put(&out, first.p, first.n)) < 0 ||
+                buf_put(&out, ", \"channel\": ", 13) < 0 || ls_put_int(&out, channel[i]) < 0 ||
+                buf_put(&out, ", ", 2) < 0 ||
+                (same ? ls_put_str(&out, PyTuple_GET_ITEM(tp, 1)) : buf_put(&out, spliced.p, spliced.n)) < 0)
+                goto fail_item;
+            /* the transaction (listing.py: _transaction_json) */
+            if ((k == K_REQUEST || k == K_RESPONSE || k == K_EXCEPTION || k == K_UNKNOWN) && status[i]) {
+                if (status[i] >= PyTuple_GET_SIZE(statuses)) goto slow_path;
+                Py_ssize_t req = request || p == -1 ? i : p;
+                if (buf_put(&out, ", \"transaction\": {\"id\": ", 24) < 0 || ls_put_int(&out, base + req) < 0 ||
+                    buf_put(&out, request ? ", \"role\": \"request\", \"latency_ms\": "
+                                          : ", \"role\": \"response\", \"latency_ms\": ",
+                            request ? 35 : 36) < 0 ||
+                    ((has_ms && !bound_) ? ls_put_rounded(&out, ms, 3) : buf_put(&out, "null", 4)) < 0 ||
+                    buf_put(&out, ", \"latency_max_ms\": ", 20) < 0 ||
+                    ((has_ms && bound_) ? ls_put_rounded(&out, ms, 3) : buf_put(&out, "null", 4)) < 0 ||
+                    buf_put(&out, ", \"status\": ", 12) < 0 ||
+                    ls_put_str(&out, PyTuple_GET_ITEM(statuses, status[i])) < 0 ||
+                    buf_put(&out, ", \"partner\": ", 13) < 0 ||
+                    (p == -1 ? buf_put(&out, "null", 4) : ls_put_int(&out, base + p)) < 0 ||
+                    buf_put(&out, "}", 1) < 0)
+                    goto fail_item;
+            }
+            PyObject *registers = PyTuple_GET_ITEM(tp, 2);
+            if (PyUnicode_GET_LENGTH(registers) &&
+                (buf_put(&out, ", ", 2) < 0 || ls_put_str(&out, registers) < 0))
+                goto fail_item;
+            if (ls_put_str(&out, timing) < 0 || buf_put(&out, "}\n", 2) < 0) goto fail_item;
+        }
+        found += 1;
+        Py_DECREF(item);
+        continue;
+    slow_path: {
+        out.n = line_at; /* a line begun is taken back */
+        PyObject *got = PyObject_CallOneArg(miss, item);
+        Py_DECREF(item);
+        if (got == NULL) goto fail;
+        PyObject *line, *template;
+        if (!PyTuple_CheckExact(got) || PyTuple_GET_SIZE(got) != 2 ||
+            !PyUnicode_Check(line = PyTuple_GET_ITEM(got, 0))) {
+            PyErr_SetString(PyExc_TypeError, "listing_rows: miss gives (str, template)");
+            Py_DECREF(got);
+            goto fail;
+        }
+        template = PyTuple_GET_ITEM(got, 1);
+        if (ls_put_str(&out, line) < 0 || buf_put(&out, "\n", 1) < 0) {
+            Py_DECREF(got);
+            goto fail;
+        }
+        if (keyed && template != Py_None) {
+            if (!ls_template_ok(template, json)) {
+                PyErr_SetString(PyExc_TypeError, "listing_rows: not a line template");
+                Py_DECREF(got);
+                goto fail;
+            }
+            /* under the exact key only the parts of these very bytes (a content of
+             * other bytes may say other values: Python splices them in, this loop
+             * does only under the shape keys) */
+            PyObject *made = PyTuple_GET_ITEM(template, json ? 4 : 3);
+            int own = !PyBytes_GET_SIZE(made) ||
+                      (PyBytes_GET_SIZE(made) == last_n &&
+                       memcmp(PyBytes_AS_STRING(made), exact.p + 9, (size_t)last_n) == 0);
+            if ((own && ex_keep(et, &exact, template) < 0) ||
+                ((keyed & 2) && ex_keep(et, &free_key, template) < 0)) {
+                Py_DECREF(got);
+                goto fail;
+            }
+        }
+        Py_DECREF(got);
+        continue;
+    }
+    fail_item:
+        Py_DECREF(item);
+        goto fail;
+    }
+    {
+        PyObject *lines = PyUnicode_DecodeUTF8(out.p, out.n, "strict");
+        if (lines != NULL)
+            result = Py_BuildValue("(NnnO)", lines, done, found, more ? Py_True : Py_False);
+    }
+    goto done_;
+fail:
+    Py_CLEAR(result);
+done_:
+    et->running = 0;
+    et->out = out;
+    et->exact = exact;
+    et->free_key = free_key;
+    et->packet_key = spliced;
+    buf_free(&first);
+    Py_XDECREF(streams);
+    release_all(c, 11);
+    return result;
+}
+
 /* ---- the sidecar's partners, numbered in another range ---------------------------------- */
 
 /* shift_partners(partner, at_least, by) -> bytes: the int32 partner column of a block
@@ -2569,6 +3344,9 @@ static PyMethodDef methods[] = {
     {"export_table", py_export_table, METH_NOARGS, "A table of the export's packet templates."},
     {"export_rows", py_export_rows, METH_VARARGS, "PcapExporter.write's blocks of a run of rows."},
     {"export_moved", py_export_moved, METH_VARARGS, "exported_timing's largest move."},
+    {"listing_table", py_listing_table, METH_NOARGS, "A table of the listings' line templates."},
+    {"listing_floats", py_listing_floats, METH_VARARGS, "listing_rows' round, repr and time of a float."},
+    {"listing_rows", py_listing_rows, METH_VARARGS, "Lister.write's text or JSONL lines of a run of rows."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
     {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},
     {NULL, NULL, 0, NULL},

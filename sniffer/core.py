@@ -8,11 +8,13 @@ rows: pairing (`sniffer.framing.pairing.Pairer.update`, `FrameStore.pair_rows`),
 statistics, their bounded tallies and their quantiles (`sniffer.analysis.stats`), the poll
 cycle's requests (`sniffer.analysis.pollcycle.PollCycles.add`), SunSpec's first look at FC 3 and
 FC 4 answers in any envelope (`sniffer.meaning.sunspec`), the joining of held batches of reads
-(`sniffer.framing.pipeline`)
-and the pcapng export's packets from the templates it keeps
-(`sniffer.outputs.export.PcapExporter`). Each is a copy of Python code that stays, runs where
-the extension is missing, and takes over wherever the compiled loop meets anything else,
-so both cores give the same rows, pairs, tables and packets, bit for bit (the export's
+(`sniffer.framing.pipeline`),
+the pcapng export's packets from the templates it keeps
+(`sniffer.outputs.export.PcapExporter`), and the text and JSONL listings' lines from the
+parts they keep (`sniffer.outputs.listing.Lister`). Each is a copy of Python code that
+stays, runs where the extension is missing, and takes over wherever the compiled loop
+meets anything else, so both cores give the same rows, pairs, tables, packets and lines,
+bit for bit (the export's
 loop lets more rows share a packet template than the Python one, only rows whose packets
 are the same but for the bytes it splices in: see `ex_packet_key` in sniffer/_core.c).
 Where a loop needs a number of the product (a kind, a flag, a function code's family or

@@ -13,6 +13,7 @@ from math import ceil, log10
 from typing import Any, TextIO
 
 from dissectors.values import Field
+from sniffer import core
 from sniffer.framing.pairing import (
     INF,
     RESOLVED,
@@ -25,7 +26,7 @@ from sniffer.framing.pairing import (
     timing_note,
 )
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.meaning.describe import Describer, FrameDetail, Shared
+from sniffer.meaning.describe import VALUED_FLAGS, Describer, FrameDetail, Shared
 from sniffer.model import Stamp
 from sniffer.text import csv_row, json_line
 from sniffer.vocab import STATUS_NAMES, Flag, Kind, Status
@@ -605,12 +606,37 @@ class Latencies:
             return ""
         shown = self._texts.get(found)
         if shown is None:
-            ms, bound = found
-            words = span_words(ms)
-            shown = f" {'<' + words if bound else words:>9}"
-            if ms > 0 and len(self._texts) < 4096:  # (not -0.0, NaN: not one key)
+            shown = _latency_shown(*found)
+            if found[0] > 0 and len(self._texts) < 4096:  # (not -0.0, NaN: not one key)
                 self._texts[found] = shown
         return shown
+
+
+LISTING_RUN = 4096  # rows a call of the compiled loop takes at most (see _write_compiled)
+
+
+def _latency_shown(ms: float, bound: bool) -> str:
+    """` {text:>9}`: a latency as a text line shows it (`Latencies.text`)."""
+    words = span_words(ms)
+    return f" {'<' + words if bound else words:>9}"
+
+
+def _template(shared: Shared | None, key: str) -> tuple[Any, ...] | None:
+    """What the compiled loop keeps of a content for its next rows (sniffer/_core.c:
+    listing_rows): its text line's parts (head, tail, whole), or its JSONL parts and
+    splice (None unless `_spliced`'s tuple: the loop splices no other), with the bytes
+    they were made of and whether it is timed; None where the listing kept none."""
+    if shared is None:
+        return None
+    parts = shared.memo.get(key)
+    if parts is None:
+        return None
+    if key == "text":
+        return (parts[0], parts[1], parts[2], shared.raw, shared.timed)
+    first, second, registers, spliced = parts
+    if type(spliced) is not tuple or len(spliced) != 6:
+        spliced = None
+    return (first, second, registers, spliced, shared.raw, shared.timed)
 
 
 class Lister:
@@ -654,12 +680,92 @@ class Lister:
         # the row number of the store's first row: rows of a segment of a capture (a
         # windowed pass, `sniffer.session.streamed`) are numbered as in the whole capture
         self.base = 0
+        self._table: object | None = None  # the compiled core's parts (listing_table)
         if self._csv is not None and header:
             self._csv.writerow(CSV_COLUMNS)
 
     def write(self, rows: Iterable[int], flush: bool = True) -> int:
         """List `rows`; with `flush`, each row is written and flushed as it is made (a
-        live listing), else rows are written in batches."""
+        live listing), else rows are written in batches. With the compiled core, the
+        text and JSONL lines of a replay are made in C (see `_write_compiled`)."""
+        fast = core.FAST
+        describer = self.describer
+        store = describer.store
+        if (
+            fast is None
+            or flush
+            or self._csv is not None
+            or self.absolute
+            or self.updates
+            or store.peers
+            or type(describer).contents is not Describer.contents
+            or type(describer).shared is not Describer.shared
+            or describer.shared_size <= 0
+            or type(store) is not FrameStore
+        ):
+            return self._write_rows(rows, flush)
+        it = iter(rows)
+        n = 0
+        if self.origin is None or not self._noted:  # the first row's note and origin
+            for i in it:
+                n += self._write_rows((i,), False)
+                break
+            if self.origin is None:  # no rows
+                return n
+        return n + self._write_compiled(fast, it)
+
+    def _write_compiled(self, fast: Any, rows: Iterator[int]) -> int:
+        """`write` of a text or JSONL listing with the compiled core (sniffer/_core.c:
+        listing_rows): the lines of the rows whose content it holds the parts of made
+        there, as `_text_line` and `_json_line` make them; every other row by this
+        class (`miss`), whose parts it keeps under the row's keys (`_template`). The
+        rows it finds count as found for the describer's guard."""
+        describer = self.describer
+        store = describer.store
+        store.sync()  # no column grows while the compiled loop holds them
+        annotator = describer.annotator
+        assert self.origin is not None
+        json = self.fmt == "jsonl"
+        latencies = self._latencies
+        if store.stamps is not latencies.stamps or store.resolution != latencies.resolution:
+            latencies._settle(store)
+        measured = (
+            (latencies._step, latencies._least, latencies._digits, latencies.resolution)
+            if latencies._fast
+            else None
+        )
+        if store.stamps != self._stamps:
+            self._stamps = store.stamps
+            self._timing = ", " + _json_item("timing", TIMING_NAMES[store.stamps])
+        key = "jsonl" if json else "text"
+
+        def miss(i: int) -> tuple[str, tuple[Any, ...] | None]:
+            for _, shared in describer.contents((i,), values=False, writes=True):
+                line = self._row_line(i, shared, "")
+                if line is None:  # (not for a text or JSONL line)
+                    raise AssertionError("a text or JSONL listing makes every row's line")
+                return line, _template(shared, key)
+            raise AssertionError("a row has a content or none")
+
+        table = self._table
+        if table is None:
+            table = self._table = fast.listing_table()
+        apart = (annotator.sunspec.units, annotator.windows_of)
+        n = 0
+        more = True
+        while more:
+            lines, count, found, more = fast.listing_rows(
+                table, store, rows, store.notes, apart, annotator.bindings, store.links,
+                _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, LISTING_RUN, self.origin, json,
+                measured, _latency_shown, _STATUS_JSON, self._timing, self.base,
+            )  # fmt: skip
+            self.out.write(lines)
+            describer.count_found(found)
+            n += count
+        return n
+
+    def _write_rows(self, rows: Iterable[int], flush: bool) -> int:
+        """`write` in Python: the reference, and what runs without the compiled core."""
         n = 0
         describer = self.describer
         store = describer.store
@@ -686,13 +792,7 @@ class Lister:
                 if text and store.stamps == Stamp.NONE and not note:
                     self.out.write(SYNTHETIC_HEADER + "\n")
             peer = store.peers.get(store.channel[i], "") if store.peers else ""
-            line = None
-            if shared is not None and not store.flags[i] & _DEVICE_SLOW:
-                line = (
-                    self._text_line(i, shared, peer) if text else self._json_line(i, shared, peer)
-                )
-            if line is None:
-                line = self._line(describer.detail(i), peer)
+            line = self._row_line(i, shared, peer)
             if text and self.updates and line is not None:
                 line = self._numbered(i, line)
             if note and line is not None and self.fmt == "jsonl":
@@ -714,6 +814,19 @@ class Lister:
             pending.append("")
             self.out.write("\n".join(pending))
         return n
+
+    def _row_line(self, i: int, shared: Shared | None, peer: str) -> str | None:
+        """Row `i`'s text or JSONL line, from what rows of its content share where it can
+        be, or written as a CSV record (None)."""
+        line = None
+        if shared is not None and not self.describer.store.flags[i] & _DEVICE_SLOW:
+            if self.fmt == "text":
+                line = self._text_line(i, shared, peer)
+            elif self.fmt == "jsonl":
+                line = self._json_line(i, shared, peer)
+        if line is None:
+            line = self._line(self.describer.detail(i), peer)
+        return line
 
     def timing_note(self) -> str:
         """The sentence a listing starts with when its times are coarse (print times, a
