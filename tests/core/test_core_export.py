@@ -192,7 +192,7 @@ def rows_orders(n: int) -> list[Iterable[int]]:
 
 
 @compiled
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=24, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), odd=st.booleans(), run=st.sampled_from((1, 7, 4096)))
 def test_both_cores_export_the_same_bytes(seed: int, odd: bool, run: int) -> None:
     store, annotator = random_capture(seed, 1000, odd)
