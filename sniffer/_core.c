@@ -1106,6 +1106,48 @@ static int columns(PyObject *store, const ColSpec *specs, int count, Py_buffer *
     return 0;
 }
 
+/* The columns the export's and the listings' row walks read (export_rows,
+ * listing_rows), opened as `views` (release_all(views, ROW_COLUMNS) lets them go), and
+ * the rows every one of them holds (see FrameStore.sync). */
+#define ROW_COLUMNS 11
+typedef struct {
+    const unsigned char *kind, *channel, *status, *unit, *fc;
+    const uint32_t *flags;
+    const double *t_end, *t_start;
+    const uint64_t *offset;
+    const uint16_t *length;
+    const int32_t *partner;
+    Py_ssize_t n;
+} RowColumns;
+
+static int row_columns(PyObject *store, Py_buffer views[ROW_COLUMNS], RowColumns *r) {
+    static const ColSpec specs[ROW_COLUMNS] = {
+        {"kind", 'B', 0},   {"flags", 'I', 0},   {"t_end", 'd', 0},   {"offset", 'Q', 0},
+        {"length", 'H', 0}, {"channel", 'B', 0}, {"partner", 'i', 0}, {"status", 'B', 0},
+        {"unit", 'B', 0},   {"fc", 'B', 0},      {"t", 'd', 0},
+    };
+    if (columns(store, specs, ROW_COLUMNS, views) < 0) return -1;
+    r->kind = views[0].buf;
+    r->flags = views[1].buf;
+    r->t_end = views[2].buf;
+    r->offset = views[3].buf;
+    r->length = views[4].buf;
+    r->channel = views[5].buf;
+    r->partner = views[6].buf;
+    r->status = views[7].buf;
+    r->unit = views[8].buf;
+    r->fc = views[9].buf;
+    r->t_start = views[10].buf;
+    static const int widths[ROW_COLUMNS] = {1, 4, 8, 8, 2, 1, 4, 1, 1, 1, 8};
+    Py_ssize_t n = views[0].len;
+    for (int k = 1; k < ROW_COLUMNS; k++) {
+        Py_ssize_t rows = views[k].len / widths[k];
+        if (rows < n) n = rows;
+    }
+    r->n = n;
+    return 0;
+}
+
 static void release_all(Py_buffer *views, int count) {
     for (int i = 0; i < count; i++) PyBuffer_Release(&views[i]);
 }
@@ -2091,32 +2133,18 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             return NULL;
         }
     }
-    static const ColSpec specs[] = {
-        {"kind", 'B', 0},   {"flags", 'I', 0},   {"t_end", 'd', 0},   {"offset", 'Q', 0},
-        {"length", 'H', 0}, {"channel", 'B', 0}, {"partner", 'i', 0}, {"status", 'B', 0},
-        {"unit", 'B', 0},   {"fc", 'B', 0},      {"t", 'd', 0},
-    };
-    Py_buffer c[11];
-    if (columns(store, specs, 11, c) < 0) return NULL;
+    Py_buffer c[ROW_COLUMNS];
+    RowColumns rc;
+    if (row_columns(store, c, &rc) < 0) return NULL;
     et->running = 1;
-    const unsigned char *kind = c[0].buf, *channel = c[5].buf, *status = c[7].buf;
-    const unsigned char *unit = c[8].buf, *fc = c[9].buf;
-    const uint32_t *flags = c[1].buf;
-    const double *t_end = c[2].buf, *t_start = c[10].buf;
-    const uint64_t *offset = c[3].buf;
-    const uint16_t *length = c[4].buf;
-    const int32_t *partner = c[6].buf;
-    Py_ssize_t n = c[0].len;
-    if (c[7].len < n) n = c[7].len; /* the rows every column holds (see FrameStore.sync) */
-    if (c[1].len / 4 < n) n = c[1].len / 4;
-    if (c[2].len / 8 < n) n = c[2].len / 8;
-    if (c[3].len / 8 < n) n = c[3].len / 8;
-    if (c[4].len / 2 < n) n = c[4].len / 2;
-    if (c[5].len < n) n = c[5].len;
-    if (c[6].len / 4 < n) n = c[6].len / 4;
-    if (c[8].len < n) n = c[8].len;
-    if (c[9].len < n) n = c[9].len;
-    if (c[10].len / 8 < n) n = c[10].len / 8;
+    const unsigned char *kind = rc.kind, *channel = rc.channel, *status = rc.status;
+    const unsigned char *unit = rc.unit, *fc = rc.fc;
+    const uint32_t *flags = rc.flags;
+    const double *t_end = rc.t_end, *t_start = rc.t_start;
+    const uint64_t *offset = rc.offset;
+    const uint16_t *length = rc.length;
+    const int32_t *partner = rc.partner;
+    Py_ssize_t n = rc.n;
     PyObject *result = NULL, *streams = NULL;
     /* the table's buffers, grown once: a run's blocks go out as bytes of up to about
      * EX_RUN_BYTES, which the allocator gives back and takes again without new pages
@@ -2347,7 +2375,7 @@ done_:
     et->free_key = free_key;
     et->packet_key = packet_key;
     Py_XDECREF(streams);
-    release_all(c, 11);
+    release_all(c, ROW_COLUMNS);
     return result;
 }
 
@@ -2923,32 +2951,18 @@ static PyObject *py_listing_rows(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_ValueError, "listing_rows: the origin is not finite");
         return NULL;
     }
-    static const ColSpec specs[] = {
-        {"kind", 'B', 0},   {"flags", 'I', 0},   {"t_end", 'd', 0},   {"offset", 'Q', 0},
-        {"length", 'H', 0}, {"channel", 'B', 0}, {"partner", 'i', 0}, {"status", 'B', 0},
-        {"unit", 'B', 0},   {"fc", 'B', 0},      {"t", 'd', 0},
-    };
-    Py_buffer c[11];
-    if (columns(store, specs, 11, c) < 0) return NULL;
+    Py_buffer c[ROW_COLUMNS];
+    RowColumns rc;
+    if (row_columns(store, c, &rc) < 0) return NULL;
     et->running = 1;
-    const unsigned char *kind = c[0].buf, *channel = c[5].buf, *status = c[7].buf;
-    const unsigned char *unit = c[8].buf, *fc = c[9].buf;
-    const uint32_t *flags = c[1].buf;
-    const double *t_end = c[2].buf, *t_start = c[10].buf;
-    const uint64_t *offset = c[3].buf;
-    const uint16_t *length = c[4].buf;
-    const int32_t *partner = c[6].buf;
-    Py_ssize_t n = c[0].len;
-    if (c[7].len < n) n = c[7].len; /* the rows every column holds (see FrameStore.sync) */
-    if (c[1].len / 4 < n) n = c[1].len / 4;
-    if (c[2].len / 8 < n) n = c[2].len / 8;
-    if (c[3].len / 8 < n) n = c[3].len / 8;
-    if (c[4].len / 2 < n) n = c[4].len / 2;
-    if (c[5].len < n) n = c[5].len;
-    if (c[6].len / 4 < n) n = c[6].len / 4;
-    if (c[8].len < n) n = c[8].len;
-    if (c[9].len < n) n = c[9].len;
-    if (c[10].len / 8 < n) n = c[10].len / 8;
+    const unsigned char *kind = rc.kind, *channel = rc.channel, *status = rc.status;
+    const unsigned char *unit = rc.unit, *fc = rc.fc;
+    const uint32_t *flags = rc.flags;
+    const double *t_end = rc.t_end, *t_start = rc.t_start;
+    const uint64_t *offset = rc.offset;
+    const uint16_t *length = rc.length;
+    const int32_t *partner = rc.partner;
+    Py_ssize_t n = rc.n;
     PyObject *result = NULL, *streams = NULL;
     /* out: the lines; exact, free_key: the keys; packet_key: a splice's second part */
     Buf out = et->out, exact = et->exact, free_key = et->free_key, spliced = et->packet_key;
@@ -3169,7 +3183,7 @@ done_:
     et->packet_key = spliced;
     buf_free(&first);
     Py_XDECREF(streams);
-    release_all(c, 11);
+    release_all(c, ROW_COLUMNS);
     return result;
 }
 
