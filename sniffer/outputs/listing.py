@@ -637,7 +637,8 @@ def _template(shared: Shared | None, key: str) -> tuple[Any, ...] | None:
         return (parts[0], parts[1], parts[2], shared.raw, shared.timed, parts[3])
     first, second, registers, spliced = parts
     if isinstance(spliced, _Single):
-        spliced = (spliced.after_hex, spliced.before_said, spliced.before_number, spliced.after_text)
+        single = spliced
+        spliced = (single.after_hex, single.before_said, single.before_number, single.after_text)
     return (first, second, registers, spliced, shared.raw, shared.timed)
 
 
