@@ -2755,18 +2755,37 @@ static int ls_lat_text(LsTable *lt, PyObject *text, double ms, int bound, PyObje
     return 0;
 }
 
+/* Whether `r`, `rn` bytes of an RTU frame of function `code`, is a well-formed FC 5 or
+ * 6 write or echo (describe.py: _single_write): 8 bytes, its code `code`, and for FC 5 a
+ * coil value of ON (0xFF00) or OFF (0x0000). */
+static int ls_single_write(unsigned code, const unsigned char *r, Py_ssize_t rn) {
+    return FC_WRITE_SINGLE(code) && rn == TABLE_REQUEST_LENGTH && r[1] == code &&
+           (!FC_WRITE_COIL(code) || ((r[4] == 0xFF || r[4] == 0) && r[5] == 0));
+}
+
 /* The listings' keys of a row besides the exact one (Describer.contents with values
  * False and writes True, describe.py), each with what its Python key holds and more
  * (the code, and all the row's flags): "F" an FC 3/4 answer (_valueless), "B" an FC 1/2
  * answer and its padding bits (_bits_valueless), "R" an FC 15/16 answer echoing its
- * write (_written, _write_key), "Q" an FC 15/16 write (_write_request, _write_key).
- * Made for an RTU row of a unit other than 0 with no dictionary and none of the
- * VALUED_FLAGS (nor, for an answer, its request), as Python makes its. 1: made; 0: none;
- * -1: no memory. */
+ * write (_written, _write_key), "Q" an FC 15/16 write (_write_request, _write_key), "W"
+ * an FC 5/6 write and "C" its echo of the same bytes (_single_write: their unit, code
+ * and address). Made for an RTU row of a unit other than 0 with no dictionary and none
+ * of the VALUED_FLAGS (nor, for an answer, its request), as Python makes its. 1: made;
+ * 0: none; -1: no memory. */
 static int ls_free_key(Buf *w, unsigned k, unsigned code, uint32_t fl, unsigned st,
                        const unsigned char *r, Py_ssize_t rn, const unsigned char *q,
                        Py_ssize_t qn) {
     w->n = 0;
+    if (ls_single_write(code, r, rn)) {
+        /* a write, or an answer that is its request's bytes (not an exception: its code
+         * has the bit set) */
+        int echo = k == K_RESPONSE && q != NULL && qn == rn && memcmp(r, q, (size_t)rn) == 0;
+        if (k != K_REQUEST && !echo) return 0;
+        if (buf_put(w, echo ? "C" : "W", 1) < 0 || ex_put_u8(w, code) < 0 ||
+            ex_put_u32(w, fl) < 0 || ex_put_u8(w, st) < 0 || buf_put(w, r, 4) < 0)
+            return -1;
+        return 1;
+    }
     if (k == K_REQUEST) {
         if (!FC_WRITE_MULTIPLE(code) || rn < 9 || !FC_WRITE_MULTIPLE(r[1])) return 0;
         Py_ssize_t quantity = r[4] << 8 | r[5];
@@ -2820,36 +2839,74 @@ static int ls_free_key(Buf *w, unsigned k, unsigned code, uint32_t fl, unsigned 
 }
 
 /* A template as listing.py's _template makes it, checked once when it is kept: text
- * (head, tail, whole, raw, timed); JSONL (first, second, registers, spliced, raw, timed), spliced
- * None or (after_hex, before_values, after_text, at, count, words) as _spliced makes it. */
+ * (head, tail, whole, raw, timed, single), single None or _text_spliced's tuple (empty,
+ * or what comes before and after the value said); JSONL (first, second, registers,
+ * spliced, raw, timed), spliced None, (after_hex, before_values, after_text, at, count,
+ * words) as _spliced makes it, or _Single's four parts (after_hex, before_said,
+ * before_number, after_text). */
 static int ls_template_ok(PyObject *t, int json) {
-    if (!PyTuple_CheckExact(t) || PyTuple_GET_SIZE(t) != (json ? 6 : 5)) return 0;
+    if (!PyTuple_CheckExact(t) || PyTuple_GET_SIZE(t) != 6) return 0;
     for (int k = 0; k < 3; k++)
         if (!PyUnicode_CheckExact(PyTuple_GET_ITEM(t, k))) return 0;
     if (!PyBool_Check(PyTuple_GET_ITEM(t, json ? 5 : 4))) return 0;
     if (!PyBytes_CheckExact(PyTuple_GET_ITEM(t, json ? 4 : 3))) return 0;
-    if (!json) return 1;
-    PyObject *sp = PyTuple_GET_ITEM(t, 3);
+    PyObject *sp = PyTuple_GET_ITEM(t, json ? 3 : 5);
     if (sp == Py_None) return 1;
-    if (!PyTuple_CheckExact(sp) || PyTuple_GET_SIZE(sp) != 6) return 0;
-    for (int k = 0; k < 3; k++)
+    if (!PyTuple_CheckExact(sp)) return 0;
+    Py_ssize_t size = PyTuple_GET_SIZE(sp);
+    if (size != (json ? 4 : 2) && !(json ? size == 6 : size == 0)) return 0;
+    for (Py_ssize_t k = 0; k < (size == 6 ? 3 : size); k++)
         if (!PyUnicode_CheckExact(PyTuple_GET_ITEM(sp, k))) return 0;
+    if (size != 6) return 1;
     return PyLong_CheckExact(PyTuple_GET_ITEM(sp, 3)) && PyLong_CheckExact(PyTuple_GET_ITEM(sp, 4)) &&
            PyBool_Check(PyTuple_GET_ITEM(sp, 5));
 }
 
+/* How the text of `r`, the 8 bytes of an RTU FC 5 or 6 write or echo, says its value
+ * (listing.py: _said), into `said`: `0x1234` for a register, `ON` or `OFF` for a coil.
+ * Its length; 0 for none (another coil value, another code or length). */
+static int ls_said(char said[6], const unsigned char *r, Py_ssize_t rn) {
+    static const char upper[] = "0123456789ABCDEF";
+    if (rn != TABLE_REQUEST_LENGTH || !FC_WRITE_SINGLE(r[1])) return 0;
+    if (!FC_WRITE_COIL(r[1])) {
+        const char text[6] = {'0', 'x', upper[r[4] >> 4], upper[r[4] & 15], upper[r[5] >> 4],
+                              upper[r[5] & 15]};
+        memcpy(said, text, 6);
+        return 6;
+    }
+    if (r[5] != 0 || (r[4] != 0xFF && r[4] != 0)) return 0;
+    memcpy(said, r[4] ? "ON" : "OFF", r[4] ? 2 : 3);
+    return r[4] ? 2 : 3;
+}
+
 /* The JSONL parts of `r`, a row whose content's parts were made from other bytes of the
- * same length, as listing.py's _splice makes them (its values, from byte `at`: `count`
- * big-endian words, or bits, first bit first) into `first` and `second`. 1: made; 0: the
- * spliced parts do not fit these bytes (Python makes the line); -1: an error. */
+ * same length, as listing.py's _splice makes them into `first` and `second`: its values,
+ * from byte `at`, `count` big-endian words or bits, first bit first (`sp` _spliced's
+ * tuple); or, for an FC 5 or 6 write (`sp` _Single's parts), its value as the summary
+ * says it, its number and its text. 1: made; 0: the spliced parts do not fit these bytes
+ * (Python makes the line); -1: an error. */
 static int ls_splice(Buf *first, Buf *second, PyObject *sp, const unsigned char *r, Py_ssize_t rn) {
+    first->n = second->n = 0;
+    if (PyTuple_GET_SIZE(sp) == 4) {
+        char said[6];
+        int n = ls_said(said, r, rn);
+        if (!n) return 0;
+        if (buf_put(first, "\"raw\": \"", 8) < 0 || ls_put_hex(first, r, rn) < 0 ||
+            ls_put_str(first, PyTuple_GET_ITEM(sp, 0)) < 0 ||
+            ls_put_str(second, PyTuple_GET_ITEM(sp, 1)) < 0 || buf_put(second, said, n) < 0 ||
+            ls_put_str(second, PyTuple_GET_ITEM(sp, 2)) < 0 ||
+            ls_put_int(second, r[4] << 8 | r[5]) < 0 ||
+            buf_put(second, ", \"text\": \"", 11) < 0 || buf_put(second, said, n) < 0 ||
+            ls_put_str(second, PyTuple_GET_ITEM(sp, 3)) < 0)
+            return -1;
+        return 1;
+    }
     Py_ssize_t at = PyLong_AsSsize_t(PyTuple_GET_ITEM(sp, 3));
     Py_ssize_t count = PyLong_AsSsize_t(PyTuple_GET_ITEM(sp, 4));
     if ((at == -1 || count == -1) && PyErr_Occurred()) return -1;
     int words = PyTuple_GET_ITEM(sp, 5) == Py_True;
     Py_ssize_t size = words ? 2 * count : (count + 7) / 8;
     if (count <= 0 || (words && count >= 128) || at < 0 || at + size != rn - 2) return 0;
-    first->n = second->n = 0;
     if (buf_put(first, "\"raw\": \"", 8) < 0 || ls_put_hex(first, r, rn) < 0 ||
         ls_put_str(first, PyTuple_GET_ITEM(sp, 0)) < 0 ||
         ls_put_str(second, PyTuple_GET_ITEM(sp, 1)) < 0 ||
@@ -3062,12 +3119,30 @@ static PyObject *py_listing_rows(PyObject *self, PyObject *args) {
             if (has_ms < 0) goto fail_item;
         }
         if (!json) {
+            /* an FC 5/6 write of another value than its content's: the row's value said
+             * between the parts of the tail kept (Lister._text_line) */
+            PyObject *single = PyTuple_GET_ITEM(tp, 5), *kept = PyTuple_GET_ITEM(tp, 3);
+            char said[6];
+            int said_n = -1; /* -1: the tail kept is the row's */
+            if (single != Py_None &&
+                !(PyBytes_GET_SIZE(kept) == raw_n &&
+                  memcmp(PyBytes_AS_STRING(kept), raw, (size_t)raw_n) == 0)) {
+                said_n = PyTuple_GET_SIZE(single) ? ls_said(said, r, raw_n) : 0;
+                if (!said_n) goto slow_path;
+            }
             if (ls_put_time(&out, t_start[i] - origin, 6) < 0) goto fail_item;
             int bad = 0;
             PyObject *shown = NULL;
             int owned = 0;
             if (has_ms && ls_lat_text(lt, text, ms, bound_, &shown, &owned) < 0) goto fail_item;
-            if (shown != NULL && PyUnicode_GET_LENGTH(shown) > 0) {
+            int latency = shown != NULL && PyUnicode_GET_LENGTH(shown) > 0;
+            if (said_n > 0) {
+                bad = ls_put_str(&out, PyTuple_GET_ITEM(tp, 0)) < 0 ||
+                      (latency && ls_put_str(&out, shown) < 0) ||
+                      ls_put_str(&out, PyTuple_GET_ITEM(single, 0)) < 0 ||
+                      buf_put(&out, said, said_n) < 0 ||
+                      ls_put_str(&out, PyTuple_GET_ITEM(single, 1)) < 0;
+            } else if (latency) {
                 bad = ls_put_str(&out, PyTuple_GET_ITEM(tp, 0)) < 0 || ls_put_str(&out, shown) < 0 ||
                       ls_put_str(&out, PyTuple_GET_ITEM(tp, 1)) < 0;
             } else {

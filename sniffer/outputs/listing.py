@@ -623,19 +623,22 @@ def _latency_shown(ms: float, bound: bool) -> str:
 
 def _template(shared: Shared | None, key: str) -> tuple[Any, ...] | None:
     """What the compiled loop keeps of a content for its next rows (sniffer/_core.c:
-    listing_rows): its text line's parts (head, tail, whole), or its JSONL parts and
-    splice (None unless `_spliced`'s tuple: the loop splices no other), with the bytes
-    they were made of and whether it is timed; None where the listing kept none."""
+    listing_rows): its text line's parts (head, tail, whole) and `_text_spliced`'s
+    splice, or its JSONL parts and splice (`_spliced`'s tuple, or a `_Single`'s four
+    parts as a tuple), with the bytes they were made of and whether it is timed; None
+    where the listing kept none. The loop splices a row's own value or values in as
+    `_text_line` and `_splice` do."""
     if shared is None:
         return None
     parts = shared.memo.get(key)
     if parts is None:
         return None
     if key == "text":
-        return (parts[0], parts[1], parts[2], shared.raw, shared.timed)
+        return (parts[0], parts[1], parts[2], shared.raw, shared.timed, parts[3])
     first, second, registers, spliced = parts
-    if type(spliced) is not tuple or len(spliced) != 6:
-        spliced = None
+    if isinstance(spliced, _Single):
+        single = spliced
+        spliced = (single.after_hex, single.before_said, single.before_number, single.after_text)
     return (first, second, registers, spliced, shared.raw, shared.timed)
 
 

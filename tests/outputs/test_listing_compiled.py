@@ -1,7 +1,8 @@
 """The compiled listings (sniffer/_core.c: listing_rows, from `Lister.write`) write the
 text and JSONL lines the pure-Python Lister writes, byte for byte: on random polling
 traffic (FC 1-6, 15, 16 of random quantities and fresh values, exceptions, timeouts,
-bad checks, echoes that differ, bound and unbound units), random stray bytes, random
+bad checks, echoes that differ, bound and unbound units), FC 5/6 writes repeated with
+fresh values (coil values neither ON nor OFF, unit 0), random stray bytes, random
 stamps and resolutions (values, bounds, none), content caches small enough that
 contents are dropped and made again, and rows listed in several calls."""
 
@@ -23,6 +24,7 @@ from sniffer.model import Chunk, Stamp
 from sniffer.outputs.listing import Lister
 from sniffer.session.session import Session
 from tests.outputs.test_listing_fast import Exchange, exchanges
+from tests.outputs.test_listing_single_writes import single, writes
 from tests.support.describe import BINDINGS, LINE, T0, session
 
 pytestmark = pytest.mark.skipif(core.FAST is None, reason="the compiled core is not built")
@@ -175,6 +177,91 @@ def test_the_compiled_core_makes_the_lines_of_a_polling_capture(
         assert len(lines) == len(s.store)
         assert 0 < len(asked) <= 4, (fmt, asked)
     assert made == listing(s, "jsonl", False, 2048, [], monkeypatch)
+
+
+def revalued(frame: bytes, value: int) -> bytes:
+    """`frame`, an FC 5/6 write or echo of 8 bytes, writing `value` instead, its check
+    good or bad as it was; any other frame as it is."""
+    if len(frame) != 8:
+        return frame
+    made = with_crc(frame[:4] + struct.pack(">H", value))
+    return made if with_crc(frame[:-2]) == frame else made[:-1] + bytes([made[-1] ^ 0x01])
+
+
+@st.composite
+def setpoints(draw: st.DrawFn) -> list[Exchange]:
+    """A master writing a few coils and registers over and over, each time another
+    value (ON, OFF, and coil values that are neither; any register value): the rows
+    whose shape the compiled table finds and whose value it splices in. An echo that
+    differs keeps its difference; exceptions, timeouts, bad checks and frames of the
+    wrong length as `writes` makes them."""
+    table = draw(st.lists(writes(), min_size=1, max_size=4))
+    order = draw(st.lists(st.integers(0, len(table) - 1), min_size=5, max_size=60))
+    out: list[Exchange] = []
+    for k in order:
+        request, answer, delay = table[k]
+        if request[1] == 5:
+            value = draw(st.sampled_from([0xFF00, 0x0000, 0xFF00, 0x0000, 0x00FF, 0x1234]))
+        else:
+            value = draw(st.integers(0, 0xFFFF))
+        if answer is not None and len(answer) == 8 and len(request) == 8:
+            differs = int.from_bytes(answer[4:6]) ^ int.from_bytes(request[4:6])
+            answer = revalued(answer, value ^ differs)
+        out.append((revalued(request, value), answer, delay))
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(setpoints(), st.booleans(), STAMPS, RESOLUTIONS, SIZES, CUTS)
+def test_compiled_lines_of_single_writes_are_python_lines(
+    traffic: list[Exchange],
+    bound: bool,
+    stamps: Stamp | None,
+    resolution: float | None,
+    size: int,
+    cuts: list[int],
+) -> None:
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        same(retimed(session(traffic, bound=bound), stamps, resolution), size, cuts, monkeypatch)
+
+
+def test_the_compiled_core_makes_the_lines_of_single_writes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A setpoint written with a fresh value each cycle and a coil switched on and off,
+    each echoed: the compiled loop says each row's value itself (the text's summary,
+    the JSONL's raw, summary and value field) and asks the Python Lister only for the
+    first rows of each shape; a coil value neither ON nor OFF and a broadcast (unit 0,
+    no echo) are the Python Lister's."""
+    traffic: list[Exchange] = []
+    for k in range(100):
+        register = single(9, 6, 0x64, 0x64 if k == 50 else 655 * k)
+        coil = single(9, 5, 10, 0xFF00 if k % 2 else 0x0000)
+        traffic += [(register, register, 0.01), (coil, coil, 0.01)]
+    odd = single(9, 5, 10, 0x1234)
+    traffic += [(odd, odd, 0.01), (single(0, 6, 0x64, 7), None, 0.0)]
+    s = session(traffic, bound=False)
+    asked: list[int] = []
+    real = Lister._row_line
+
+    def row_line(self: Lister, i: int, shared: object, peer: str) -> str | None:
+        asked.append(i)
+        return real(self, i, shared, peer)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Lister, "_row_line", row_line)
+    for fmt in ("text", "jsonl"):
+        asked.clear()
+        made = listing(s, fmt, True, 2048, [], monkeypatch)
+        lines = [line for line in made.splitlines() if not line.startswith("# ")]
+        assert len(lines) == len(s.store) == 403
+        # row 0 is listed before the loop (its note and origin), so row 4 is its shape's first
+        assert asked == [0, 1, 2, 3, 4, 400, 401, 402], fmt
+        assert made == listing(s, fmt, False, 2048, [], monkeypatch)
+    made = listing(s, "text", True, 2048, [], monkeypatch)
+    text = [line for line in made.splitlines() if not line.startswith("# ")]
+    assert text[200].endswith("  write 0x0064 to register 0x0064")  # the value said first
+    assert text[207].endswith("  coil 0x000A ON")
+    assert text[396].endswith("  write 0xFD4D to register 0x0064")
 
 
 FLOATS = (
