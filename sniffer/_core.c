@@ -2085,7 +2085,7 @@ static int ex_exact_key(Buf *w, int answer, unsigned k, uint32_t fl, unsigned st
 }
 
 /* export_rows(table, store, rows, notes, apart, bound, alike, slow, mode, valued, miss,
- *             limit, char, mbap) -> (blocks, rows, found, more)
+ *             limit, char, mbap[, base]) -> (blocks, rows, found, more)
  * PcapExporter.write's loop (sniffer/outputs/export.py) over up to `limit` rows taken from the
  * iterator `rows`: the enhanced packet blocks of the rows whose content key `table`
  * holds, made from its template as Python makes them (the time's ticks as time_ticks
@@ -2101,18 +2101,24 @@ static int ex_exact_key(Buf *w, int answer, unsigned k, uint32_t fl, unsigned st
  * A packet's time is export.py's `packet_time`, made here from the store's `t` and
  * `t_end`: the frame's end or, for an answer (not of the `mbap` flag), its start plus
  * `char` a byte if that is earlier (nothing is kept per row for it).
+ * `base`: the capture's number of the store's first row (a segment's, see
+ * sniffer/session/streamed.py; 0 by default), which the transaction ids count from.
  * `blocks` are the rows' blocks in order; `found` how many rows the table gave; `more`
  * False once `rows` is exhausted. */
 static PyObject *py_export_rows(PyObject *self, PyObject *args) {
     PyObject *capsule, *store, *rows, *notes, *apart, *bound, *miss;
     int alike;
     unsigned int slow, mode, valued, mbap;
-    Py_ssize_t limit;
+    Py_ssize_t limit, base = 0;
     double char_time;
-    if (!PyArg_ParseTuple(args, "OOOO!O!O!pIIIOndI", &capsule, &store, &rows, &PyDict_Type,
+    if (!PyArg_ParseTuple(args, "OOOO!O!O!pIIIOndI|n", &capsule, &store, &rows, &PyDict_Type,
                           &notes, &PyTuple_Type, &apart, &PyDict_Type, &bound, &alike, &slow,
-                          &mode, &valued, &miss, &limit, &char_time, &mbap))
+                          &mode, &valued, &miss, &limit, &char_time, &mbap, &base))
         return NULL;
+    if (base < 0) {
+        PyErr_SetString(PyExc_ValueError, "export_rows: base is a row number");
+        return NULL;
+    }
     ExTable *et = PyCapsule_GetPointer(capsule, "modscope.export_table");
     if (et == NULL) return NULL;
     if (et->running) {
@@ -2305,7 +2311,7 @@ static PyObject *py_export_rows(PyObject *self, PyObject *args) {
             ex_put_bytes(&out, PyTuple_GET_ITEM(tp, 2)) < 0)
             goto fail_item;
         if (tail != Py_None) {
-            int32_t tid = k != K_REQUEST && p != -1 ? p : (int32_t)i;
+            size_t tid = (size_t)base + (size_t)(k != K_REQUEST && p != -1 ? p : i);
             unsigned char id[2] = {(unsigned char)((tid >> 8) & 0xFF), (unsigned char)(tid & 0xFF)};
             if (buf_put(&out, id, 2) < 0) goto fail_item;
             if (same) {
@@ -2379,18 +2385,29 @@ done_:
     return result;
 }
 
-/* export_moved(store, char, apart, mbap) -> the largest move of export.py's
- * exported_timing: over the rows of the store's columns, in order (events, rows of the
- * `mbap` flag and rows of no bytes left out), each frame read back from its packet
- * (`packet_time`, as export_rows makes it) starts `char` a byte before it, and at least
- * `apart` after the end of the frame before; a request's end moves by the difference to
- * its `t_end`, any other frame's start (but noise's) to its `t`. The largest such move,
- * in seconds, as the Python loop finds it (max keeps the first of equals, as there). */
+/* export_moved(store, char, apart, mbap[, last]) -> (moved, last): the largest move of
+ * export.py's exported_timing: over the rows of the store's columns, in order (events,
+ * rows of the `mbap` flag and rows of no bytes left out), each frame read back from its
+ * packet (`packet_time`, as export_rows makes it) starts `char` a byte before it, and at
+ * least `apart` after the end of the frame before; a request's end moves by the
+ * difference to its `t_end`, any other frame's start (but noise's) to its `t`. `moved`
+ * is the largest such move, in seconds, as the Python loop (_largest_move) finds it
+ * (max keeps the first of equals, as there); `last` the end of the last frame as read
+ * back (None: no frame). The `last` given is that of the frame before the store's first
+ * row (None, the default: none), so that a capture's segments, taken in turn, give the
+ * moves of one store of every row. */
 static PyObject *py_export_moved(PyObject *self, PyObject *args) {
-    PyObject *store;
+    PyObject *store, *before = Py_None;
     double char_time, apart;
     unsigned int mbap;
-    if (!PyArg_ParseTuple(args, "OddI", &store, &char_time, &apart, &mbap)) return NULL;
+    if (!PyArg_ParseTuple(args, "OddI|O", &store, &char_time, &apart, &mbap, &before))
+        return NULL;
+    double last = 0.0;
+    int have_last = before != Py_None;
+    if (have_last) {
+        last = PyFloat_AsDouble(before);
+        if (last == -1.0 && PyErr_Occurred()) return NULL;
+    }
     static const ColSpec specs[] = {
         {"kind", 'B', 0}, {"flags", 'I', 0}, {"t", 'd', 0}, {"t_end", 'd', 0}, {"length", 'H', 0},
     };
@@ -2411,8 +2428,7 @@ static PyObject *py_export_moved(PyObject *self, PyObject *args) {
         PyErr_SetString(PyExc_IndexError, "export_moved: a column is short");
         return NULL;
     }
-    double moved = 0.0, last = 0.0;
-    int have_last = 0;
+    double moved = 0.0;
     for (Py_ssize_t i = 0; i < n; i++) {
         unsigned k = kind[i];
         Py_ssize_t size = length[i];
@@ -2436,7 +2452,8 @@ static PyObject *py_export_moved(PyObject *self, PyObject *args) {
         if (move > moved) moved = move;
     }
     release_all(c, 5);
-    return PyFloat_FromDouble(moved);
+    if (!have_last) return Py_BuildValue("(dO)", moved, Py_None);
+    return Py_BuildValue("(dd)", moved, last);
 }
 
 /* ---- the text and JSONL listings' lines ------------------------------------------------- */

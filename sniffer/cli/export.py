@@ -28,6 +28,8 @@ from sniffer.cli.progress import Progress
 from sniffer.cli.replaying import first_pass, stdin_copy, write_streamed
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
+from sniffer.meaning.describe import Describer
+from sniffer.meaning.query import Query
 from sniffer.outputs.export import (
     EXPORT_FORMATS,
     EXTENSIONS,
@@ -35,7 +37,9 @@ from sniffer.outputs.export import (
     REGISTER_COLUMNS,
     TRANSACTION_COLUMNS,
     WHATS,
+    Moves,
     PcapExporter,
+    exported_timing,
     register_records,
     transaction_records,
     write_table,
@@ -44,6 +48,7 @@ from sniffer.outputs.listing import Lister
 from sniffer.outputs.parallel import workers_for, write_binary, write_text
 from sniffer.outputs.parquet import ParquetError, write_parquet
 from sniffer.session.session import Session, open_session
+from sniffer.session.streamed import Learnt, segments
 from sniffer.sources import Capture
 from sniffer.text import plain
 
@@ -103,18 +108,25 @@ def _export(
     told = line_warnings(options, capture.info.recorded_line, given or str(source))
     progress = Progress(err, given or source.name, None if given else source)
     settle()
-    # frames as text, JSONL or CSV: listed a segment at a time, as replay lists them
-    # (`sniffer.session.streamed`); the other exports read every row from one store
+    # frames as text, JSONL, CSV or pcapng: written a segment at a time, as replay lists
+    # them (`sniffer.session.streamed`); the other exports read every row from one store
     learnt = None
-    if fmt in ("text", "jsonl", "csv") and what == "frames" and not capture.info.network:
+    moves = [Moves(session.line)]  # (pcapng: the first pass's, for its interface block)
+    if fmt in ("text", "jsonl", "csv", "pcapng") and what == "frames" and not capture.info.network:
 
         def anew(index: bool) -> tuple[Session, Capture]:
             return open_session(
                 source, options, bindings=bindings, timeout=args.timeout, index=index
             )
 
+        def moved(s: Session) -> None:
+            if not s.base:  # a first segment: of a pass learnt again too (`first_pass`)
+                moves[0] = Moves(s.line)
+            moves[0].add(s.store)
+
+        also = moved if fmt == "pcapng" else None
         session, capture, learnt = first_pass(
-            session, capture, progress.reading, anew, not args.no_index
+            session, capture, progress.reading, anew, not args.no_index, also
         )
     else:
         session.ingest(capture.chunks(), progress.reading)
@@ -124,6 +136,25 @@ def _export(
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
+    if learnt is not None and fmt == "pcapng":
+        status = finish_read(capture, session, err)
+        timing = exported_timing(session.store, session.line, moves[0].moved)
+        binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
+        try:
+            exporter = PcapExporter(
+                binary,
+                session.describer,  # (not read: `timing` is given; each segment's from then)
+                session.line,
+                name=given or source.name,
+                style=args.style,
+                timing=timing,
+            )
+            n = _packets_streamed(exporter, args, learnt, anew(False), query)
+        finally:
+            if args.output != "-":
+                binary.close()
+        err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
+        return status
     if learnt is not None:
         status = finish_read(capture, session, err)
         text = out if args.output == "-" else _open_text(args.output)
@@ -172,12 +203,7 @@ def _export(
         finally:
             if args.output != "-":
                 binary.close()
-        carried = (
-            "Modbus/TCP, decoded by Wireshark as is"
-            if args.style == "modbus-tcp"
-            else ("Modbus RTU byte for byte")
-        )
-        err.write(f"{plain(args.output)}: {n} packets (link type 252, {carried})\n")
+        err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
         return status
     text = out if args.output == "-" else _open_text(args.output)
     raw = bool(args.raw_csv)
@@ -209,6 +235,60 @@ def _export(
     if args.output != "-":
         err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
     return status
+
+
+def _carried(style: str) -> str:
+    """What a pcapng export's packets carry, as its last line says."""
+    if style == "modbus-tcp":
+        return "(link type 252, Modbus/TCP, decoded by Wireshark as is)"
+    return "(link type 252, Modbus RTU byte for byte)"
+
+
+def _packets_streamed(
+    exporter: PcapExporter,
+    args: argparse.Namespace,
+    learnt: Learnt,
+    second: tuple[Session, Capture],
+    query: Query | None,
+) -> int:
+    """The pcapng export of one serial capture a segment at a time, in memory flat in
+    its size, as `write_streamed` lists it: `exporter` has written the section and
+    interface blocks (what the times are worth over the whole capture, from the first
+    pass: `Moves`), `learnt` is the first pass's, `second` a new session on the capture,
+    which writes each segment's packets as it drops it (`segments`), `--jobs` processes
+    sharing each segment's rows. The bytes are those of the export of one store of
+    every row: the transaction ids are the rows' numbers in the whole capture
+    (`PcapExporter.base`), the rows described as after every row. Returns how many
+    packets were written."""
+    session, capture = second
+    selection = Selection(session, query, args.count, first=learnt.origin)
+    count = 0
+
+    def each(s: Session, describer: Describer) -> bool:
+        nonlocal count
+        if selection.done:
+            return False
+        selection.next_segment(describer.annotator)
+        rows = selection.take(len(s.store), final=True)
+        if not rows:
+            return not selection.done
+        exporter.describer, exporter.base = describer, s.base
+
+        def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
+            if first:
+                return exporter.write(part)
+            worker = PcapExporter(
+                stream, describer, s.line, name="", style=exporter.style, header=False
+            )
+            worker.base = s.base
+            return worker.write(part)
+
+        stream = exporter.stream
+        count += write_binary(stream, rows, workers_for(args.jobs, len(rows), stream), packets)
+        return not selection.done
+
+    segments(session, capture, learnt, each)
+    return count
 
 
 def _open_binary(path: str) -> BinaryIO:

@@ -129,13 +129,14 @@ def packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     return upper_pdu_record(v.raw), flags, "; ".join(problems)
 
 
-def _transaction_id(d: FrameDetail) -> int:
+def _transaction_id(d: FrameDetail, base: int) -> int:
     """The MBAP transaction id: the request's row number, so an answer shares its
-    request's id; an answer with no request, a broadcast or an unknown frame its own."""
+    request's id; an answer with no request, a broadcast or an unknown frame its own.
+    Rows are numbered in the capture: the store's row `i` is row `base + i`."""
     v = d.view
     if v.kind != Kind.REQUEST and v.partner != NO_PARTNER:
-        return v.partner & 0xFFFF
-    return v.index & 0xFFFF
+        return (base + v.partner) & 0xFFFF
+    return (base + v.index) & 0xFFFF
 
 
 def line_bytes_text(raw: bytes, ascii_mode: bool) -> tuple[str, str, bytes | None]:
@@ -163,9 +164,9 @@ def tcp_packet_for(d: FrameDetail) -> tuple[bytes, int, str]:
     return _tcp_packet(d)[:3]
 
 
-def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
+def _tcp_packet(d: FrameDetail, base: int = 0) -> tuple[bytes, int, str, int | None]:
     """`tcp_packet_for`, and where in the packet the MBAP transaction id lies (None
-    when the packet has none)."""
+    when the packet has none); `base`: see `_transaction_id`."""
     v = d.view
     problems = list(d.problem_texts)
     if v.kind in (Kind.EVENT, Kind.NOISE):
@@ -190,7 +191,7 @@ def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
     if v.kind == Kind.UNKNOWN:
         problems.insert(0, "direction unknown; exported as a query")
     ends = TO_MASTER if v.kind in (Kind.RESPONSE, Kind.EXCEPTION) else TO_SLAVE
-    packet = build_mbtcp_pdu(ends, _transaction_id(d), body[0], body[1:])
+    packet = build_mbtcp_pdu(ends, _transaction_id(d, base), body[0], body[1:])
     # the MBAP header (id, protocol, length, unit) ends where the PDU begins
     at = len(packet) - (len(body) - 1) - 7
     return packet, flags, "; ".join([head, *problems]), at
@@ -235,7 +236,14 @@ class PcapExporter:
     the next ones are that template with their time and id put in, and, for an answer
     with other values, its bytes (see `_spliced`): a polling capture repeats a few
     contents all day, so most rows never reach the pcapng writer. With the compiled
-    core the templates are filled in C (see `_write_compiled`)."""
+    core the templates are filled in C (see `_write_compiled`).
+
+    A capture may be written a segment at a time (`sniffer.session.streamed`), each
+    segment's rows a store of their own: `timing` gives the interface block what the
+    times are worth over the whole capture (`exported_timing` with `Moves`; by default
+    it is found from `describer.store`), and `base`, set before each segment's rows are
+    written, the capture's number of the store's first row, which the transaction ids
+    count from. The templates hold no row number, so they serve every segment."""
 
     def __init__(
         self,
@@ -246,6 +254,7 @@ class PcapExporter:
         name: str = "modscope",
         style: str = "modbus-tcp",
         header: bool = True,
+        timing: tuple[Stamp, float] | None = None,
     ) -> None:
         if style not in PCAP_STYLES:
             raise ValueError(f"style must be one of {', '.join(PCAP_STYLES)}, not {style!r}")
@@ -259,7 +268,8 @@ class PcapExporter:
         )
         # the times' worth goes with them, so that reading the export back gives the
         # latencies the capture gave, to what it says they are worth (`exported_timing`)
-        timing = exported_timing(describer.store, line) if header else None
+        if header and timing is None:
+            timing = exported_timing(describer.store, line)
         self.interface = self.writer.add_interface(
             LINKTYPE_WIRESHARK_UPPER_PDU,
             name=name,
@@ -269,14 +279,14 @@ class PcapExporter:
             self._blocks.parts.clear()
         self._pass_on()
         self.packets = 0
+        self.base = 0  # the capture's number of the store's first row
         self._key = f"pcapng {self.style} {self.interface}"  # its templates' key in a memo
         self._last: Shared | None = None  # see `_rows`
         self._table: object | None = None  # the compiled core's templates (export_table)
         self._char = line.char_time  # a byte's time on the line (see `packet_time`)
 
-    @staticmethod
-    def _tcp_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
-        return _tcp_packet(d)
+    def _tcp_packet(self, d: FrameDetail) -> tuple[bytes, int, str, int | None]:
+        return _tcp_packet(d, self.base)
 
     @staticmethod
     def _rtu_packet(d: FrameDetail) -> tuple[bytes, int, str, int | None]:
@@ -344,6 +354,7 @@ class PcapExporter:
             blocks, count, found, more = fast.export_rows(
                 table, columns, it, store.notes, apart, annotator.bindings, alike,
                 _DEVICE_SLOW, _MODE, VALUED_FLAGS, miss, EXPORT_RUN, self._char, _MBAP_FLAG,
+                self.base,
             )  # fmt: skip
             self.stream.write(blocks)
             describer.count_found(found)
@@ -373,6 +384,7 @@ class PcapExporter:
         # into the template, or, if it cannot take them, the row is written on its own
         alike = self.style == "modbus-tcp"
         char = self._char
+        base = self.base
         for i, shared in describer.contents(rows, values=not alike):
             t = packet_time(store, i, char)
             if t < 0.0:
@@ -408,7 +420,7 @@ class PcapExporter:
                 append(head + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF) + middle)
             else:
                 partner = partners[i]
-                tid = partner if kinds[i] != _REQUEST and partner != NO_PARTNER else i
+                tid = base + (partner if kinds[i] != _REQUEST and partner != NO_PARTNER else i)
                 append(
                     head
                     + _EPB_TIME.pack(ticks >> 32, ticks & 0xFFFFFFFF)
@@ -489,7 +501,9 @@ class _PacketColumns:
         self.streams, self.t, self.t_end = store.streams, store.t, store.t_end
 
 
-def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float]:
+def exported_timing(
+    store: FrameStore, line: LineSettings, moved: float | None = None
+) -> tuple[Stamp, float]:
     """What the times of an export of `store` are worth, said in its interface
     description: the capture's stamps, and its resolution widened by what one time per
     packet loses. Read back, each frame starts its bytes' line time before its packet's
@@ -497,24 +511,52 @@ def exported_timing(store: FrameStore, line: LineSettings) -> tuple[Stamp, float
     keeps exported frames apart so): a request's end or an answer's start the capture
     placed closer than that (an answer within t3.5, a frame squeezed after another)
     moves, so each latency read back is good to the capture's resolution plus the
-    largest such move (found by the compiled core's `export_moved` when there is one)."""
+    largest such move (`largest_move`; `moved`, when given, is that move found over
+    the capture a segment at a time by `Moves`, not over `store`'s rows)."""
     stamps = _EXPORTED_STAMPS.get(store.stamps, store.stamps)
-    store.sync()
-    char, apart = line.char_time, line.t35 + SEPARATION_MARGIN
-    fast = core.FAST
-    if fast is not None and type(store) is FrameStore:
-        moved = fast.export_moved(store, char, apart, _MBAP_FLAG)
-    else:
-        moved = _largest_move(store, char, apart)
+    if moved is None:
+        moved = largest_move(store, line)[0]
     if moved < 1e-6:  # (the microseconds a recording keeps its times to)
         moved = 0.0
     return stamps, store.resolution + moved
 
 
-def _largest_move(store: FrameStore, char: float, apart: float) -> float:
-    """`exported_timing`'s largest move, in Python (see sniffer/_core.c: export_moved)."""
+def largest_move(
+    store: FrameStore, line: LineSettings, last: float | None = None
+) -> tuple[float, float | None]:
+    """`exported_timing`'s largest move over `store`'s rows (by the compiled core's
+    `export_moved` when there is one), and the end of its last frame as read back (None:
+    no frame); `last`: that of the frame before its first row (None: none)."""
+    store.sync()
+    char, apart = line.char_time, line.t35 + SEPARATION_MARGIN
+    fast = core.FAST
+    if fast is not None and type(store) is FrameStore:
+        found: tuple[float, float | None] = fast.export_moved(store, char, apart, _MBAP_FLAG, last)
+        return found
+    return _largest_move(store, char, apart, last)
+
+
+class Moves:
+    """`exported_timing`'s largest move over a capture read a segment at a time
+    (`sniffer.session.streamed.learn`): each segment's store `add`ed in turn, the end
+    of the frame before carried from one segment to the next, as one store of every row
+    gives it."""
+
+    def __init__(self, line: LineSettings) -> None:
+        self.line = line
+        self.moved = 0.0
+        self.last: float | None = None  # the end of the last frame added, as read back
+
+    def add(self, store: FrameStore) -> None:
+        moved, self.last = largest_move(store, self.line, self.last)
+        self.moved = max(self.moved, moved)
+
+
+def _largest_move(
+    store: FrameStore, char: float, apart: float, last: float | None
+) -> tuple[float, float | None]:
+    """`largest_move` in Python (see sniffer/_core.c: export_moved)."""
     moved = 0.0
-    last: float | None = None  # the end of the frame before, as read back
     kinds, flags = store.kind, store.flags
     for i, (t, n) in enumerate(zip(store.t, store.length, strict=True)):
         kind = kinds[i]
@@ -527,7 +569,7 @@ def _largest_move(store: FrameStore, char: float, apart: float) -> float:
             moved = max(moved, abs(last - store.t_end[i]))
         elif kind != Kind.NOISE:
             moved = max(moved, abs(start - t))
-    return moved
+    return moved, last
 
 
 _Spliced = tuple[bytes, bytes, bytes, bytes]

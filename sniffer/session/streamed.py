@@ -68,12 +68,16 @@ def learn(
     capture: Capture,
     progress: Progress | None = None,
     window: int | None = None,
+    also: Callable[[Session], None] | None = None,
 ) -> Learnt:
     """The first pass: `session` ingests `capture` keeping `window` rows (default
     LEARN_WINDOW); its warnings, notes and statistics are then those of the whole
     capture, its store the last segment's. A sidecar index is written if `session` may
     index and none fits; one that fits is read back (`Learnt.unsure` says when to learn
-    again with a new session that may not: see the module's doc)."""
+    again with a new session that may not: see the module's doc). `also(session)` is
+    called with each segment, in order, as `segment` in `Session.ingest`: what else the
+    caller needs of every row (the pcapng export's largest move of a packet's time,
+    `sniffer.outputs.export.Moves`); a pass learnt again starts again at row 0."""
     speed = SpeedCheck()
     first: list[float] = []
     cut: list[bool] = []
@@ -84,6 +88,8 @@ def learn(
         speed.add(s.store)
         if s.base and not cut and _cut_read(s):
             cut.append(True)
+        if also is not None:
+            also(s)
 
     window = window or LEARN_WINDOW  # (read now: tests set it)
     # the statistics bounded, a sidecar being written given their values on disk
