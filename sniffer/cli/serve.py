@@ -173,6 +173,10 @@ def export_dir(given: str | None) -> str | None:
     return str(path)
 
 
+# seconds a download waits for the app's next chunk before it is cut short (see cmd_serve)
+DOWNLOAD_WAIT = 60
+
+
 def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     capture_path(args.file)  # fail here, not in the browser, when there is nothing to show
     url = public_url(args.host, args.port, args.public_url)
@@ -181,10 +185,17 @@ def cmd_serve(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     folder = export_dir(args.export_dir)
     token = os.environ.get(TOKEN_ENV) or secrets.token_urlsafe(18)
     try:  # here: an optional extra (modscope[serve]), loaded by this command only
+        from textual_serve import download_manager
         from textual_serve.server import Server
     except ImportError:
         err.write(SERVE_MISSING)
         return 2
+    # textual-serve ends a download, cut short, when the app has not sent its next chunk
+    # within 4 s; an app busy listing a day on a loaded Pi, or on a shared machine, can
+    # take longer, and the browser then keeps a truncated file as if it were whole (seen
+    # on a 2-core machine running the tests). The module reads the constant at each
+    # chunk, so a longer wait set here holds for this server.
+    download_manager.DOWNLOAD_TIMEOUT = max(download_manager.DOWNLOAD_TIMEOUT, DOWNLOAD_WAIT)
     command = shlex.join([sys.executable, "-m", "sniffer.cli", *forwarded(args)])
     where = "every address" if args.host in WILDCARDS else args.host
     out.write(
