@@ -394,8 +394,11 @@ def test_stress_stream_recovers_intact_frames_with_few_spurious_ones() -> None:
 
 
 @pytest.mark.slow
-def test_stress_stream_at_one_million_frames() -> None:
-    recovered, spurious, reported = _stress(1_000_000)
+def test_stress_stream_at_300k_frames() -> None:
+    # 300k frames: the 1-in-10,000 bound on spurious frames allows 30, a count the
+    # 50k stream above is too short to measure (1M took 30 s of the suite, for the same
+    # figures)
+    recovered, spurious, reported = _stress(300_000)
     assert recovered >= 0.999
     assert spurious / reported < 1 / 10_000
 

@@ -61,7 +61,7 @@ READERS = {
     "csv": (import_csv, _read(sorted(DICTIONARIES.glob("*.csv")))),
 }  # fmt: skip
 SUFFIX = {"toml": ".toml", "bus": ".toml", "yaml": ".yaml", "csv": ".csv"}
-EXAMPLES = {"toml": 1000, "bus": 600, "yaml": 1000, "csv": 1000}
+EXAMPLES = {"toml": 500, "bus": 300, "yaml": 500, "csv": 500}
 
 
 @pytest.mark.parametrize("kind", sorted(READERS))

@@ -18,7 +18,7 @@ pytestmark = [pytest.mark.fuzz, pytest.mark.slow]
 BODIES = [f.raw[:-2] for f in polling_frames(60, seed=5)]
 
 
-@budget(5000)
+@budget(2500)
 @given(
     st.integers(0, 255),
     st.one_of(st.binary(max_size=300), mutated(BODIES)),

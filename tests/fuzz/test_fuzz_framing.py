@@ -97,7 +97,7 @@ def _listings(session: Session) -> None:
     session.stats.table({u: b.label for u, b in BINDINGS.items()})
 
 
-@budget(1200)
+@budget(600)
 @given(st.data(), st.sampled_from(sorted(LINES)), st.booleans(), st.booleans())
 def test_framing_pairing_and_listings_never_raise_and_conserve_bytes(
     data: st.DataObject, mode: str, exact: bool, bound: bool

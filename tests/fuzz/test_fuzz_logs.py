@@ -90,7 +90,7 @@ def test_each_log_reader_survives_damaged_lines(
     folder = tmp_path_factory.mktemp(family)
     suffix = ".csv" if family == "saleae" else ".log"
 
-    @budget(60 if family != "saleae" else 150)
+    @budget(30 if family != "saleae" else 80)
     @given(damaged_lines(FAMILIES[family]), OPTIONS)
     def run(data: bytes, options: ReadOptions) -> None:
         path = folder / f"capture{suffix}"

@@ -242,7 +242,7 @@ NEGATIVE_GAP = [
 ]
 
 
-@budget(400)
+@budget(200)
 @given(MESSAGES)
 @example([Message(f"{BASE}/raw", p) for p in NEGATIVE_GAP])  # answers stamped before their request
 @example([Message(f"{BASE}/interface", b'{"line": {"baud": 1e999}, "session": "h"}')])
@@ -254,7 +254,7 @@ def test_hostile_messages_are_refused_and_counted_never_raised(messages: list[Me
     check_fed(r, messages)
 
 
-@budget(300)
+@budget(150)
 @given(JSON)
 def test_any_json_interface_is_checked_or_refused(found: Any) -> None:
     try:

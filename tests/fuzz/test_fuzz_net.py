@@ -246,7 +246,7 @@ OPTIONS = st.sampled_from(
 )
 
 
-@budget(500)
+@budget(250)
 @given(damaged(), st.sampled_from(["pcap", "pcapng"]), OPTIONS, st.data())
 def test_damaged_network_captures_never_raise_and_conserve_bytes(
     tmp_path_factory: pytest.TempPathFactory,
@@ -277,7 +277,7 @@ SEEDS = [
 ]
 
 
-@budget(400)
+@budget(200)
 @given(mutated(SEEDS), OPTIONS)
 def test_network_captures_with_damaged_bytes_never_raise(
     tmp_path_factory: pytest.TempPathFactory, data: bytes, options: ReadOptions
@@ -312,7 +312,7 @@ def sent(conv: Conv) -> dict[bool, bytes]:
     }
 
 
-@budget(300)
+@budget(150)
 @given(shuffled(), st.sampled_from(["pcap", "pcapng"]))
 def test_repeated_and_reordered_segments_reassemble_to_what_was_sent(
     tmp_path_factory: pytest.TempPathFactory, case: tuple[Conv, list[Seg]], container: str

@@ -118,7 +118,7 @@ def test_damaged_sidecars_list_every_row_as_without_one(bench: Bench) -> None:
     # given() inside, with the module fixture: one bench for every example
     seeds = [bench.good]
 
-    @budget(80)
+    @budget(40)
     @given(mutated(seeds))
     @example(_later_block_flip(bench.good))
     def run(damaged: bytes) -> None:
@@ -181,7 +181,7 @@ def test_a_capture_changed_under_its_sidecar_lists_its_rows_or_the_sidecars(
     changes = [(middle + k, 0x55) for k in range(len(loose.bytes) // 4)]
     assert _changed(loose, changes) != loose.plain  # (the changed capture's own rows)
 
-    @budget(40)
+    @budget(20)
     @given(st.lists(st.tuples(st.integers(0, 1 << 20), st.integers(1, 255)), min_size=1))
     def run(changes: list[tuple[int, int]]) -> None:
         _changed(loose, changes)

@@ -148,7 +148,7 @@ def repacked_sigrok(draw: st.DrawFn) -> tuple[bytes, ReadOptions]:
     return out.getvalue(), list(SIGROK_SEEDS.values())[index]
 
 
-@budget(300)
+@budget(150)
 @given(repacked_sigrok())
 def test_damaged_sigrok_sessions_never_raise(
     tmp_path_factory: pytest.TempPathFactory, case: tuple[bytes, ReadOptions]
@@ -176,7 +176,7 @@ def test_damaged_captures_never_raise_and_conserve_bytes(
     folder = tmp_path_factory.mktemp(kind)
     # the logs are damaged line by line, reader by reader, in test_fuzz_logs: here only
     # their bytes, fewer times
-    examples = {"sigrok": 300, "pcapng": 2000, "text": 1000, "logs": 300, "pcap": 600, "raw": 300}
+    examples = {"sigrok": 150, "pcapng": 1000, "text": 500, "logs": 150, "pcap": 300, "raw": 150}
 
     @budget(examples[kind])
     @given(mutated(SEEDS[kind]), OPTIONS)

@@ -301,7 +301,10 @@ async def test_g_goes_to_a_time_or_a_row() -> None:
 
 
 @pytest.mark.parametrize("name", ["rows.jsonl", "rows.csv", "rows.txt"])
-async def test_e_exports_the_rows_shown(tmp_path: Path, name: str) -> None:
+async def test_e_exports_the_rows_shown(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    monkeypatch.chdir(tmp_path)  # a short name to type: each key is a frame of the app
     app = ModscopeApp(hostile_session())
     async with app.run_test(size=SIZE) as pilot:
         await ready(pilot, app)
@@ -310,7 +313,7 @@ async def test_e_exports_the_rows_shown(tmp_path: Path, name: str) -> None:
         await pilot.press("e")
         assert app.main.prompt.open
         target = tmp_path / name
-        await pilot.press(*str(target), "enter")
+        await pilot.press(*name, "enter")
         await wait_said(pilot, app, "wrote 5 rows")
     written = target.read_text(encoding="utf-8").splitlines()
     if name.endswith(".jsonl"):
@@ -321,11 +324,14 @@ async def test_e_exports_the_rows_shown(tmp_path: Path, name: str) -> None:
         assert len(written) == 5 and "noise" in written[3]
 
 
-async def test_an_export_that_cannot_be_written_says_so(tmp_path: Path) -> None:
+async def test_an_export_that_cannot_be_written_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
     app = ModscopeApp(hostile_session())
     async with app.run_test(size=SIZE) as pilot:
         await ready(pilot, app)
-        await pilot.press("e", *str(tmp_path / "missing" / "rows.jsonl"), "enter")
+        await pilot.press("e", *"missing/rows.jsonl", "enter")
         await wait_said(pilot, app, "cannot write")
 
 
@@ -508,7 +514,10 @@ class RecordingLive(FakeLive):
         return list(recorder.files)
 
 
-async def test_r_starts_and_stops_a_recording_of_the_live_line(tmp_path: Path) -> None:
+async def test_r_starts_and_stops_a_recording_of_the_live_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)  # a short name to type
     session = Session(LINE, exact_timing=True, source="/dev/ttyUSB0")
     live = RecordingLive(session, tmp_path)
     app = ModscopeApp(session, live=live)
@@ -517,15 +526,15 @@ async def test_r_starts_and_stops_a_recording_of_the_live_line(tmp_path: Path) -
         await pilot.press("r")
         await pilot.pause()
         assert app.main.prompt.open
-        await pilot.press(*str(target), "enter")
-        await wait_said(pilot, app, f"recording to {target}")
+        await pilot.press(*target.name, "enter")
+        await wait_said(pilot, app, f"recording to {target.name}")
         assert live.recorder is not None and target.exists()
         assert "from-the-tui.pcapng" in screen_text(app)  # the status bar names it
         await pilot.press("r")  # asks first: r again stops
         await pilot.pause()
         assert live.recorder is not None and app.main.prompt.confirming
         await pilot.press("r")
-        await wait_said(pilot, app, f"recording stopped: {target}")
+        await wait_said(pilot, app, f"recording stopped: {target.name}")
         assert live.recorder is None
 
 

@@ -80,7 +80,8 @@ async def check(light: bool, keys: list[str], size: tuple[int, int]) -> list[str
         await ready(pilot, app)
         for key in keys:
             await pilot.press(key)
-        await pilot.pause(0.6)  # the watch and units panes fill on the app's tick
+        app._tick()  # the watch and units panes fill on the app's tick (every 0.5 s)
+        await pilot.pause(0.05)
         return unreadable(app)
 
 
