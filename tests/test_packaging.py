@@ -113,7 +113,12 @@ def test_the_textual_floor_is_the_one_check_sh_tests() -> None:
     assert len(floors) == 1, "textual needs one floor, written textual>=X"
     check = (ROOT / "check.sh").read_text()
     assert '"textual==$FLOOR"' in check and 'PYTHONPATH="$FLOOR_DIR"' in check
-    assert re.search(r'pytest"[^\n]*tests/tui', check)
+    # the floor run is pytest over files of tests/tui, listed by name in FLOOR_TESTS
+    assert re.search(r'PYTHONPATH="\$FLOOR_DIR" "\$VENV/bin/pytest"[^\n]*\n[^\n]*floor_files', check)
+    listed = re.search(r'FLOOR_TESTS="([^"]*)"', check)
+    assert listed and 'floor_files+=("tests/tui/$name.py")' in check
+    for name in listed[1].split():
+        assert (ROOT / "tests" / "tui" / f"{name}.py").is_file(), f"FLOOR_TESTS names {name}"
     assert f"Textual {floors[0]}" in (ROOT / "docs" / "install.md").read_text()
     # (the floor the check computes, by the same rule as this test, is the declared one)
     script = check.split("FLOOR=$(\"$VENV/bin/python\" - <<'PY'\n", 1)[1].split("\nPY\n", 1)[0]

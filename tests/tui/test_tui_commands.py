@@ -60,8 +60,12 @@ def test_serve_runs_the_tui_command_for_each_visitor(
     package = types.ModuleType("textual_serve")
     server = types.ModuleType("textual_serve.server")
     server.Server = Server  # type: ignore[attr-defined]
+    downloads = types.ModuleType("textual_serve.download_manager")
+    downloads.DOWNLOAD_TIMEOUT = 4  # type: ignore[attr-defined]  # textual-serve's own
+    package.download_manager = downloads  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "textual_serve", package)
     monkeypatch.setitem(sys.modules, "textual_serve.server", server)
+    monkeypatch.setitem(sys.modules, "textual_serve.download_manager", downloads)
     capture = tmp_path / "bus log.pcapng"
     capture.write_bytes(DEMO_CAPTURE.read_bytes() if DEMO_CAPTURE.exists() else b"\x01\x03")
     argv = ["serve", str(capture), "--port", "9001", "--baud", "9600", "--unit", "3=rvs-dn"]
@@ -82,6 +86,8 @@ def test_serve_runs_the_tui_command_for_each_visitor(
     }
     command = made["command"]
     assert command.startswith(sys.executable) and "-m sniffer.cli tui" in command
+    # a download waits for a slow app's next chunk longer than textual-serve's 4 s
+    assert downloads.DOWNLOAD_TIMEOUT == serve.DOWNLOAD_WAIT  # type: ignore[attr-defined]
     assert f"'{capture.resolve()}'" in command  # quoted: the name has a space
     assert "--baud 9600" in command and "--unit 3=rvs-dn" in command
 
