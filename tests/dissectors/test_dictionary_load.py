@@ -921,6 +921,24 @@ def test_unknown_model_lists_the_known_ones() -> None:
     assert "--dict FILE" in error.fix
 
 
+def test_the_shipped_models_are_read_again_when_a_file_changes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """builtin_models reads each file once per version (a bus of many units looks its
+    models up many times), and a file changed on disk is read again."""
+    from dissectors.dictionary import loader
+
+    monkeypatch.setattr(loader, "DEVICES_DIR", tmp_path)
+    shipped = tmp_path / "pump.toml"
+    shipped.write_text('[device]\nmodel = "pump-a"\n')
+    assert builtin_models() == {"pump-a": shipped}
+    assert builtin_models() == {"pump-a": shipped}
+    shipped.write_text('[device]\nmodel = "pump-bb"\n')  # another size, another mtime
+    assert builtin_models() == {"pump-bb": shipped}
+    shipped.write_text("[device\n")  # unreadable: listed under its file name
+    assert builtin_models() == {"pump": shipped}
+
+
 def test_extra_dictionaries_come_first() -> None:
     d = load_model("every-type", [FIXTURES / "every_type.toml"])
     assert d.model == "every-type"
