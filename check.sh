@@ -121,6 +121,10 @@ done_step
 
 # the compiled core's tests fail, not skip, where it was not built
 export MODSCOPE_REQUIRE_COMPILED=1
+# pytest rewrites each test module's asserts and keeps the result as bytecode, unless
+# PYTHONDONTWRITEBYTECODE forbids it: then every worker rewrote every module each run
+# (15 s of CPU a worker, 7 s with the cache). Unset for the checks below.
+unset PYTHONDONTWRITEBYTECODE
 
 # -- the checks --------------------------------------------------------------------------------
 step "ruff (lint and format), and no merge conflict markers left in any file"
@@ -137,9 +141,12 @@ done_step
 step "lint-imports (the stages' layers and the other import contracts in pyproject.toml)"
 "$VENV/bin/lint-imports"
 done_step
-# pytest-xdist runs the tests in parallel, one worker a CPU; tests/support/progress.py names
-# each test file as it starts and what still runs when the screen has been quiet for 20 s
-JOBS=${MODSCOPE_TEST_JOBS:-auto}
+# pytest-xdist runs the tests in parallel, two workers a CPU: many tests wait on something
+# (a broker restarting, the clock a liveness test reads, a modscope they started), and with
+# one worker a CPU a third of the machine sat idle (on 2 CPUs: 586 s, and 495 s with 4
+# workers). tests/support/progress.py names each test file as it starts and what still runs
+# when the screen has been quiet for 20 s.
+JOBS=${MODSCOPE_TEST_JOBS:-$("$VENV/bin/python" -c 'import os; print(2 * (os.cpu_count() or 1))')}
 if [ "${1:-}" = "--quick" ]; then
   step "pytest, without the slow tests ($JOBS workers)"
   "$VENV/bin/pytest" -q -n "$JOBS" --durations=10 -m "not slow"
