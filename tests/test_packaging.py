@@ -114,7 +114,8 @@ def test_the_textual_floor_is_the_one_check_sh_tests() -> None:
     check = (ROOT / "check.sh").read_text()
     assert '"textual==$FLOOR"' in check and 'PYTHONPATH="$FLOOR_DIR"' in check
     # the floor run is pytest over files of tests/tui, listed by name in FLOOR_TESTS
-    assert re.search(r'PYTHONPATH="\$FLOOR_DIR" "\$VENV/bin/pytest"[^\n]*\n[^\n]*floor_files', check)
+    floor_run = r'PYTHONPATH="\$FLOOR_DIR" "\$VENV/bin/pytest"[^\n]*\n[^\n]*floor_files'
+    assert re.search(floor_run, check)
     listed = re.search(r'FLOOR_TESTS="([^"]*)"', check)
     assert listed and 'floor_files+=("tests/tui/$name.py")' in check
     for name in listed[1].split():

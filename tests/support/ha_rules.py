@@ -38,6 +38,7 @@ given the payload: `value` (the text) and `value_json` (the payload parsed as JS
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
@@ -200,7 +201,14 @@ def render(template: str, payload: str) -> str:
         value_json: Any = json.loads(payload)
     except ValueError:
         value_json = None
-    return _ENV.from_string(template).render(value=payload, value_json=value_json)
+    return _compiled(template).render(value=payload, value_json=value_json)
+
+
+@functools.lru_cache(maxsize=4096)
+def _compiled(template: str) -> jinja2.Template:
+    """Each template compiled once, as Home Assistant keeps an entity's compiled template
+    (compiling took 0.003 s a render: 21 s of one test's 25)."""
+    return _ENV.from_string(template)
 
 
 def numeric_expected(config: Mapping[str, Any]) -> bool:

@@ -87,7 +87,7 @@ def test_serve_runs_the_tui_command_for_each_visitor(
     command = made["command"]
     assert command.startswith(sys.executable) and "-m sniffer.cli tui" in command
     # a download waits for a slow app's next chunk longer than textual-serve's 4 s
-    assert downloads.DOWNLOAD_TIMEOUT == serve.DOWNLOAD_WAIT  # type: ignore[attr-defined]
+    assert downloads.DOWNLOAD_TIMEOUT == serve.DOWNLOAD_WAIT
     assert f"'{capture.resolve()}'" in command  # quoted: the name has a space
     assert "--baud 9600" in command and "--unit 3=rvs-dn" in command
 

@@ -117,6 +117,7 @@ async def test_a_paged_capture_is_diagnosed_whole(
     from tests.analysis.test_doctor_bus import CYCLES, silent_unit
 
     monkeypatch.setattr(index, "BLOCK", 1024)  # segments of 960 rows, not 61,440
+    monkeypatch.setattr(index, "MIN_SIZE", 256 << 10)  # a sidecar from 256 KiB, not 4 MiB
 
     text = silent_unit().csv()
     header, rows = text.split("\n", 1)

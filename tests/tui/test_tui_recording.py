@@ -73,9 +73,10 @@ async def wait_until(pilot: Pilot[int], what: object, timeout: float = 10.0) -> 
 
 
 async def test_r_and_q_ask_first_and_a_new_file_begins_before_the_old_one_ends(
-    tmp_path: Path,
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     first, second = tmp_path / "rec.pcapng", tmp_path / "next.pcapng"
+    monkeypatch.chdir(tmp_path)  # a short name to type: each key redraws the live screen
     with VirtualBus(tmp_path) as bus:
         tap = bus.attach("tap")
         bus.attach("master")
@@ -89,39 +90,39 @@ async def test_r_and_q_ask_first_and_a_new_file_begins_before_the_old_one_ends(
         try:
             async with app.run_test(size=SIZE) as pilot:
                 await wait_until(pilot, lambda: app.model.published > 20)
-                await pilot.press("r")  # a stray r: it asks, the recording goes on
-                await pilot.pause()
-                assert app.main.prompt.confirming
+                # keys as a terminal delivers them: `Pilot.press` would also wait for the
+                # animations live traffic keeps starting, about 1 s a key at 125 frames/s
+                burst(app, ["r"])  # a stray r: it asks, the recording goes on
+                await wait_until(pilot, lambda: app.main.prompt.confirming)
                 assert "r stops it" in screen_text(app)
-                await pilot.press("x")
-                assert not app.main.prompt.confirming
+                burst(app, ["x"])
+                await wait_until(pilot, lambda: not app.main.prompt.confirming)
                 assert live.recorder is not None and live.recorder.path == first
                 recording = live.recorder
                 # r n, then a new name typed slowly: the old file records meanwhile
                 burst(app, ["r", "n"])
                 await wait_until(pilot, lambda: app.main.prompt.open)
                 app.main.prompt.input.value = ""
-                # typed as a terminal delivers a person's keys, 10 ms apart: `Pilot.press`
-                # also waits for the screen's animations, which live traffic keeps
-                # starting (about 1 s a key at 125 frames/s, 100 s for this name)
-                for char in str(second):
+                # typed as a person types, 10 ms apart
+                for char in second.name:
                     burst(app, [char])
                     await asyncio.sleep(0.01)
-                await wait_until(pilot, lambda: app.main.prompt.input.value == str(second))
+                await wait_until(pilot, lambda: app.main.prompt.input.value == second.name)
                 typed_at = master.sent
-                await pilot.press("enter")
+                burst(app, ["enter"])
                 await wait_until(pilot, lambda: live.recorder is not recording)
-                assert live.recorder is not None and live.recorder.path == second
+                assert live.recorder is not None
+                assert Path(live.recorder.path).resolve() == second
                 assert any(f"ended: {first}" in said for said in app.said)
                 await wait_until(pilot, lambda: master.sent > typed_at + 20)
-                await pilot.press("q")  # asks; any other key keeps going
-                await pilot.pause()
-                assert app.is_running and app.main.prompt.confirming
+                burst(app, ["q"])  # asks; any other key keeps going
+                await wait_until(pilot, lambda: app.main.prompt.confirming)
+                assert app.is_running
                 assert "q again quits" in screen_text(app)
-                await pilot.press("j")
-                await pilot.pause()
-                assert app.is_running and live.recorder.path == second
-                await pilot.press("q", "q")
+                burst(app, ["j"])
+                await wait_until(pilot, lambda: not app.main.prompt.confirming)
+                assert app.is_running and Path(live.recorder.path).resolve() == second
+                burst(app, ["q", "q"])
                 await wait_until(pilot, lambda: not app.is_running)
         finally:
             master.halt.set()
