@@ -51,13 +51,15 @@ _ISO = re.compile(
 )
 _SLASHED = re.compile(r"^(\d{4})/(\d\d)/(\d\d)[ T](\d\d):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
 _TIME_OF_DAY = re.compile(r"^(\d{1,2}):(\d\d):(\d\d)(?:\.(\d+))?(?:\s|$)")
-_SECONDS = re.compile(r"^(\d+)\.(\d+)(?:\s|$)")
+# seconds: any number int() takes (it refuses more than 4,300 digits); a time past 2286
+# is then reported as impossible, as for any other form
+_SECONDS = re.compile(r"^(\d{1,4000})\.(\d+)(?:\s|$)")
 _TIME_FRACTION = re.compile(r"^[\d/:T -]*\d[.,](\d+)")
 _MASTER_LABEL = {0: "> (first address to second)", 1: "< (second address to first)"}
 
 
 def _fraction(digits: str | None) -> float:
-    return int(digits) / 10 ** len(digits) if digits else 0.0
+    return logs_base.fraction_digits(digits)[0]
 
 
 def _wall_clock(fields: tuple[str, ...], fraction: float, zone: str | None) -> float | None:

@@ -301,7 +301,7 @@ def parse_interface_description(text: str) -> InterfaceNote:
                 continue
             if not resolution >= 0:
                 resolution = None
-        elif word.isascii() and word.isdigit() and baud is None:
+        elif word.isascii() and word.isdigit() and len(word) <= 9 and baud is None:
             baud = int(word)
         elif (match := _FORMAT.match(word)) and char is None:
             char = (int(match[1]), match[2].upper(), int(match[3]))

@@ -85,7 +85,7 @@ def parse_value(text: str) -> int | None:
         return int(ascii_hex[1], 16)
     if len(text) >= 3 and text[0] == text[-1] == "'":
         inner = text[1:-1]
-        if inner.isdigit():
+        if inner.isascii() and inner.isdigit() and len(inner) <= 3:
             value = int(inner)  # below 0x20 or above 0x7E: the decimal value, quoted
             return value if value < 256 else None
         return ord(inner) if len(inner) == 1 and ord(inner) < 256 else None

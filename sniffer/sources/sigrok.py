@@ -104,7 +104,7 @@ def _read_metadata(path: Path, archive: Archive) -> SigrokMetadata:
         raise CaptureError(f"{path}: sigrok metadata has unitsize {unitsize_text!r}; expected 1-8")
     probes: dict[int, str] = {}
     for key, value in device.items():
-        match = re.fullmatch(r"probe(\d+)", key)
+        match = re.fullmatch(r"probe(\d{1,4})", key)
         if match and 1 <= int(match[1]) <= unitsize * 8:
             probes[int(match[1])] = value.strip()
     capturefile = device.get("capturefile", "").strip()

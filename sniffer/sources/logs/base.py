@@ -323,10 +323,18 @@ class Stamped:
     end: int
 
 
-def _fraction(digits: str | None) -> tuple[float, float]:
+# digits of a fraction of a second that can change a float: a damaged or hostile line's
+# thousands more (Python refuses int() past 4,300 digits) are read as these many
+FRACTION_DIGITS = 18
+
+
+def fraction_digits(digits: str | None) -> tuple[float, float]:
+    """The value of the digits after a decimal point, and their resolution (a unit in the
+    last place, never finer than FRACTION_DIGITS allows): ("123") is (0.123, 0.001)."""
     if not digits:
         return 0.0, 1.0
-    return int(digits) / 10 ** len(digits), 10.0 ** -len(digits)
+    kept = digits[:FRACTION_DIGITS]
+    return int(kept) / 10 ** len(kept), 10.0 ** -len(kept)
 
 
 _LEAD = re.compile(r"\s*(\[)?\s*")
@@ -348,7 +356,7 @@ def parse_stamp(text: str, pos: int = 0) -> Stamped | None:
             if close is None:
                 return None
             end = close.end()
-        fraction, resolution = _fraction(match["f"])
+        fraction, resolution = fraction_digits(match["f"])
         hour, minute, second = int(match["h"]), int(match["mi"]), int(match["s"])
         if hour > 23 or minute > 59 or second > 60:
             return None

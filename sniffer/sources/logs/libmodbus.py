@@ -26,9 +26,9 @@ LIBMODBUS = "libmodbus"
 
 TOKEN = re.compile(r"\[([0-9A-Fa-f]{2})\]|<([0-9A-Fa-f]{2})>")
 _RUN = re.compile(r"\s*(?:(?:\[[0-9A-Fa-f]{2}\]|<[0-9A-Fa-f]{2}>)\s*)+")
-_OPENING = re.compile(r"at (\d+) bauds? \(([NEO]), ([5-8]), ([12])\)")
-_CONNECTING = re.compile(r"Connecting to \[?([^\]\s]+?)\]?:(\d+)\s*$")
-_MBPOLL_TCP = re.compile(r"^Communication\.+: (\S+), port (\d+),")
+_OPENING = re.compile(r"at (\d{1,9}) bauds? \(([NEO]), ([5-8]), ([12])\)")
+_CONNECTING = re.compile(r"Connecting to \[?([^\]\s]+?)\]?:(\d{1,5})\s*$")
+_MBPOLL_TCP = re.compile(r"^Communication\.+: (\S+), port (\d{1,5}),")
 _ACCEPTED = re.compile(r"Client connection accepted from (\S+?)\.?\s*$")
 _EVENT = re.compile(
     r"^(ERROR\b.*|The responding slave .*|Invalid (?:transaction|protocol) ID .*"

@@ -45,7 +45,7 @@ _REPEAT = re.compile(r"\bRepeating\.\.\.\.")
 # `decoded PDU function_code(3 sub -1) -> ReadHoldingRegistersRequest(...)`)
 _DECODED_REQUEST = re.compile(r"Factory Request\[|-> \w+Request\(")
 _DECODED_RESPONSE = re.compile(r"Factory Response\[|-> \w+Response\(")
-_CONNECTING = re.compile(r"Connecting to (\S+?):(\d+)\.?\s*$")
+_CONNECTING = re.compile(r"Connecting to (\S+?):(\d{1,5})\.?\s*$")
 _EVENT = re.compile(
     r"Transaction failed|No response received|Incomplete message received|Frame check failed"
     r"|Frame CRC check failed|ERROR: request ask|Connection to .* failed|Not connected, trying"
