@@ -1307,11 +1307,15 @@ static PyObject *py_pair_update(PyObject *self, PyObject *args) {
         int k = kind[i];
         if (k == K_NOISE || k == K_EVENT) continue;
         Py_ssize_t op = open;
-        if (op >= 0 && t[i] - t_end[op] > timeout) {
+        Py_ssize_t j = partner[i];
+        /* the wait is over unless this row is the open request's answer, however late
+         * (the Python loop says why) */
+        if (op >= 0 && t[i] - t_end[op] > timeout &&
+            (j >= 0 || k == K_REQUEST || (unit[op] != unit[i] && unit[op] != 0) ||
+             fc[op] != (fc[i] & 0x7F))) {
             TIME_OUT(op);
             op = -1;
         }
-        Py_ssize_t j = partner[i];
         if (j >= 0) { /* paired as it was framed */
             if (j < i) { /* the answer */
                 if (op == j) open = -1;

@@ -75,10 +75,18 @@ class Pairer:
             if k == 0 or k == 5:  # noise, events
                 continue
             op = self.open
-            if op >= 0 and t[i] - t_end[op] > timeout:
+            j = partner[i]
+            # the wait is over (the open request timed out) unless this row is its
+            # answer: an answer however late, with nothing between, is still its answer
+            # (flagged LATE), as the framer's fast path pairs it, so that how the reads
+            # cut the frames changes nothing (tests/framing/test_read_shapes.py)
+            if (
+                op >= 0
+                and t[i] - t_end[op] > timeout
+                and (j >= 0 or k == 1 or unit[op] not in (unit[i], 0) or fc[op] != fc[i] & 0x7F)
+            ):
                 self._time_out(op)
                 op = -1
-            j = partner[i]
             if j >= 0:
                 # paired as it was framed (the answer its request predicted)
                 if j < i:  # the answer
