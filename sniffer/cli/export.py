@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
@@ -25,11 +25,19 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
-from sniffer.cli.replaying import first_pass, stdin_copy, write_streamed
+from sniffer.cli.replaying import (
+    PartWriter,
+    each_segment,
+    first_pass,
+    lister_of,
+    stdin_copy,
+    write_streamed,
+)
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
 from sniffer.meaning.describe import Describer
 from sniffer.meaning.query import Query
+from sniffer.model import Stamp
 from sniffer.outputs.export import (
     EXPORT_FORMATS,
     EXTENSIONS,
@@ -44,11 +52,10 @@ from sniffer.outputs.export import (
     transaction_records,
     write_table,
 )
-from sniffer.outputs.listing import Lister
 from sniffer.outputs.parallel import workers_for, write_binary, write_text
-from sniffer.outputs.parquet import ParquetError, write_parquet
+from sniffer.outputs.parquet import ParquetError, ParquetTable, require_pyarrow, write_parquet
 from sniffer.session.session import Session, open_session
-from sniffer.session.streamed import Learnt, segments
+from sniffer.session.streamed import Learnt
 from sniffer.sources import Capture
 from sniffer.text import plain
 
@@ -97,27 +104,31 @@ def _export(
         raise UsageError(f"a pcapng export holds frames; --what {what} needs csv or jsonl")
     if fmt == "text" and what != "frames":
         raise UsageError(f"--what {what} is a table: write it as csv or jsonl")
+    if fmt == "parquet":  # said before the capture is read, not after
+        if args.output == "-":
+            raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")
+        try:
+            require_pyarrow()
+        except ParquetError as exc:
+            raise UsageError(str(exc)) from None
     if given is None and args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
     query = query_of(args)
     bindings = bindings_for(args)
     options = read_options(args)
-    session, capture = open_session(
-        source, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
-    )
+
+    def anew(index: bool) -> tuple[Session, Capture]:
+        return open_session(source, options, bindings=bindings, timeout=args.timeout, index=index)
+
+    session, capture = anew(not args.no_index)
     told = line_warnings(options, capture.info.recorded_line, given or str(source))
     progress = Progress(err, given or source.name, None if given else source)
     settle()
-    # frames as text, JSONL, CSV or pcapng: written a segment at a time, as replay lists
-    # them (`sniffer.session.streamed`); the other exports read every row from one store
+    # a serial capture is written a segment at a time, as replay lists it
+    # (`sniffer.session.streamed`); a network capture's rows are not windowed: one store
     learnt = None
     moves = [Moves(session.line)]  # (pcapng: the first pass's, for its interface block)
-    if fmt in ("text", "jsonl", "csv", "pcapng") and what == "frames" and not capture.info.network:
-
-        def anew(index: bool) -> tuple[Session, Capture]:
-            return open_session(
-                source, options, bindings=bindings, timeout=args.timeout, index=index
-            )
+    if not capture.info.network:
 
         def moved(s: Session) -> None:
             if not s.base:  # a first segment: of a pass learnt again too (`first_pass`)
@@ -136,49 +147,117 @@ def _export(
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    if learnt is not None and fmt == "pcapng":
-        status = finish_read(capture, session, err)
+    status = finish_read(capture, session, err)
+    if learnt is not None:
+        # what the times are worth over the whole capture (pcapng: its interface block)
         timing = exported_timing(session.store, session.line, moves[0].moved)
+        n = _streamed(
+            args, out, given or source.name, fmt, learnt, anew(False), query, progress, timing
+        )
+    else:
+        n = _whole(args, out, given or source.name, fmt, session, query, progress)
+    progress.done()
+    if fmt == "pcapng":
+        err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
+    elif args.output != "-":
+        err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
+    return status  # a truncated capture exits 1 here too: the output holds what was read
+
+
+def _records_writer(what: str, fmt: str, raw: bool) -> PartWriter:
+    """The part writer of a table of transactions or registers, as CSV or JSONL."""
+    maker = transaction_records if what == "transactions" else register_records
+    columns = TRANSACTION_COLUMNS if what == "transactions" else REGISTER_COLUMNS
+
+    def write(
+        stream: TextIO, part: Iterable[int], header: bool, describer: Describer, base: int
+    ) -> int:
+        records = maker(describer, part, base)
+        return write_table(stream, fmt, columns, records, raw_csv=raw, header=header)
+
+    return write
+
+
+def _text_writer(args: argparse.Namespace, fmt: str, origin: float | None) -> PartWriter:
+    if args.what == "frames":
+        return lister_of(args, fmt, origin)
+    return _records_writer(args.what, fmt, bool(args.raw_csv))
+
+
+def _streamed(
+    args: argparse.Namespace,
+    out: TextIO,
+    name: str,
+    fmt: str,
+    learnt: Learnt,
+    second: tuple[Session, Capture],
+    query: Query | None,
+    progress: Progress,
+    timing: tuple[Stamp, float],
+) -> int:
+    """The export of one serial capture a segment at a time, in memory flat in its
+    size: `learnt` from the first pass, `second` a new session on the capture, which
+    hands on each segment's rows as it drops them (`each_segment`), `timing` what the
+    first pass found the times worth (`exported_timing`: a pcapng's interface block).
+    The bytes are those of the export of one store of every row (`_whole`). Returns how
+    many rows, records or packets were written."""
+    shown = progress.share if args.output != "-" else None  # (not over a listing on a tty)
+    if fmt == "pcapng":
+        session = second[0]
         binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
         try:
             exporter = PcapExporter(
                 binary,
                 session.describer,  # (not read: `timing` is given; each segment's from then)
                 session.line,
-                name=given or source.name,
+                name=name,
                 style=args.style,
                 timing=timing,
             )
-            n = _packets_streamed(exporter, args, learnt, anew(False), query)
+            return _packets_streamed(exporter, args, learnt, second, query, shown)
         finally:
             if args.output != "-":
                 binary.close()
-        err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
-        return status
-    if learnt is not None:
-        status = finish_read(capture, session, err)
-        text = out if args.output == "-" else _open_text(args.output)
-        try:
-            second = anew(False)
-            n = write_streamed(text, args, learnt, second, query, fmt)
-        finally:
-            if text is not out:
-                text.close()
-        if args.output != "-":
-            err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
-        return status
-    chosen = Selection(session, query, args.count).take(len(session.store), final=True)
-    status = finish_read(capture, session, err)
-    describer = session.describer
     if fmt == "parquet":
-        if args.output == "-":
-            raise UsageError("a Parquet table goes to a file: give -o NAME.parquet")
         try:
-            n = write_parquet(args.output, what, describer, progress.rows(chosen, len(chosen)))
+            with ParquetTable(args.output, args.what) as table:
+
+                def take(rows: Sequence[int], describer: Describer, base: int) -> None:
+                    table.add(describer, rows, base)
+
+                each_segment(args, learnt, second, query, take, shown)
+                return table.close()
         except ParquetError as exc:
             raise UsageError(str(exc)) from None
-        err.write(f"{plain(args.output)}: {n} {what} (parquet)\n")
-        return status  # a truncated capture exits 1 here too: the table holds what was read
+    text = out if args.output == "-" else _open_text(args.output)
+    try:
+        writer = _text_writer(args, fmt, learnt.origin)
+        return write_streamed(text, args, learnt, second, query, writer, shown)
+    finally:
+        if text is not out:
+            text.close()
+
+
+def _whole(
+    args: argparse.Namespace,
+    out: TextIO,
+    name: str,
+    fmt: str,
+    session: Session,
+    query: Query | None,
+    progress: Progress,
+) -> int:
+    """The export of the rows of one store (a network capture), `--jobs` processes
+    sharing them. Returns how many rows, records or packets were written."""
+    chosen = Selection(session, query, args.count).take(len(session.store), final=True)
+    describer = session.describer
+    if fmt == "parquet":
+        try:
+            return write_parquet(
+                args.output, args.what, describer, progress.rows(chosen, len(chosen))
+            )
+        except ParquetError as exc:
+            raise UsageError(str(exc)) from None
 
     def shown(part: Sequence[int], first: bool) -> Iterable[int]:
         # the parent's own range runs alongside the workers': its share is the whole's
@@ -189,52 +268,30 @@ def _export(
 
         def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
             exporter = PcapExporter(
-                stream,
-                describer,
-                session.line,
-                name=given or source.name,
-                style=args.style,
-                header=first,
+                stream, describer, session.line, name=name, style=args.style, header=first
             )
             return exporter.write(shown(part, first))
 
         try:
-            n = write_binary(binary, chosen, workers_for(args.jobs, len(chosen), binary), packets)
+            return write_binary(
+                binary, chosen, workers_for(args.jobs, len(chosen), binary), packets
+            )
         finally:
             if args.output != "-":
                 binary.close()
-        err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
-        return status
     text = out if args.output == "-" else _open_text(args.output)
-    raw = bool(args.raw_csv)
-    origin = session.store.t[0] if len(session.store) else None
+    writer = _text_writer(args, fmt, session.store.t[0] if len(session.store) else None)
 
     def table(stream: TextIO, part: Sequence[int], first: bool) -> int:
-        rows = shown(part, first)
-        if what == "frames":
-            lister = Lister(
-                stream, fmt, describer, absolute=args.time == "abs", raw_csv=raw, header=first
-            )
-            lister.origin = origin
-            return lister.write(rows, flush=False)
-        columns: tuple[str, ...]
-        if what == "transactions":
-            records = transaction_records(describer, rows)
-            columns = TRANSACTION_COLUMNS
-        else:
-            records = register_records(describer, rows)
-            columns = REGISTER_COLUMNS
-        return write_table(stream, fmt, columns, records, raw_csv=raw, header=first)
+        return writer(stream, shown(part, first), first, describer, 0)
 
     try:
         n = write_text(text, chosen, workers_for(args.jobs, len(chosen), text), table)
         text.flush()
+        return n
     finally:
         if text is not out:
             text.close()
-    if args.output != "-":
-        err.write(f"{plain(args.output)}: {n} {what} ({fmt})\n")
-    return status
 
 
 def _carried(style: str) -> str:
@@ -250,6 +307,7 @@ def _packets_streamed(
     learnt: Learnt,
     second: tuple[Session, Capture],
     query: Query | None,
+    shown: Callable[[int, int], None] | None = None,
 ) -> int:
     """The pcapng export of one serial capture a segment at a time, in memory flat in
     its size, as `write_streamed` lists it: `exporter` has written the section and
@@ -260,34 +318,25 @@ def _packets_streamed(
     every row: the transaction ids are the rows' numbers in the whole capture
     (`PcapExporter.base`), the rows described as after every row. Returns how many
     packets were written."""
-    session, capture = second
-    selection = Selection(session, query, args.count, first=learnt.origin)
     count = 0
 
-    def each(s: Session, describer: Describer) -> bool:
+    def take(rows: Sequence[int], describer: Describer, base: int) -> None:
         nonlocal count
-        if selection.done:
-            return False
-        selection.next_segment(describer.annotator)
-        rows = selection.take(len(s.store), final=True)
-        if not rows:
-            return not selection.done
-        exporter.describer, exporter.base = describer, s.base
+        exporter.describer, exporter.base = describer, base
 
         def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
             if first:
                 return exporter.write(part)
             worker = PcapExporter(
-                stream, describer, s.line, name="", style=exporter.style, header=False
+                stream, describer, exporter.line, name="", style=exporter.style, header=False
             )
-            worker.base = s.base
+            worker.base = base
             return worker.write(part)
 
         stream = exporter.stream
         count += write_binary(stream, rows, workers_for(args.jobs, len(rows), stream), packets)
-        return not selection.done
 
-    segments(session, capture, learnt, each)
+    each_segment(args, learnt, second, query, take, shown)
     return count
 
 

@@ -50,6 +50,7 @@ class Progress:
         self.base = _bytes_read() if self.on else None
         self.start = time.monotonic()
         self.last = 0.0
+        self._writing: float | None = None  # when `share` was first told
 
     def _show(self, text: str) -> None:
         self.err.write("\r" + text + "\x1b[K")
@@ -90,6 +91,18 @@ class Progress:
                     took = time.monotonic() - start
                     self._show(f"{verb} {self.name}: {share:.0%}{_left(took, share)}")
             yield row
+
+    def share(self, done: int, total: int, verb: str = "writing") -> None:
+        """`done` of `total` rows written (a second pass over a capture, its rows a
+        segment at a time: `sniffer.cli.replaying.each_segment`)."""
+        now = time.monotonic()
+        if self._writing is None:
+            self._writing = now
+        elapsed = self._due()
+        if elapsed is None or total <= 0:
+            return
+        share = min(0.999, max(0.0, done / total))
+        self._show(f"{verb} {self.name}: {share:.0%}{_left(now - self._writing, share)}")
 
     def done(self) -> None:
         if self.shown:

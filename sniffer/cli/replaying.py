@@ -7,7 +7,7 @@ import argparse
 import shutil
 import sys
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
@@ -47,17 +47,10 @@ def write_listing(
     origin = selection.origin()  # what relative times count from, in every range
     rows = selection.take(len(session.store), final=True)
 
+    lister = lister_of(args, fmt, origin)
+
     def write(stream: TextIO, part: Sequence[int], first: bool) -> int:
-        lister = Lister(
-            stream,
-            fmt,
-            session.describer,
-            absolute=args.time == "abs",
-            raw_csv=args.raw_csv,
-            header=first,
-        )
-        lister.origin = origin
-        return lister.write(part, flush=False)
+        return lister(stream, part, first, session.describer, 0)
 
     jobs = workers_for(getattr(args, "jobs", 1), len(rows), out)
     write_text(out, rows, jobs, write)
@@ -87,56 +80,94 @@ def first_pass(
     return session, capture, learnt
 
 
-def write_streamed(
-    out: TextIO,
+# writes rows `part` of a segment's store to `stream` (with the header, if any, when
+# `header`), as described by `describer`, rows numbered `base` on; returns the count
+PartWriter = Callable[[TextIO, Iterable[int], bool, Describer, int], int]
+
+
+def lister_of(args: argparse.Namespace, fmt: str, origin: float | None) -> PartWriter:
+    """The listing's part writer: `Lister` lines, relative times counting from `origin`
+    (the capture's first row)."""
+
+    def write(
+        stream: TextIO, part: Iterable[int], header: bool, describer: Describer, base: int
+    ) -> int:
+        lister = Lister(
+            stream,
+            fmt,
+            describer,
+            absolute=args.time == "abs",
+            raw_csv=args.raw_csv,
+            header=header,
+        )
+        lister.origin = origin
+        lister.base = base
+        return lister.write(part, flush=False)
+
+    return write
+
+
+def each_segment(
     args: argparse.Namespace,
     learnt: Learnt,
     second: tuple[Session, Capture],
     query: Query | None,
-    fmt: str | None = None,
-) -> int:
-    """`write_listing` of a capture a segment at a time, in memory flat in its size:
-    `learnt` from a first pass over it (`sniffer.session.streamed.learn`), `second` a
-    new session on it, which lists each segment as it drops it (`segments`). The bytes
-    are those `write_listing` writes of one store of every row: relative times count
-    from the capture's first row, a filter's times too, rows are numbered in the whole
-    capture (`Lister.base`) and described as after every row; `--jobs` processes share
-    each segment's rows. `fmt`: the format, if not `args.format` (text by default).
-    Returns how many rows were listed."""
-    fmt = fmt or args.format or "text"
+    take: Callable[[Sequence[int], Describer, int], None],
+    shown: Callable[[int, int], None] | None = None,
+) -> None:
+    """The rows a filter and -c let through, a segment at a time: `learnt` from a first
+    pass over the capture (`sniffer.session.streamed.learn`), `second` a new session on
+    it, which hands on each segment as it drops it (`segments`); `take(rows, describer,
+    base)` is given each segment's chosen rows (none is not given), read as one store of
+    every row would read them: a filter's relative times count from the capture's first
+    row, rows are described as after every row and numbered `base` on. `shown(done,
+    total)`: told the rows of the capture done after each segment (`Progress.share`)."""
     session, capture = second
     selection = Selection(session, query, args.count, first=learnt.origin)
-    listed = [False]  # whether the header went out (the first segment's range)
-    count = [0]
 
     def each(s: Session, describer: Describer) -> bool:
         if selection.done:
             return False
         selection.next_segment(describer.annotator)
         rows = selection.take(len(s.store), final=True)
-        if not rows:
-            return not selection.done
+        if rows:
+            take(rows, describer, s.base)
+        if shown is not None:
+            shown(s.base + len(s.store), learnt.rows)
+        return not selection.done
 
+    segments(session, capture, learnt, each)
+
+
+def write_streamed(
+    out: TextIO,
+    args: argparse.Namespace,
+    learnt: Learnt,
+    second: tuple[Session, Capture],
+    query: Query | None,
+    writer: PartWriter | None = None,
+    shown: Callable[[int, int], None] | None = None,
+) -> int:
+    """`write_listing` of a capture a segment at a time, in memory flat in its size
+    (`each_segment`). The bytes are those `write_listing` writes of one store of every
+    row; `--jobs` processes share each segment's rows. `writer`: what writes the rows
+    (default: the listing in `args.format`, text by default; `export` gives its tables);
+    with no row, it is given none, so that a CSV header still goes out. `shown`: see
+    `each_segment`. Returns how many rows (records) were written."""
+    write_part = writer or lister_of(args, args.format or "text", learnt.origin)
+    listed = [False]  # whether the header went out (the first segment's range)
+    count = [0]
+
+    def take(rows: Sequence[int], describer: Describer, base: int) -> None:
         def write(stream: TextIO, part: Sequence[int], first: bool) -> int:
-            lister = Lister(
-                stream,
-                fmt,
-                describer,
-                absolute=args.time == "abs",
-                raw_csv=args.raw_csv,
-                header=first and not listed[0],
-            )
-            lister.origin = learnt.origin
-            lister.base = s.base
-            return lister.write(part, flush=False)
+            return write_part(stream, part, first and not listed[0], describer, base)
 
         jobs = workers_for(getattr(args, "jobs", 1), len(rows), out)
         count[0] += write_text(out, rows, jobs, write)
         listed[0] = True
-        return not selection.done
 
-    segments(session, capture, learnt, each)
-    if not listed[0] and fmt == "csv":  # no row: the header alone, as of an empty store
-        Lister(out, fmt, Describer(FrameStore()), raw_csv=args.raw_csv)
+    each_segment(args, learnt, second, query, take, shown)
+    if not listed[0]:  # no row: the header alone, as of an empty store
+        write_part(out, (), True, Describer(FrameStore()), 0)
     out.flush()
     return count[0]

@@ -262,6 +262,7 @@ class PcapExporter:
         self.packet_for = self._tcp_packet if style == "modbus-tcp" else self._rtu_packet
         self.describer = describer
         self.stream = stream
+        self.line = line
         self._blocks = _Blocks()
         self.writer = PcapngWriter(
             cast(BinaryIO, self._blocks), application=f"modscope {__version__}"
@@ -621,8 +622,11 @@ def _exception_code(d: FrameDetail) -> int | None:
     return found.value if found is not None and isinstance(found.value, int) else None
 
 
-def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
-    """One record per request (with its answer, if any) and per answer without request."""
+def transaction_records(
+    describer: Describer, rows: Iterable[int], base: int = 0
+) -> Iterator[dict[str, Any]]:
+    """One record per request (with its answer, if any) and per answer without request;
+    rows numbered `base` on (a segment of a capture: `sniffer.session.streamed`)."""
     store = describer.store
     for i in rows:
         kind = store.kind[i]
@@ -645,14 +649,14 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
         if req is not None and resp is not None:
             latency, bound = shown_latency_ms(resp), shown_latency_max_ms(resp)
         yield {
-            "request": req.view.index if req else None,
+            "request": req.view.index + base if req else None,
             "t": req.view.t if req else None,
             "unit": v.unit,
             "device": main.label,
             "function": v.function,
             "name": main.name,
             "request_summary": req.summary if req else "",
-            "response": resp.view.index if resp else None,
+            "response": resp.view.index + base if resp else None,
             "t_response": resp.view.t if resp else None,
             "latency_ms": latency,
             "latency_max_ms": bound,
@@ -665,20 +669,22 @@ def transaction_records(describer: Describer, rows: Iterable[int]) -> Iterator[d
         }
 
 
-def register_records(describer: Describer, rows: Iterable[int]) -> Iterator[dict[str, Any]]:
+def register_records(
+    describer: Describer, rows: Iterable[int], base: int = 0
+) -> Iterator[dict[str, Any]]:
     """One record per register or bit value a frame carries (named where a dictionary
-    binds the unit; raw values otherwise)."""
+    binds the unit; raw values otherwise); rows numbered `base` on."""
     store = describer.store
     for i in rows:
         if store.kind[i] not in (Kind.REQUEST, Kind.RESPONSE):
             continue
         d = describer.detail(i)
         v = d.view
-        base = {"index": v.index, "t": v.t, "unit": v.unit, "device": d.label}
+        common = {"index": v.index + base, "t": v.t, "unit": v.unit, "device": d.label}
         if d.registers:
             for r in d.registers:
                 yield {
-                    **base,
+                    **common,
                     "access": "write" if v.kind == Kind.REQUEST else "read",
                     "table": r.table,
                     "address": r.address,
@@ -698,7 +704,7 @@ def register_records(describer: Describer, rows: Iterable[int]) -> Iterator[dict
                 continue
             for k, value in enumerate(data.values):
                 yield {
-                    **base,
+                    **common,
                     "access": "write" if data.write else "read",
                     "table": data.table,
                     "address": data.address + k,

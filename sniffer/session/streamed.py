@@ -9,7 +9,9 @@ the annotator learnt from every row (the SunSpec devices, their models and names
 maybe after rows that show them). The second (`segments`) frames the capture again the
 same way and hands on each segment's rows (row `i` of the store is row `session.base +
 i` of the capture) before they are dropped, with a describer whose annotator knows what
-the first pass learnt (`Annotator.knowing`).
+the first pass learnt (`Annotator.knowing`). Used by `replay`'s listings and by every
+`export` of one serial capture (frames, transactions and registers; text, JSONL, CSV,
+pcapng, Parquet): `each_segment` in the command line's `replaying` module.
 
 Why the rows are those of one store: segments end only at settled moments
 (`Session.settled`): every row of a segment is final when it is handed on (paired,

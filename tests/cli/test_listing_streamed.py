@@ -32,7 +32,15 @@ from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_sessio
 from sniffer.sources.reads import batching
 from sniffer.sources.synth import polling_frames
 from tests.meaning.test_sunspec import needs_models, write_capture
-from tests.session.test_replay_window import LINE, STEPS, reads_of, recorded, scripted
+from tests.session.test_replay_window import (
+    LINE,
+    PAUSE_LISTS,
+    READ_EVERY,
+    STEP_LISTS,
+    reads_of,
+    recorded,
+    scripted,
+)
 from tests.support.sunspec import device_image, discovery, frames_of
 
 ROOT = Path(__file__).resolve().parent.parent.parent
@@ -112,9 +120,9 @@ def _same(argv: list[str], monkeypatch: pytest.MonkeyPatch, windows: list[tuple[
     max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    steps=st.lists(st.sampled_from(sorted(STEPS)), min_size=1, max_size=60),
-    pauses=st.lists(st.sampled_from([0.0, 0.001, 0.02, 0.11, 0.6, 2.0]), min_size=1, max_size=5),
-    every=st.sampled_from([0.0005, 0.004, 0.016, 0.1]),
+    steps=STEP_LISTS,
+    pauses=PAUSE_LISTS,
+    every=READ_EVERY,
     window=st.integers(1, 12),
     fmt=st.sampled_from(FORMATS),
     selection=st.sampled_from(SELECTIONS),

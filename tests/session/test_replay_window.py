@@ -150,6 +150,13 @@ STEPS = {
 }
 
 
+# what the tests of windows and segments draw: a script (`scripted`), and how often the
+# adapter reads it (`reads_of`)
+STEP_LISTS = st.lists(st.sampled_from(sorted(STEPS)), min_size=1, max_size=60)
+PAUSE_LISTS = st.lists(st.sampled_from([0.0, 0.001, 0.02, 0.11, 0.6, 2.0]), min_size=1, max_size=5)
+READ_EVERY = st.sampled_from([0.0005, 0.004, 0.016, 0.1])
+
+
 def scripted(steps: list[str], pauses: list[float]) -> list[tuple[bytes, float]]:
     char = LINE.char_time
     frames: list[tuple[bytes, float]] = []
@@ -186,9 +193,9 @@ def test_a_scripted_bus_in_tiny_windows(
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
-    steps=st.lists(st.sampled_from(sorted(STEPS)), min_size=1, max_size=60),
-    pauses=st.lists(st.sampled_from([0.0, 0.001, 0.02, 0.11, 0.6, 2.0]), min_size=1, max_size=5),
-    every=st.sampled_from([0.0005, 0.004, 0.016, 0.1]),
+    steps=STEP_LISTS,
+    pauses=PAUSE_LISTS,
+    every=READ_EVERY,
     window=st.integers(1, 12),
     timeout=st.sampled_from([None, "0.05"]),
 )
