@@ -61,5 +61,6 @@ def test_replay_publishes_the_doctors_findings_retained(broker: Broker, name: st
     assert message["findings"] == printed
     assert message["errors"] == sum(f["severity"] == "error" for f in printed)
     assert message["rows"] > 0 and message["t"] > 0
+    assert message["first_row"] == 0  # a replay holds every row
     # (the capture's times count from its start, not from 1970: no wall-clock time)
     assert message["time"] is None

@@ -1,6 +1,12 @@
 """Provides the `findings` topic: the bus doctor's findings (`sniffer.analysis.doctor`) on
 the rows a publisher has seen, as one retained JSON message under the base topic.
 
+The rows are those the session holds: every row of a replay; of a headless live
+capture, whose memory starts a new segment every `sniffer.live.engine.WINDOW_ROWS`
+rows or so, those of the current segment. The message says which: `first_row`, the
+capture's number of the first of them, and `rows`, how many (a finding that needs
+older rows cannot be made, and none is claimed of them).
+
 The findings are worked out again at most every FINDINGS_EVERY seconds of the
 publisher's own time (the doctor reads every row, so a long replay must not do it at
 each status message), and always once more at the end.
@@ -40,8 +46,9 @@ class FindingsClock:
 
 
 def findings_payload(session: Session, bindings: Mapping[int, Binding]) -> str:
-    """The message: when (the newest row's time), how many rows, the counts by severity,
-    and the findings as `modscope doctor --format json` gives them."""
+    """The message: when (the newest row's time), which rows (the first's number in the
+    capture, how many), the counts by severity, and the findings as `modscope doctor
+    --format json` gives them."""
     store = session.store
     bounds = response_bounds({u: b.dictionary.timing for u, b in bindings.items()})
     diagnosis = diagnose(store, session.line, session.pipeline.pairer.timeout, bounds)
@@ -51,6 +58,7 @@ def findings_payload(session: Session, bindings: Mapping[int, Binding]) -> str:
     message = {
         "t": t,
         "time": None if t is None else iso_time(t),
+        "first_row": session.base,
         "rows": n,
         "errors": counts["error"],
         "warnings": counts["warning"],

@@ -13,7 +13,8 @@ Topics under the base (see docs/mqtt.md for an example of each message):
 - `unit/<N>/status` (retained): counts, latency, polling period, seconds since its last
   answer and last frame (to the live clock), online, silent or unknown;
 - `status` (retained, and the connection's last will): `online` or `offline`;
-- `findings` (retained): the bus doctor's findings on the rows so far (docs/doctor.md);
+- `findings` (retained): the bus doctor's findings on the rows held, which it names
+  (docs/doctor.md);
 - with Home Assistant discovery, `<prefix>/.../config` (retained): the bus, each unit
   polled, each named register (see `sniffer.outputs.mqtt.ha`); a unit's configs are
   published again when the bus shows its software or hardware version.
