@@ -605,12 +605,6 @@ static Py_ssize_t times_next_boundary(const Times *tm, Py_ssize_t pos) {
     return next;
 }
 
-static int any_nonzero(const unsigned char *p, Py_ssize_t n) {
-    for (Py_ssize_t i = 0; i < n; i++)
-        if (p[i]) return 1;
-    return 0;
-}
-
 /* `rules`: RtuLengths.rule_bytes, the length rules of each code (compile_rules), two
  * slots of (kind, base, count_pos, count_size) int64; kind 0: no rule, -1: a rule this
  * copy cannot follow (a walker). */
@@ -674,15 +668,10 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
         Py_ssize_t length = len[i], best_len = len[i];
         int best_prio = prio[i], best_kind = knd[i];
         if (prio[i])
-            for (int j = i + 1; j < n; j++) { /* lengths._zero_trap */
+            for (int j = i + 1; j < n; j++) { /* lengths._preferred */
                 if (prio[j] >= best_prio || len[j] == length) continue;
-                if (pos + len[j] > end) {
-                    if (pos + length < end && any_nonzero(buf + pos + length, end - pos - length))
-                        continue;
-                    return SEARCH_WAIT;
-                }
-                if (!any_nonzero(buf + pos + length, len[j] - length) &&
-                    crc16_4(buf + pos, len[j]) == 0)
+                if (pos + len[j] > end) return SEARCH_WAIT;
+                if (crc16_4(buf + pos, len[j]) == 0)
                     best_len = len[j], best_prio = prio[j], best_kind = knd[j];
             }
         *found = best_len;
@@ -989,7 +978,8 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         pf = fc7;
                         pfx = fc7 | EXCEPTION_BIT;
                         pl = predicted;
-                        if (ap == ECHO) pdl = t1 + timeout;
+                        /* from its start and length, as the fast path (serial.py) */
+                        if (ap == ECHO) pdl = t0 + (double)found * char_time + timeout;
                     }
                 } else if (unit == pu) { /* a response or an exception */
                     pu = -1;

@@ -189,10 +189,11 @@ class RtuLengths:
             if crc16(buf[pos : pos + length]) == 0:
                 if prio and n + 1 < len(cands):
                     # A frame followed by 0x00 bytes passes the CRC at every length up
-                    # to the last zero, and a frame whose CRC ends in 0x00 passes one
-                    # byte short: a longer candidate that also passes is told apart by
-                    # preference, never by length.
-                    return _zero_trap(buf, pos, end, cands[n + 1 :], length, prio, ckind, final)
+                    # to the last zero, a frame whose CRC ends in 0x00 passes one byte
+                    # short, and one in 65,536 requests has a prefix that passes as an
+                    # answer nobody asked for: a longer candidate that also passes is
+                    # told apart by preference, never by length.
+                    return _preferred(buf, pos, end, cands[n + 1 :], length, prio, ckind, final)
                 return length, ckind, False
         return 0, 0, waiting
 
@@ -235,7 +236,7 @@ def _rule_bytes(rules: list[tuple[Rule, ...]]) -> bytes:
     return array("q", flat).tobytes()
 
 
-def _zero_trap(
+def _preferred(
     buf: bytearray,
     pos: int,
     end: int,
@@ -245,19 +246,21 @@ def _zero_trap(
     kind: int,
     final: bool,
 ) -> tuple[int, int, bool]:
-    """Of a frame of `length` and the `longer` candidates that pass the CRC too because
-    only zeros lie between, the preferred one (waiting while the bytes that decide are
-    still to come)."""
+    """Of a frame of `length` and the `longer` candidates of a kind preferred to its
+    that pass the CRC too, the preferred one (waiting while their bytes are still to
+    come). The framer's fast path takes a request whole when no answer is awaited, so
+    the search must not take the answer-shaped prefix of one: which path frames a frame
+    (whether the reads split it) must not change what it is (tests/framing/
+    test_read_shapes.py). Found on a write of 46 registers whose first 8 bytes pass as
+    the answer to it: byte count 0x5C, first data byte 0x9C."""
     best = (prio, length, kind)
     for length2, prio2, kind2 in longer:
         if prio2 >= best[0] or length2 == length:
             continue
         if pos + length2 > end:
-            if pos + length < end and any(buf[pos + length : end]):
-                continue  # not all zeros after the shorter frame: no ambiguity
             if not final:
                 return 0, 0, True  # wait for the bytes that decide
             continue
-        if not any(buf[pos + length : pos + length2]) and crc16(buf[pos : pos + length2]) == 0:
+        if crc16(buf[pos : pos + length2]) == 0:
             best = (prio2, length2, kind2)
     return best[1], best[2], False

@@ -692,8 +692,11 @@ class RtuFramer(_Framer):
             if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                 self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
                 if self.lengths.answer_pos[fc] == ECHO:
-                    end_time = self.timeline.end_time(pos + length - 1)
-                    self.pending_deadline = end_time + self.timeout
+                    # from the request's start and its length on the line, as the fast
+                    # path counts it: the end of a read that also holds later bytes
+                    # says nothing of when the request ended
+                    start = self.timeline.start_time(pos)
+                    self.pending_deadline = start + length * self.timeline.char + self.timeout
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
             self.pending_unit = -1
         self.units_seen.add(unit)

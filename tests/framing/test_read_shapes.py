@@ -10,6 +10,7 @@ timed out, its answer called an orphan and the master's next poll a retry."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 
@@ -17,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from benchmarks.mixes import Mix, mix_frames, random_mix, write_frames, write_reads
 from sniffer import core
 from sniffer.framing import serial as framing
 from sniffer.model import Chunk
@@ -129,3 +131,48 @@ def test_a_late_answer_split_across_reads_is_still_its_answer(tmp_path: Path, fa
         (Status.OK, 2, 0),
     ]
     assert t_ans - t_req > 5 * TIMEOUT
+
+
+def _mix_verdicts(folder: Path, mix: Mix, frames: int) -> None:
+    wire = mix_frames(mix, frames)
+    reads, whole = folder / "reads.pcapng", folder / "frames.pcapng"
+    write_reads(reads, mix, wire)
+    write_frames(whole, mix, wire)
+    reference = verdicts(whole, None)
+    assert len(reference) >= frames
+    fast = _compiled()
+    assert verdicts(whole, fast) == reference
+    assert verdicts(reads, None) == reference
+    assert verdicts(reads, fast) == reference
+
+
+@pytest.mark.parametrize(
+    ("seed", "why"),
+    [
+        # a write of 46 registers whose first 8 bytes pass as its answer: the search took
+        # them for an answer nobody asked for, the fast path (frame whole) a request
+        (0, "prefix"),
+        # an echoed write's deadline counted from the end of the read that held the
+        # request's last byte (reads of 1-8 bytes cut anywhere): the master's next write
+        # to another register, past the timeout, was taken for the echo
+        (6, "echo"),
+    ],
+)
+def test_the_benchmark_mixes_that_told_the_shapes_apart(
+    tmp_path: Path, seed: int, why: str
+) -> None:
+    _mix_verdicts(tmp_path, random_mix(seed), 3000)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10**9))
+def test_a_random_bus_read_as_a_usb_adapter_reads_it(
+    tmp_path_factory: pytest.TempPathFactory, seed: int
+) -> None:
+    """Any bus of the benchmark's mixes (slaves, codes, exceptions, timeouts, stray
+    bytes, line format), read every 16 ms as a USB adapter delivers it, against the same
+    frames one per read. (The mixes' reads of random sizes, cut anywhere whatever the
+    silences, give bytes times the line never saw: they are held to the same frames by
+    the seeds above only.)"""
+    mix = replace(random_mix(seed), reads="usb", read_max=0)
+    _mix_verdicts(tmp_path_factory.mktemp("mix"), mix, 800)
