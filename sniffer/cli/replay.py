@@ -131,9 +131,19 @@ def _read(
     origin: float | None = None  # the first row's time: where the listing counts from
     learnt: Learnt | None = None  # a listing's first pass (see sniffer.session.streamed)
     if published:
-        # --mqtt publishes every row as it is read; the statistics or the listing asked
-        # for alongside (--stats, --format) are made from the same rows afterwards
-        cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
+        # --mqtt publishes every row as it is read, then drops it (a window of rows, as
+        # --stats alone): the statistics and the poll cycle asked for alongside are
+        # counted a segment at a time; a listing asked for alongside (--format) is made
+        # from the same rows afterwards, so then every row is kept
+        if args.format:
+            cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
+        else:
+            counted = Counted()
+            window = None if capture.info.network else REPLAY_WINDOW
+            cmd_replay_mqtt(
+                args, session, capture, bindings, path.name, err, window=window, segment=counted
+            )
+            cycles, speed, origin = counted.cycles, counted.speed, counted.first
     elif args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
@@ -227,6 +237,22 @@ def _network_line_note(options: ReadOptions, name: str) -> list[str]:
 REPLAY_WINDOW = 1 << 16
 
 
+class Counted:
+    """What `--stats` counts of every row, a segment at a time (`segment` of
+    `Session.ingest`): the poll cycle, the baud check, the first row's time."""
+
+    def __init__(self) -> None:
+        self.cycles = PollCycles()
+        self.speed = SpeedCheck()
+        self.first: float | None = None
+
+    def __call__(self, s: Session) -> None:
+        if self.first is None and len(s.store):
+            self.first = s.store.t[0]
+        self.cycles.add(s.store)
+        self.speed.add(s.store)
+
+
 def _windowed(
     session: Session, capture: Capture, reading: Callable[[int, int], None]
 ) -> tuple[PollCycles, SpeedCheck, float | None]:
@@ -235,18 +261,10 @@ def _windowed(
     (their values kept on disk for a sidecar being written: `index.Spill`), the sidecar
     index is written (or read) a segment at a time. The network server table and a
     network capture's rows are not windowed (`Session.settled`: they stay in one store)."""
-    cycles, speed = PollCycles(), SpeedCheck()
-    first: list[float] = []  # the first row's time, from the first segment that has rows
-
-    def segment(s: Session) -> None:
-        if not first and len(s.store):
-            first.append(s.store.t[0])
-        cycles.add(s.store)
-        speed.add(s.store)
-
+    counted = Counted()
     # the statistics bounded, a sidecar being written given their values on disk
-    session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=segment, bounded=True)
-    return cycles, speed, first[0] if first else None
+    session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=counted, bounded=True)
+    return counted.cycles, counted.speed, counted.first
 
 
 REPLAY_EXAMPLES = """\

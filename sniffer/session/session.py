@@ -360,7 +360,16 @@ class Session:
             self.stats.bound(
                 writer.spill if writer is not None and writer.out is not None else None
             )
-        retry = window or 0  # rows in the store before the next try at a new segment
+        cutter = Cutter(self, window) if window is not None else None
+
+        def before_cut() -> None:
+            if segment is not None:
+                segment(self)
+            if writer is not None:
+                writer.add(self.state)
+            if written is not None:
+                written(self, _open(writer))
+
         try:
             # readers may pass runs of reads as one batch (sniffer.sources.reads): the
             # pipeline frames them read by read, so the rows are the same
@@ -376,30 +385,8 @@ class Session:
                             progress(done, self.base + len(self.store))
                         if should_stop is not None and should_stop():
                             return
-                    if window is not None and len(self.store) >= retry:
-                        self.pipeline.sync()
-                        if self._timed():
-                            self.refresh()
-                        if self._timed() and self.settled():
-                            if segment is not None:
-                                segment(self)
-                            if writer is not None:
-                                writer.add(self.state)
-                            if written is not None:
-                                written(self, _open(writer))
-                            self.new_segment()
-                            retry = window
-                            self.pipeline.hold_bytes = None
-                        else:
-                            # try again once more rows came (the test costs a scan), at
-                            # the end of a smaller hold of reads: a hold of 512 KiB ends
-                            # mid-frame or with a request open as often as not in 16 ms
-                            # reads of a slow line. 1M frames of mix843779584 (32 slaves,
-                            # 38400 baud) in 16 ms reads were dropped twice, the rest
-                            # (584k rows) kept to the end, peak RSS 91 MB against 63 MB
-                            # one frame a packet; now 11 times, at most 132k rows, 57 MB
-                            retry = len(self.store) + max(1, window // 64)
-                            self.pipeline.hold_bytes = SETTLING_HOLD_BYTES
+                    if cutter is not None and cutter.due():
+                        cutter.cut(before_cut)
             self.finish()
             if segment is not None:
                 segment(self)
@@ -422,6 +409,43 @@ class Session:
                 writer.abandon()
         if progress is not None:
             progress(done, self.base + len(self.store))
+
+
+class Cutter:
+    """When a session that keeps a window of rows drops them (`Session.new_segment`): at
+    the first settled moment once the store holds `window` rows (`Session.ingest`, and
+    `replay --mqtt`'s publishing, `sniffer.outputs.mqtt.publish.publish_replay`)."""
+
+    def __init__(self, session: Session, window: int) -> None:
+        self.session = session
+        self.window = window
+        self.retry = window  # rows in the store before the next try at a new segment
+
+    def due(self) -> bool:
+        return len(self.session.store) >= self.retry
+
+    def cut(self, before: Callable[[], None]) -> bool:
+        """A new segment if the session is settled, `before()` called first (the rows,
+        up to date, are still in `session.store`); whether it was cut."""
+        session = self.session
+        session.pipeline.sync()
+        if session._timed():
+            session.refresh()
+        if session._timed() and session.settled():
+            before()
+            session.new_segment()
+            self.retry = self.window
+            session.pipeline.hold_bytes = None
+            return True
+        # try again once more rows came (the test costs a scan), at the end of a smaller
+        # hold of reads: a hold of 512 KiB ends mid-frame or with a request open as often
+        # as not in 16 ms reads of a slow line. 1M frames of mix843779584 (32 slaves,
+        # 38400 baud) in 16 ms reads were dropped twice, the rest (584k rows) kept to the
+        # end, peak RSS 91 MB against 63 MB one frame a packet; now 11 times, at most 132k
+        # rows, 57 MB
+        self.retry = len(session.store) + max(1, self.window // 64)
+        session.pipeline.hold_bytes = SETTLING_HOLD_BYTES
+        return False
 
 
 READING_CHUNKS = 256  # frames per-frame stamps are told frame starts or ends from

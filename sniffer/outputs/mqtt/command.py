@@ -78,8 +78,12 @@ def cmd_replay_mqtt(
     bindings: Mapping[int, Binding],
     name: str,
     err: TextIO,
+    *,
+    window: int | None = None,
+    segment: Callable[[Session], None] | None = None,
 ) -> int:
-    """`modscope replay FILE --mqtt URL`: publish the capture, report what was delivered."""
+    """`modscope replay FILE --mqtt URL`: publish the capture, report what was delivered.
+    `window`, `segment`: see `publish_replay` (rows dropped once published)."""
     bus = args.bus_name or bus_slug(name)
 
     def notify(text: str) -> None:
@@ -99,7 +103,12 @@ def cmd_replay_mqtt(
     err.write(f"modscope: publishing {name} to {target.describe()}\n")
     try:
         publish_replay(
-            session, capture.chunks(), publisher, original_speed=args.speed == "original"
+            session,
+            capture.chunks(),
+            publisher,
+            original_speed=args.speed == "original",
+            window=window,
+            segment=segment,
         )
     finally:
         report = publisher.close()

@@ -66,7 +66,7 @@ from sniffer.outputs.mqtt.ha import (
 from sniffer.outputs.mqtt.link import MqttLink, Notify
 from sniffer.outputs.mqtt.payload import RegisterKey, Slugs, iso_time, json_value, raw_payload
 from sniffer.outputs.mqtt.target import MqttTarget
-from sniffer.session.session import Session
+from sniffer.session.session import Cutter, Session
 from sniffer.sources.linktypes import describe_interface
 from sniffer.vocab import PROBLEM_MASK, Flag, Kind, Status
 
@@ -165,6 +165,7 @@ class BusPublisher:
         self.options = options
         self.info = info
         self.next = 0  # the next store row to look at
+        self._base = session.base  # the segment `next` counts in (`Session.base`)
         self.values = 0
         self.events = 0
         self.raw = 0  # reads handed to the broker: the last sequence number
@@ -323,8 +324,14 @@ class BusPublisher:
         return True
 
     def rows(self, final: bool = False) -> None:
-        """Publish what the session's new rows say. Call after `session.refresh()`."""
+        """Publish what the session's new rows say. Call after `session.refresh()`, and
+        before a windowed session drops its rows (`Session.new_segment`): its next
+        segment's rows are then read from the first."""
         self._resend_retained()
+        if self.session.base != self._base:  # a new segment: none of its rows read yet
+            self._base = self.session.base
+            self.next = 0
+            self._open.clear()  # (none: a segment ends with no request open)
         store = self.session.store
         store.sync()
         describer = self.session.describer
@@ -648,12 +655,30 @@ def publish_replay(
     *,
     original_speed: bool = False,
     refresh_every: float = 0.25,
+    window: int | None = None,
+    segment: Callable[[Session], None] | None = None,
 ) -> None:
     """Feed a capture's chunks to `session` and `publisher`: as fast as they are read, or
     at the pace they were recorded (`original_speed`). Ends with the session finished and
-    its last rows published (the link stays open: `publisher.close()` ends it)."""
+    its last rows published (the link stays open: `publisher.close()` ends it).
+
+    `window`: rows the session keeps; past them, its rows are published and dropped at
+    the next settled moment (`sniffer.session.session.Cutter`), so that memory stays
+    flat in the capture's length (the statistics carry on, bounded), and
+    `segment(session)` is called with each segment's rows just before they go, and with
+    the last segment's at the end (what else needs every row counts it there)."""
     last = time.monotonic()
     first: tuple[float, float] | None = None
+    cutter = None
+    if window is not None:
+        session.stats.bound()
+        cutter = Cutter(session, window)
+
+    def before_cut() -> None:
+        publisher.rows()  # every row of the segment, before it goes
+        if segment is not None:
+            segment(session)
+
     for chunk in chunks:
         if original_speed:
             if first is None:
@@ -670,5 +695,9 @@ def publish_replay(
             last = now
             session.refresh()
             publisher.rows()
+        if cutter is not None and cutter.due():
+            cutter.cut(before_cut)
     session.finish()
     publisher.rows()
+    if segment is not None:
+        segment(session)
