@@ -130,17 +130,18 @@ def _read(
     cycles = speed = None
     origin: float | None = None  # the first row's time: where the listing counts from
     learnt: Learnt | None = None  # a listing's first pass (see sniffer.session.streamed)
+    publish_status = 0  # --mqtt: 1 where messages never reached the broker
     if published:
         # --mqtt publishes every row as it is read, then drops it (a window of rows, as
         # --stats alone): the statistics and the poll cycle asked for alongside are
         # counted a segment at a time; a listing asked for alongside (--format) is made
         # from the same rows afterwards, so then every row is kept
         if args.format:
-            cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
+            publish_status = cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
         else:
             counted = Counted()
             window = None if capture.info.network else REPLAY_WINDOW
-            cmd_replay_mqtt(
+            publish_status = cmd_replay_mqtt(
                 args, session, capture, bindings, path.name, err, window=window, segment=counted
             )
             cycles, speed, origin = counted.cycles, counted.speed, counted.first
@@ -182,7 +183,8 @@ def _read(
         err.write(f"modscope: note: {plain(note)}\n")
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
-    status = finish_read(capture, session, err)
+    # (1 too where messages never reached the broker: `cmd_replay_mqtt`)
+    status = max(finish_read(capture, session, err), publish_status)
     if args.stats:
         labels = {u: plain(b.label) for u, b in bindings.items()}
         # a network capture has no serial line: say what it carries instead

@@ -116,7 +116,10 @@ def cmd_replay_mqtt(
         f"modscope: {publisher.raw:,} reads, {publisher.values:,} values, "
         f"{publisher.events:,} events published; {report}\n"
     )
-    return 0
+    # messages the broker never took are data lost to whoever reads it: the run failed
+    # (the line above says how many and why), as a capture cut short exits 1
+    counts = publisher.link.counts
+    return 1 if counts.dropped or counts.pending else 0
 
 
 LIVE_LIMIT = 20_000  # messages a live capture buffers while the broker is away or slow
