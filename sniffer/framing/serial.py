@@ -691,10 +691,7 @@ class RtuFramer(_Framer):
             predicted = self.lengths.predict(buf, pos, length, fc) if unit != 0 else None
             if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                 self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
-                if self.lengths.answer_pos[fc] == ECHO:
-                    # from the request's start and its length on the line, as the fast
-                    # path counts it: the end of a read that also holds later bytes
-                    # says nothing of when the request ended
+                if self.lengths.answer_pos[fc] == ECHO:  # from its start, as the fast path
                     start = self.timeline.start_time(pos)
                     self.pending_deadline = start + length * self.timeline.char + self.timeout
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:

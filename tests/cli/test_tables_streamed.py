@@ -107,16 +107,15 @@ def _same(
     return reference
 
 
-# a filter, -c, and a filter nothing passes (a CSV table of its header alone)
+# a filter, -c, and a filter nothing passes (a CSV table of its header alone); one
+# format each (the tables are written alike in both: `write_table`)
 EXTRAS = {
     ("transactions", "csv"): [["--filter", "reg:Voltage or fc:16"], ["--filter", "unit:99"]],
-    ("transactions", "jsonl"): [["-c", "9"]],
-    ("registers", "csv"): [["--filter", "unit:99"]],
-    ("registers", "jsonl"): [["--filter", "reg:Voltage or fc:16", "-c", "40"]],
+    ("registers", "jsonl"): [["--filter", "reg:Voltage or fc:16", "-c", "40"], ["-c", "9"]],
 }
 
 
-@pytest.mark.parametrize(("what", "fmt"), TABLES)
+@pytest.mark.parametrize(("what", "fmt"), list(EXTRAS))
 def test_the_demo_tables_in_segments(
     what: str, fmt: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -206,7 +205,7 @@ def test_parquet_in_segments(what: str, tmp_path: Path, monkeypatch: pytest.Monk
     expected = _parquet_rows(reference)
     assert len(expected) > 200
     target = tmp_path / "x.parquet"
-    for learn, window in [(1 << 30, 1 << 30), (1, 1)]:
+    for learn, window in [(1, 1)]:
         _bytes, err = exported([*DEMO, "--what", what], target, monkeypatch, learn, window)
         assert _parquet_rows(target) == expected, (what, learn, window)
         assert f": {len(expected)} {what} (parquet)" in err
@@ -218,15 +217,15 @@ def test_a_table_keeps_rows_flat_in_the_capture(
 ) -> None:
     """Each pass keeps about its window of rows, not every row: counted through the
     store's size when a segment is cut, for a capture of 80 times the window."""
-    frames = [(f.raw, f.t) for f in polling_frames(4000, line=LINE)]
+    frames = [(f.raw, f.t) for f in polling_frames(2000, line=LINE)]
     path = recorded(tmp_path / "poll.pcapng", reads_of(frames, 0.016))
     out, _err = exported(
-        [str(path), "--what", "registers"], tmp_path / "r.jsonl", monkeypatch, 25, 50
+        [str(path), "--what", "registers"], tmp_path / "r.jsonl", monkeypatch, 12, 25
     )
     records = out.decode().splitlines()
-    assert len(records) > 4000 and json.loads(records[-1])["index"] > 3900
+    assert len(records) > 2000 and json.loads(records[-1])["index"] > 1900
     assert Kept.cuts > 100
-    assert 25 <= Kept.rows <= 8 * 50
+    assert 12 <= Kept.rows <= 8 * 25
     assert out.decode() == whole([str(path)], "registers", "jsonl")
 
 

@@ -164,7 +164,7 @@ def test_the_benchmark_mixes_that_told_the_shapes_apart(
     _mix_verdicts(tmp_path, random_mix(seed), 3000)
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10**9))
 def test_a_random_bus_read_as_a_usb_adapter_reads_it(
     tmp_path_factory: pytest.TempPathFactory, seed: int
