@@ -4,8 +4,9 @@ Every message is QoS 1. While the broker is away paho keeps messages (and re-sen
 them on reconnection, which is automatic) up to `limit` undelivered messages; past the
 bound a message is dropped and counted, never waited for: capture never stops for the
 broker. While the broker is there but slower than the bus, `publish(block=True)` (what
-a replay uses) waits for room, so a fast replay loses nothing; a live capture publishes
-with `block=False` and drops instead.
+a replay uses) waits once `IN_FLIGHT` messages are unacknowledged, for as long as the
+broker takes one every BLOCK_SECONDS, so a fast replay loses nothing; a live capture
+publishes with `block=False` and drops instead.
 
 The first connection is made before `start()` returns: a broker that cannot be reached,
 a TLS certificate refused, a wrong CA, or credentials refused end with an `MqttError`
@@ -37,7 +38,13 @@ from sniffer.outputs.mqtt import MqttError, require_paho
 from sniffer.outputs.mqtt.target import MqttTarget
 
 DEFAULT_LIMIT = 100_000  # undelivered messages kept while the broker is away or slow
-BLOCK_SECONDS = 5.0  # longest wait for room while connected, before a message is dropped
+BLOCK_SECONDS = 5.0  # longest wait for the broker to take a message, while connected
+# messages a waiting publisher (`block`: a replay) lets go unacknowledged while the broker
+# is there. A replay runs on the CPU and paho reads the broker's acknowledgements in a
+# thread of its own: with 100,000 let go (the buffer), a replay of 200k frames of issue
+# #29's bus got 1.6k acknowledgements a second from a local Mosquitto, filled the buffer,
+# and dropped 20k messages after 25 s; waiting at 2,000 leaves paho the time to read them
+IN_FLIGHT = 2_000
 KEEPALIVE = 15
 FIRST_WAIT = 5.0  # seconds for the broker to answer the first connection
 
@@ -179,6 +186,7 @@ class MqttLink:
             raise MqttError(f"the MQTT buffer holds at least one message, not {limit}")
         self.target = target
         self.limit = limit
+        self._stalled = -1  # `counts.delivered` when a wait for the broker last timed out
         self.notify = notify
         self.counts = LinkCounts()
         self.connected = threading.Event()
@@ -262,13 +270,20 @@ class MqttLink:
         """Queue one QoS 1 message. False if it was dropped (the buffer is full)."""
         with self._cond:
             c = self.counts
-            if c.pending >= self.limit and block and self.connected.is_set():
-                end = time.monotonic() + BLOCK_SECONDS
-                while c.pending >= self.limit and self.connected.is_set():
-                    left = end - time.monotonic()
-                    if left <= 0:
+            room = min(self.limit, IN_FLIGHT)
+            stalled = self._stalled == c.delivered  # (no wait again till one is taken)
+            if block and c.pending >= room and self.connected.is_set() and not stalled:
+                # wait while the broker takes messages; past BLOCK_SECONDS without one
+                # taken, go on buffering (and past the buffer, drop)
+                seen, end = c.delivered, time.monotonic() + BLOCK_SECONDS
+                while c.pending >= room and self.connected.is_set():
+                    now = time.monotonic()
+                    if c.delivered != seen:
+                        seen, end = c.delivered, now + BLOCK_SECONDS
+                    if now >= end:
+                        self._stalled = c.delivered
                         break
-                    self._cond.wait(min(left, 0.05))
+                    self._cond.wait(min(end - now, 0.05))
             c.offered += 1
             if c.pending > self.limit:
                 c.dropped += 1
