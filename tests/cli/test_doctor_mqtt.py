@@ -6,25 +6,16 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.support.broker import Broker
+from tests.support.broker import Broker, broker
+
+__all__ = ["broker"]  # (the fixture)
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCTOR = ROOT / "tests" / "captures" / "doctor"
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Broker]:
-    b = Broker(tmp_path)
-    b.start()
-    try:
-        yield b
-    finally:
-        b.stop()
 
 
 def modscope(*args: str) -> subprocess.CompletedProcess[str]:

@@ -13,7 +13,6 @@ import subprocess
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -30,23 +29,15 @@ from sniffer.outputs.mqtt.publish import (
 from sniffer.outputs.mqtt.subscribe import MqttReader
 from sniffer.outputs.mqtt.target import parse_target
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
-from tests.support.broker import Broker
+from tests.support.broker import Broker, broker
+
+__all__ = ["broker"]  # (the fixture)
 
 pytestmark = [
     pytest.mark.peer,
     pytest.mark.skipif(shutil.which("mosquitto") is None, reason="apt-get install mosquitto"),
 ]
 paho = pytest.importorskip("paho.mqtt.client")
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Broker]:
-    b = Broker(tmp_path)
-    b.start()
-    try:
-        yield b
-    finally:
-        b.stop()
 
 
 def _retained(broker: Broker, *topics: str) -> dict[str, str]:

@@ -16,7 +16,6 @@ import struct
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +28,9 @@ from sniffer.outputs.mqtt.subscribe import MqttReader
 from sniffer.outputs.mqtt.target import parse_target
 from sniffer.session.session import DEMO_CAPTURE
 from sniffer.sources import open_capture
-from tests.support.broker import Broker
+from tests.support.broker import Broker, broker
+
+__all__ = ["broker"]  # (the fixture)
 from tests.support.netbuild import Conversation, pcap
 from tests.support.virtual_bus import wait_ready
 
@@ -40,16 +41,6 @@ pytestmark = [
 paho = pytest.importorskip("paho.mqtt.client")
 
 MODSCOPE = str(Path(sys.executable).with_name("modscope"))
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Broker]:
-    b = Broker(tmp_path)
-    b.start()
-    try:
-        yield b
-    finally:
-        b.stop()
 
 
 def _client(broker: Broker) -> Any:
