@@ -199,9 +199,11 @@ fi
 # same widgets (the filter bar, exports and recordings of test_tui_app, the details and
 # layout), what does not depend on Textual's version (row and query logic, the contrast
 # arithmetic, textual-serve) and the snapshots at larger sizes. The whole of tests/tui
-# again took 170 s, a quarter of this script; the list below, about 25 s on 2 CPUs.
+# again took 170 s, a quarter of this script; the list below, about 25 s on 2 CPUs. The
+# served app's driver (test_tui_webdriver) leans on a private attribute of Textual's.
 FLOOR_TESTS="test_tui_snapshots test_tui_keys test_tui_navigate test_tui_units
-test_tui_ladder test_tui_regtable test_tui_theme test_tui_commands test_tui_status"
+test_tui_ladder test_tui_regtable test_tui_theme test_tui_commands test_tui_status
+test_tui_webdriver"
 floor_files=()
 for name in $FLOOR_TESTS; do floor_files+=("tests/tui/$name.py"); done
 PYTHONPATH="$FLOOR_DIR" "$VENV/bin/pytest" -q -n "$JOBS" -p no:cacheprovider -m "not slow" \

@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 from textual import events
 from textual.app import App
+from textual.driver import Driver
 from textual.notifications import SeverityLevel
 from textual.widgets import Input
 
@@ -90,6 +91,18 @@ class ModscopeApp(App[int]):
         self.recording = Recording(self)
         self.exporting = Exporting(self)
         self.status_line = StatusLine(self)
+
+    def get_driver_class(self) -> type[Driver]:
+        """Textual's choice, except under textual-serve (`modscope serve`): its web driver
+        with packets kept whole (see sniffer.tui.webdriver)."""
+        chosen = super().get_driver_class()
+        from textual.drivers.web_driver import WebDriver
+
+        if chosen is WebDriver:
+            from sniffer.tui.webdriver import WholeWrites
+
+            return WholeWrites
+        return chosen
 
     @property
     def frames(self) -> FrameList:
