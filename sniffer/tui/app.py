@@ -19,6 +19,7 @@ from collections.abc import Callable
 from textual import events
 from textual.app import App
 from textual.driver import Driver
+from textual.drivers.web_driver import WebDriver
 from textual.notifications import SeverityLevel
 from textual.widgets import Input
 
@@ -39,6 +40,7 @@ from sniffer.tui.rooms.status import StatusLine
 from sniffer.tui.rooms.watching import Watching
 from sniffer.tui.screens.main import MainScreen
 from sniffer.tui.theme import themes
+from sniffer.tui.webdriver import WholeWrites
 from sniffer.tui.widgets.frame_list import FrameList
 from sniffer.tui.widgets.health import HealthScreen
 from sniffer.tui.widgets.watch import WatchPanel
@@ -96,13 +98,7 @@ class ModscopeApp(App[int]):
         """Textual's choice, except under textual-serve (`modscope serve`): its web driver
         with packets kept whole (see sniffer.tui.webdriver)."""
         chosen = super().get_driver_class()
-        from textual.drivers.web_driver import WebDriver
-
-        if chosen is WebDriver:
-            from sniffer.tui.webdriver import WholeWrites
-
-            return WholeWrites
-        return chosen
+        return WholeWrites if chosen is WebDriver else chosen
 
     @property
     def frames(self) -> FrameList:
