@@ -113,7 +113,7 @@ def _export(
             raise UsageError(str(exc)) from None
     if given is None and args.output != "-" and Path(args.output).resolve() == source.resolve():
         raise UsageError(f"{args.output}: is the capture being read; choose another output")
-    query = query_of(args)
+    query = query_of(args, err)
     bindings = bindings_for(args)
     options = read_options(args)
 

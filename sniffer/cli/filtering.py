@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 from array import array
 from collections.abc import Sequence
+from typing import TextIO
 
 from sniffer.errors import UsageError
 from sniffer.meaning.annotate import Annotator
@@ -28,8 +29,10 @@ def add_filter_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("-c", "--count", type=int, metavar="N", help="stop after N frames")
 
 
-def query_of(args: argparse.Namespace) -> Query | None:
-    """The parsed --filter, or None; a bad query is a UsageError with the TUI's message."""
+def query_of(args: argparse.Namespace, err: TextIO | None = None) -> Query | None:
+    """The parsed --filter, or None; a bad query is a UsageError with the TUI's message.
+    Given `err`, what the query's words may mean instead is said there (`Query.hints`):
+    once a command, so only where it first reads the filter."""
     text = getattr(args, "filter", None)
     count = getattr(args, "count", None)
     if count is not None and count < 1:
@@ -40,6 +43,9 @@ def query_of(args: argparse.Namespace) -> Query | None:
         query = parse_query(text)
     except QueryError as exc:
         raise UsageError(f"--filter: {exc}") from None
+    if err is not None:
+        for hint in query.hints():
+            err.write(f"modscope: note: --filter: {hint}\n")
     return None if query.empty else query
 
 

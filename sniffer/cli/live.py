@@ -187,7 +187,7 @@ def cmd_live(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                 updates=True,  # text: the rows its updates cite are numbered
             )
         backlog = None if lister is None else Backlog(out, args.backlog)
-        selection = Selection(session, query_of(args), args.count)
+        selection = Selection(session, query_of(args, err), args.count)
         if lister is not None and selection.query is not None:
             lister.origin = None  # counted from the first row listed, as without a filter
         labels = {u: b.label for u, b in bindings.items()}

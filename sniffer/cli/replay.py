@@ -63,7 +63,7 @@ def cmd_replay(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | None) -> int:
-    query = query_of(args)
+    query = query_of(args, err)
     path = Path(args.file) if args.file else DEMO_CAPTURE
     bindings = bindings_for(args, DEMO_BUS if not args.file else None)
     if not args.file and not DEMO_CAPTURE.exists():

@@ -62,7 +62,7 @@ def replay_together(
             f"--gateway-timeout must be a positive number of seconds, not {args.gateway_timeout:g}"
         )
     given = parse_offsets(args.offset, files)
-    query = query_of(args)
+    query = query_of(args, err)
     bindings = bindings_for(args)
     options = read_options(args)
     if getattr(args, "mqtt", None):

@@ -89,6 +89,10 @@ _T = TypeVar("_T")
 _COMPARISONS = ("==", "!=", "<=", ">=", "=", "<", ">")
 
 
+# a word that looks like the list's unit or function column (`u3`, `fc16`: not text)
+_COLUMN_LOOK = re.compile(r"(u|fc)0*([0-9]{1,3})")
+
+
 class QueryError(ValueError):
     """A filter that cannot be read; the message says what to write instead."""
 
@@ -284,6 +288,25 @@ class Query:
     def words(self) -> tuple[str, ...]:
         """Lower-case words, all must appear in the row's text."""
         return tuple(n.word for n in self.top if isinstance(n, Text))
+
+    def hints(self) -> list[str]:
+        """What to say of words that look like a column as the rows show it (`u3`,
+        `fc16`): they are searched for as text, where the unit and function columns are
+        not, so they may match nothing; the term that selects the column is named."""
+        said = []
+        for atom in _atoms(self.tree):
+            if not isinstance(atom, Text) or not (found := _COLUMN_LOOK.fullmatch(atom.word)):
+                continue
+            key, value = "unit" if found[1] == "u" else "fc", int(found[2])
+            try:
+                parse_query(f"{key}:{value}")
+            except QueryError:
+                continue  # no such unit or function to point to
+            said.append(
+                f"'{atom.word}' is looked for as text, which the {key} column is not; "
+                f"for {key} {value} write {key}:{value}"
+            )
+        return said
 
     @property
     def time(self) -> TimeSpan | None:

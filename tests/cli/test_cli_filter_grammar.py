@@ -79,3 +79,24 @@ def test_a_query_it_cannot_read_fails_in_one_line(
     assert code == 2 and out == ""
     (line,) = err.splitlines()
     assert line.startswith(f"modscope: error: --filter: {part}: ") and fix in line
+
+
+def test_a_word_spelled_as_the_unit_column_says_which_term_selects_the_unit(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The list shows `u3`; `--filter u3` looks for that text, which no row's text holds
+    (the unit column is not text): the listing is empty, and a note says what selects
+    unit 3, which then lists its rows."""
+    assert listing("u3", capsys) == []
+    main(["replay", str(DEMO), "--bus", str(BUS), "--format", "text", "--filter", "u3 fc03"])
+    notes = [x for x in capsys.readouterr().err.splitlines() if "--filter" in x]
+    assert notes == [
+        "modscope: note: --filter: 'u3' is looked for as text, which the unit column is "
+        "not; for unit 3 write unit:3",
+        "modscope: note: --filter: 'fc03' is looked for as text, which the fc column is "
+        "not; for fc 3 write fc:3",
+    ]
+    rows = listing("unit:3", capsys)
+    assert rows and all(" u3 " in line for line in rows)
+    main(["replay", str(DEMO), "--filter", "unit:3 voltage"])
+    assert "--filter" not in capsys.readouterr().err  # words that look like no column

@@ -384,3 +384,22 @@ def test_what_the_manual_says_is_refused_is_refused() -> None:
     for text in written:
         with pytest.raises(QueryError):
             parse_query(text)
+
+
+@given(
+    key=st.sampled_from(["u", "U", "fc", "FC"]), value=st.integers(0, 300), zeros=st.integers(0, 2)
+)
+def test_a_word_that_looks_like_a_column_names_the_term_that_selects_it(
+    key: str, value: int, zeros: int
+) -> None:
+    word = f"{key}{'0' * zeros}{value}"
+    hints = parse_query(f"status:ok {word}").hints()
+    if value > (255 if key.lower() == "u" else 127) or (value == 0 and key.lower() == "fc"):
+        assert hints == []  # no such unit or function code: nothing to point to
+        return
+    (hint,) = hints
+    term = hint.rsplit(" ", 1)[1]
+    column = "unit" if key.lower() == "u" else "fc"
+    assert term == f"{column}:{value}"
+    assert getattr(parse_query(term), "units" if column == "unit" else "functions") == {value}
+    assert parse_query(f'"{word}x" unit:3 reg:"u1"').hints() == []

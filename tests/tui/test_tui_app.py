@@ -656,3 +656,17 @@ async def test_an_export_then_s_writes_the_rows_that_were_shown(tmp_path: Path) 
         await wait_said(pilot, app, f"wrote 17 rows to {out}")
     lines = out.read_text().splitlines()
     assert [json.loads(line)["index"] for line in lines] == list(range(17))
+
+
+async def test_a_word_spelled_as_the_unit_column_is_answered_with_the_unit_term() -> None:
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=SIZE) as pilot:
+        await ready(pilot, app)
+        app.main.query_one("#filter", Input).value = "u3"
+        await pilot.press("slash", "enter")
+        await wait_said(pilot, app, "for unit 3 write unit:3")
+        app.main.query_one("#filter", Input).value = "unit:3"
+        await pilot.press("slash", "enter")
+        await settle(pilot, app)
+        rows = [app.model.view.row(k) for k in range(app.frames.count)]
+        assert rows and all(app.session.store.unit[r] == 3 for r in rows)

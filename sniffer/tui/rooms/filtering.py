@@ -166,6 +166,8 @@ class Filtering(Room):
         bar.remove_class("-error")
         self.model.query = query
         self.applied = text
+        for hint in query.hints():
+            self.app.say(hint, title="filter")
         self.restart()
 
     def revert(self) -> None:
