@@ -70,6 +70,9 @@ class _Channel:
     # for each staging row, the number of the chunk fed when it appeared: rows of one
     # time on several channels are merged in that order, the order of the source
     born: list[int] = field(default_factory=list)
+    # a source's events that came while the framer held bytes undecided: stored once
+    # those bytes are rows, after them (a log's error line after the frame it is about)
+    events: list[Chunk] = field(default_factory=list)
 
 
 class Pipeline:
@@ -165,7 +168,7 @@ class Pipeline:
                 # to keep its place after them (a log's error line after its frame)
                 ch.held.append(chunk)
                 return
-            self._add_event(ch, chunk)
+            self._event(ch, chunk)
             self._release(final=False)
             return
         hints = ch.hint_dir
@@ -178,12 +181,34 @@ class Pipeline:
         assert ch.framer is not None
         ch.framer.feed(chunk)
         ch.last_t = chunk.t_end
+        if ch.events:
+            self._settle_events(ch)
         if self.multi:
             self._release(final=False)
 
-    def _add_event(self, ch: _Channel, chunk: Chunk) -> None:
+    def _event(self, ch: _Channel, chunk: Chunk) -> None:
+        """A source's event (no bytes) on channel `ch`: stored now, or once the bytes the
+        framer holds undecided are rows, so that it comes after them as it came after
+        them from the source, whatever the framer needed to decide them."""
         if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
             ch.framer.line_error()  # exact sources report it right after its byte
+        if ch.events or (ch.framer is not None and ch.framer.undecided()):
+            ch.events.append(chunk)
+        else:
+            self._add_event(ch, chunk)
+
+    def _settle_events(self, ch: _Channel) -> None:
+        """Store the events waiting on `ch`, once its framer holds no byte undecided."""
+        if ch.framer is None or not ch.framer.undecided():
+            events, ch.events = ch.events, []
+            for chunk in events:
+                self._add_event(ch, chunk)
+
+    def _add_event(self, ch: _Channel, chunk: Chunk) -> None:
+        if ch.framer is not None:
+            # the framer's rows first: what it tells of them (the units it saw, its
+            # pairs) before the event's row completes them in the store
+            ch.framer.flush()
         text = chunk.event + (f": {chunk.note}" if chunk.note else "")
         (ch.staging if ch.staging is not None else self.store).add_event(
             chunk.t_end, text, chunk.channel
@@ -230,9 +255,11 @@ class Pipeline:
             return
         self._held = []
         self._held_bytes = 0
-        framer = self.channels[held[0].channel].framer
-        assert framer is not None
-        framer.feed_reads(held[0] if len(held) == 1 else _joined(held))
+        ch = self.channels[held[0].channel]
+        assert ch.framer is not None
+        ch.framer.feed_reads(held[0] if len(held) == 1 else _joined(held))
+        if ch.events:
+            self._settle_events(ch)
 
     def feed_all(self, chunks: Iterable[Chunk]) -> None:
         for chunk in chunks:
@@ -429,7 +456,7 @@ class Pipeline:
         held, ch.held = ch.held or [], None
         for old in held:
             if old.event and not old.data:
-                self._add_event(ch, old)
+                self._event(ch, old)
                 continue
             ch.framer.feed(old)
             ch.last_t = old.t_end
@@ -443,6 +470,8 @@ class Pipeline:
         for ch in self.channels.values():
             if ch.framer is not None:
                 ch.framer.flush()
+            if ch.events:
+                self._settle_events(ch)
             if ch.staging is not None and len(ch.born) < len(ch.staging):
                 ch.born.extend([self._chunks_fed] * (len(ch.staging) - len(ch.born)))
         if self.multi:

@@ -236,6 +236,11 @@ class _Framer:
     def finish(self) -> None:
         self._scan(final=True)
 
+    def undecided(self) -> bool:
+        """Whether bytes given wait to be decided (a frame not yet complete, or noise):
+        a source's event now belongs after the rows they will make (see Pipeline)."""
+        return self.pos < len(self.stream)
+
     def settled(self) -> bool:
         """Whether every byte given has been decided and no answer it predicted is
         awaited: the next row owes nothing to the bytes before (see `rebase`)."""
@@ -285,11 +290,13 @@ class RtuFramer(_Framer):
         """The line has been silent for at least t3.5: decide everything buffered."""
         self._scan(final=True)
 
+    def undecided(self) -> bool:
+        return self.pos < len(self.stream) or self.noise_start >= 0
+
     def settled(self) -> bool:
         # no noise span under way, no row waiting for its answer, no pair unrecorded
-        return (
-            super().settled() and self.noise_start < 0 and self.pending_row < 0 and not self.pairs
-        )
+        owed = self.noise_start >= 0 or self.pending_row >= 0 or len(self.pairs) > 0
+        return super().settled() and not owed
 
     def rebase(self) -> None:
         super().rebase()
@@ -298,9 +305,8 @@ class RtuFramer(_Framer):
     # -- the scanner ---------------------------------------------------------------------
 
     def feed_reads(self, reads: Reads) -> None:
-        """A batch of reads: the bytes join the stream at once, then each read is scanned
-        as `feed` scans a chunk, seeing only the bytes read so far, so the rows are the
-        same as from the reads one by one."""
+        """A batch of reads, joining the stream at once, each then scanned as `feed` scans
+        a chunk (seeing only the bytes read so far): the rows of the reads one by one."""
         if not reads.data:
             return
         base = len(self.stream)
@@ -315,10 +321,9 @@ class RtuFramer(_Framer):
     def _scan_bytes(
         self, buf: bytearray, final: bool, reads: Reads | None = None, base: int = 0
     ) -> None:
-        """Frame from `self.pos` to the end of `buf`; or, given `reads` (a batch whose
-        bytes are in `buf` from offset `base`), read by read: each read joins the timeline
-        and the scan stops at its end, exactly as if each read had been fed alone. One
-        call for a whole batch spares a call and this set-up for every read."""
+        """Frame from `self.pos` to the end of `buf`; or, given `reads` (a batch in `buf`
+        from offset `base`), read by read, each joining the timeline and the scan stopping
+        at its end as if it had been fed alone (one call spares a set-up a read)."""
         end = self.scan_end = len(buf)
         (
             request_base,
@@ -799,6 +804,9 @@ class AsciiFramer(_Framer):
         }
         self.pending_len = -1  # the open request's answer body length (-1: not known)
         self.pending_end = 0.0  # when the open request ended
+
+    def undecided(self) -> bool:
+        return self.pos < len(self.stream) or self.open >= 0
 
     def settled(self) -> bool:
         return super().settled() and self.open < 0  # no frame under way

@@ -134,6 +134,10 @@ class TcpFramer:
         """The time of the first byte not yet in a row; None when every byte is."""
         return self._time(self.pos) if self.pos < len(self.stream) else None
 
+    def undecided(self) -> bool:
+        """Whether bytes wait to be decided (see `sniffer.framing.serial.Framer`)."""
+        return self.pos < len(self.stream) or self.noise_start >= 0
+
     # -- internals -------------------------------------------------------------------
 
     def _scan(self, final: bool) -> None:
@@ -250,10 +254,6 @@ class PacketRtuFramer(RtuFramer):
     def feed_reads(self, reads: Reads) -> None:
         for chunk in reads.split():
             self.feed(chunk)
-
-    def undecided(self) -> bool:
-        """Whether bytes wait to be decided (a frame not yet complete, or noise)."""
-        return self.pos < len(self.stream) or self.noise_start >= 0
 
     def start_pending(self) -> float | None:
         """The time of the first byte not yet in a row; None when every byte is."""
@@ -527,7 +527,7 @@ class NetPipeline(Pipeline):
         held, ch.held = ch.held or [], None
         for old in held:
             if old.event and not old.data:
-                self._add_event(ch, old)  # held in its place (Pipeline.feed)
+                self._event(ch, old)  # held in its place (Pipeline.feed)
                 continue
             ch.framer.feed(old)
             ch.last_t = old.t_end
@@ -540,6 +540,8 @@ class NetPipeline(Pipeline):
         for ch in self.channels.values():
             if ch.framer is not None:
                 ch.framer.flush()
+            if ch.events:
+                self._settle_events(ch)
         if not self.multi:
             return
         if final:

@@ -179,7 +179,7 @@ class Session:
             return False
         for ch in pipeline.channels.values():
             framer = ch.framer
-            if framer is None or ch.held is not None or not framer.settled():
+            if framer is None or ch.held is not None or ch.events or not framer.settled():
                 return False
             if ch.staging is not None and ch.read < len(ch.staging):
                 return False
