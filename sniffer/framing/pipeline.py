@@ -72,7 +72,8 @@ class _Channel:
     born: list[int] = field(default_factory=list)
     # a source's events that came while the framer held bytes undecided: stored once
     # those bytes are rows, after them (a log's error line after the frame it is about)
-    events: list[Chunk] = field(default_factory=list)
+    # (each with the framer's stream length when it came)
+    events: list[tuple[Chunk, int]] = field(default_factory=list)
 
 
 class Pipeline:
@@ -192,17 +193,21 @@ class Pipeline:
         them from the source, whatever the framer needed to decide them."""
         if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
             ch.framer.line_error()  # exact sources report it right after its byte
-        if ch.events or (ch.framer is not None and ch.framer.undecided()):
-            ch.events.append(chunk)
+        framer = ch.framer
+        if ch.events or (framer is not None and framer.undecided()):
+            ch.events.append((chunk, 0 if framer is None else len(framer.stream)))
         else:
             self._add_event(ch, chunk)
 
     def _settle_events(self, ch: _Channel) -> None:
-        """Store the events waiting on `ch`, once its framer holds no byte undecided."""
-        if ch.framer is None or not ch.framer.undecided():
-            events, ch.events = ch.events, []
-            for chunk in events:
-                self._add_event(ch, chunk)
+        """Store the events waiting on `ch` whose bytes before them are all decided."""
+        events, framer = ch.events, ch.framer
+        decided = framer.decided() if framer is not None else 0
+        done = 0
+        while done < len(events) and (framer is None or events[done][1] <= decided):
+            self._add_event(ch, events[done][0])
+            done += 1
+        del events[:done]
 
     def _add_event(self, ch: _Channel, chunk: Chunk) -> None:
         if ch.framer is not None:

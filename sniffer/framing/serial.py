@@ -236,10 +236,14 @@ class _Framer:
     def finish(self) -> None:
         self._scan(final=True)
 
+    def decided(self) -> int:
+        """The stream offset of the first byte not yet decided (a frame not complete, or
+        noise under way); the stream's length when every byte given is in a row. A
+        source's event waits for the bytes before it to be decided (see Pipeline)."""
+        return self.pos
+
     def undecided(self) -> bool:
-        """Whether bytes given wait to be decided (a frame not yet complete, or noise):
-        a source's event now belongs after the rows they will make (see Pipeline)."""
-        return self.pos < len(self.stream)
+        return self.decided() < len(self.stream)
 
     def settled(self) -> bool:
         """Whether every byte given has been decided and no answer it predicted is
@@ -290,8 +294,8 @@ class RtuFramer(_Framer):
         """The line has been silent for at least t3.5: decide everything buffered."""
         self._scan(final=True)
 
-    def undecided(self) -> bool:
-        return self.pos < len(self.stream) or self.noise_start >= 0
+    def decided(self) -> int:
+        return self.noise_start if self.noise_start >= 0 else self.pos
 
     def settled(self) -> bool:
         # no noise span under way, no row waiting for its answer, no pair unrecorded
@@ -805,8 +809,8 @@ class AsciiFramer(_Framer):
         self.pending_len = -1  # the open request's answer body length (-1: not known)
         self.pending_end = 0.0  # when the open request ended
 
-    def undecided(self) -> bool:
-        return self.pos < len(self.stream) or self.open >= 0
+    def decided(self) -> int:
+        return min(self.open, self.pos) if self.open >= 0 else self.pos
 
     def settled(self) -> bool:
         return super().settled() and self.open < 0  # no frame under way

@@ -134,9 +134,12 @@ class TcpFramer:
         """The time of the first byte not yet in a row; None when every byte is."""
         return self._time(self.pos) if self.pos < len(self.stream) else None
 
+    def decided(self) -> int:
+        """The offset of the first byte not yet decided (see `sniffer.framing.serial.Framer`)."""
+        return self.noise_start if self.noise_start >= 0 else self.pos
+
     def undecided(self) -> bool:
-        """Whether bytes wait to be decided (see `sniffer.framing.serial.Framer`)."""
-        return self.pos < len(self.stream) or self.noise_start >= 0
+        return self.decided() < len(self.stream)
 
     # -- internals -------------------------------------------------------------------
 

@@ -456,3 +456,20 @@ def test_rows_appended_in_bulk_have_no_partner_and_no_status() -> None:
         store.sync()
         assert len(store.partner) == len(store.status) == len(store.flags) == n
         assert store.partner.count(-1) == n and store.status.count(0) == n
+
+
+def test_an_event_goes_after_the_bytes_before_it_and_before_those_after() -> None:
+    """A source's event that comes while a frame is half read is stored once that frame
+    is a row, after it; the bytes read after the event make rows after it, though the
+    framer is never without a frame half read at the end of a read here."""
+    pipeline = Pipeline(LineSettings(mode="rtu"))
+    pipeline.feed(Chunk(READ_REQ + READ_RESP[:3], t_end=1.000))
+    pipeline.feed(Chunk(b"", t_end=1.001, event="data lost", note="overrun"))
+    pipeline.feed(Chunk(READ_RESP[3:] + READ_REQ[:3], t_end=1.010))
+    pipeline.sync()
+    assert [Kind(k) for k in pipeline.store.kind] == [Kind.REQUEST, Kind.RESPONSE, Kind.EVENT]
+    pipeline.feed(Chunk(READ_REQ[3:], t_end=1.020))
+    pipeline.finish()
+    store = pipeline.store
+    assert [Kind(k) for k in store.kind] == [Kind.REQUEST, Kind.RESPONSE, Kind.EVENT, Kind.REQUEST]
+    assert store.notes[2] == "data lost: overrun"
