@@ -70,9 +70,9 @@ class _Channel:
     # for each staging row, the number of the chunk fed when it appeared: rows of one
     # time on several channels are merged in that order, the order of the source
     born: list[int] = field(default_factory=list)
-    # a source's events that came while the framer held bytes undecided: stored once
-    # those bytes are rows, after them (a log's error line after the frame it is about)
-    # (each with the framer's stream length when it came)
+    # a source's events that came while the framer held bytes undecided, each with the
+    # framer's stream length then: stored once the bytes before it are rows, after them
+    # (a log's error line after the frame it is about)
     events: list[tuple[Chunk, int]] = field(default_factory=list)
 
 
@@ -188,9 +188,9 @@ class Pipeline:
             self._release(final=False)
 
     def _event(self, ch: _Channel, chunk: Chunk) -> None:
-        """A source's event (no bytes) on channel `ch`: stored now, or once the bytes the
-        framer holds undecided are rows, so that it comes after them as it came after
-        them from the source, whatever the framer needed to decide them."""
+        """A source's event (no bytes) on channel `ch`: stored now, or once the bytes fed
+        before it are rows (`_settle_events`), so that it comes after them as it came
+        after them from the source, whatever the framer needed to decide them."""
         if chunk.event in BYTE_ERRORS and self.exact_timing and ch.framer is not None:
             ch.framer.line_error()  # exact sources report it right after its byte
         framer = ch.framer
