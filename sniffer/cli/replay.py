@@ -131,20 +131,30 @@ def _read(
     origin: float | None = None  # the first row's time: where the listing counts from
     learnt: Learnt | None = None  # a listing's first pass (see sniffer.session.streamed)
     publish_status = 0  # --mqtt: 1 where messages never reached the broker
+
+    def anew(index: bool) -> tuple[Session, Capture]:
+        opened = open_session(path, options, bindings=bindings, timeout=args.timeout, index=index)
+        if metrics is not None:
+            metrics.rewatch(path.name, opened[0])
+        return opened
+
     if published:
         # --mqtt publishes every row as it is read, then drops it (a window of rows, as
         # --stats alone): the statistics and the poll cycle asked for alongside are
-        # counted a segment at a time; a listing asked for alongside (--format) is made
-        # from the same rows afterwards, so then every row is kept
-        if args.format:
-            publish_status = cmd_replay_mqtt(args, session, capture, bindings, path.name, err)
-        else:
-            counted = Counted()
-            window = None if capture.info.network else REPLAY_WINDOW
-            publish_status = cmd_replay_mqtt(
-                args, session, capture, bindings, path.name, err, window=window, segment=counted
+        # counted a segment at a time; a listing asked for alongside (--format) reads
+        # the capture again, in the two passes of a listing alone
+        counted = Counted()
+        window = None if capture.info.network else REPLAY_WINDOW
+        publish_status = cmd_replay_mqtt(
+            args, session, capture, bindings, path.name, err, window=window, segment=counted
+        )
+        cycles, speed, origin = counted.cycles, counted.speed, counted.first
+        if args.format and not args.stats and window is not None:
+            session, capture = anew(not args.no_index)
+            session, capture, learnt = first_pass(
+                session, capture, reading, anew, not args.no_index
             )
-            cycles, speed, origin = counted.cycles, counted.speed, counted.first
+            speed = learnt.speed
     elif args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
@@ -159,14 +169,6 @@ def _read(
     elif not capture.info.network:
         # a listing: a first pass keeping a window of rows, then the rows listed a
         # segment at a time by a second one (network captures are not windowed)
-        def anew(index: bool) -> tuple[Session, Capture]:
-            opened = open_session(
-                path, options, bindings=bindings, timeout=args.timeout, index=index
-            )
-            if metrics is not None:
-                metrics.rewatch(path.name, opened[0])
-            return opened
-
         session, capture, learnt = first_pass(session, capture, reading, anew, not args.no_index)
         speed = learnt.speed
     else:

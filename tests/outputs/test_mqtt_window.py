@@ -19,6 +19,7 @@ from sniffer.cli import replay as replay_cli
 from sniffer.meaning.annotate import load_bindings
 from sniffer.outputs.mqtt.publish import BusPublisher, PublisherOptions, publish_replay
 from sniffer.outputs.mqtt.target import parse_target
+from sniffer.session import streamed
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, open_session
 from tests.outputs.test_ha_discovery import PREFIX, KeepingLink
 from tests.support.broker import Broker, broker
@@ -96,3 +97,41 @@ def test_stats_beside_mqtt_count_every_row(broker: Broker, monkeypatch: pytest.M
     assert cuts[1] > 10  # the published rows went a window at a time
     assert "published" in err.getvalue()
     assert outputs[1] == outputs[0]
+
+
+def test_a_listing_beside_mqtt_is_the_listing_alone(
+    broker: Broker, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`replay --mqtt URL --format jsonl` publishes a window of rows at a time, then
+    lists the capture as `replay --format jsonl` does, reading it again in two passes:
+    no pass keeps every row (it kept them all for the listing before)."""
+    monkeypatch.setenv("MODSCOPE_NO_INDEX", "1")
+    monkeypatch.setattr(replay_cli, "REPLAY_WINDOW", 40)
+    monkeypatch.setattr(streamed, "LEARN_WINDOW", 40)
+    monkeypatch.setattr(streamed, "LIST_WINDOW", 60)
+    dropped: list[int] = []  # the store's rows at each cut of the run under way
+    new_segment = Session.new_segment
+
+    def measuring(self: Session) -> bool:
+        dropped.append(len(self.store))
+        return new_segment(self)
+
+    monkeypatch.setattr(Session, "new_segment", measuring)
+    url = f"mqtt://127.0.0.1:{broker.port}/modscope/demo"
+    outputs, cuts = [], []
+    for extra in ([], ["--mqtt", url]):
+        args = build_parser().parse_args(
+            ["replay", str(DEMO_CAPTURE), "--format", "jsonl", "--jobs", "1", *extra]
+        )
+        out, err = io.StringIO(), io.StringIO()
+        assert args.func(args, out, err) == 0, err.getvalue()
+        outputs.append(out.getvalue())
+        cuts.append(list(dropped))
+        dropped.clear()
+    assert "values" in err.getvalue() and "published" in err.getvalue()
+    rows = outputs[0].count("\n")
+    assert outputs[1] == outputs[0] and rows > 1000
+    # the listing's two passes, and before them the publishing, each went a segment at
+    # a time: more cuts than the listing alone made, none of a store near every row
+    assert len(cuts[1]) > len(cuts[0]) + 10
+    assert max(cuts[1]) < rows // 4
