@@ -67,6 +67,15 @@ async def test_find_typed_at_once_then_n_and_shift_n() -> None:
 
 
 @pytest.mark.asyncio
+async def test_find_of_a_word_spelled_as_the_unit_column_names_the_unit_term() -> None:
+    app = ModscopeApp(hostile_session())
+    async with app.run_test(size=(80, 24)) as pilot:
+        await opened(pilot, app)
+        burst(app, ["F", *"fc16", "enter"])
+        await until(pilot, lambda: any("for fc 16 write fc:16" in s for s in app.said))
+
+
+@pytest.mark.asyncio
 async def test_marks_are_shown_and_jumped_between() -> None:
     app = ModscopeApp(hostile_session())
     async with app.run_test(size=(80, 24)) as pilot:

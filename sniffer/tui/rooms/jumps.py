@@ -102,6 +102,8 @@ class Jumps(Room):
             return
         self.search_text = answer
         self.search_from = None
+        for hint in self.search.hints():
+            self.app.say(hint, title="find")
         self.find_next(1)
 
     def find_next(self, step: int) -> None:
