@@ -320,7 +320,7 @@ class RtuFramer(_Framer):
     def _scan(self, final: bool) -> None:
         self._scan_bytes(self.stream, final)
         if len(self.timeline.spans) > 64:
-            self.timeline.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+            self.timeline.forget_before(self.decided())
 
     def _scan_bytes(
         self, buf: bytearray, final: bool, reads: Reads | None = None, base: int = 0
@@ -538,7 +538,7 @@ class RtuFramer(_Framer):
             if reads is None:
                 break
             if len(tl.spans) > 64:
-                tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+                tl.forget_before(self.decided())
 
     def _fast_scan(
         self,
@@ -564,7 +564,7 @@ class RtuFramer(_Framer):
         first_too_fast = tl.first_too_fast
         # the read holding the first undecided byte (noise under way, if any), when older
         # than the newest read: a frame or noise begun there is timed by it (see rtu_scan)
-        first = self.noise_start if self.noise_start >= 0 else self.pos
+        first = self.decided()
         held = tl._span(first) if tl.spans and first < tl.cur_start else _NO_SPAN
         if reads is not None:
             ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
@@ -669,7 +669,7 @@ class RtuFramer(_Framer):
             self.flush()
             self.units_seen.discard(0)
         if reads is not None and len(tl.spans) > 64:
-            tl.forget_before(self.noise_start if self.noise_start >= 0 else self.pos)
+            tl.forget_before(self.decided())
         return slow, k, prev, end
 
     def flush(self) -> None:
@@ -810,7 +810,7 @@ class AsciiFramer(_Framer):
         self.pending_end = 0.0  # when the open request ended
 
     def decided(self) -> int:
-        return min(self.open, self.pos) if self.open >= 0 else self.pos
+        return self.open if self.open >= 0 else self.pos  # (a frame opens before pos)
 
     def settled(self) -> bool:
         return super().settled() and self.open < 0  # no frame under way
@@ -854,7 +854,7 @@ class AsciiFramer(_Framer):
             self._close(self.open, end, Flag.UNTERMINATED)
             self.open = -1
         self.pos = pos
-        self.timeline.forget_before(self.open if self.open >= 0 else pos)
+        self.timeline.forget_before(self.decided())
 
     def _outside(self, buf: bytearray, pos: int, end: int, final: bool) -> tuple[int, bool]:
         """The bytes from `pos`, outside any frame: noise up to the next start character

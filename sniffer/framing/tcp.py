@@ -135,7 +135,7 @@ class TcpFramer:
         return self._time(self.pos) if self.pos < len(self.stream) else None
 
     def decided(self) -> int:
-        """The offset of the first byte not yet decided (see `sniffer.framing.serial.Framer`)."""
+        """The offset of the first byte not yet decided (see `_Framer.decided`)."""
         return self.noise_start if self.noise_start >= 0 else self.pos
 
     def undecided(self) -> bool:
@@ -260,7 +260,7 @@ class PacketRtuFramer(RtuFramer):
 
     def start_pending(self) -> float | None:
         """The time of the first byte not yet in a row; None when every byte is."""
-        first = self.noise_start if self.noise_start >= 0 else self.pos
+        first = self.decided()
         if first >= len(self.stream):
             return None
         return self.timeline.start_time(first)

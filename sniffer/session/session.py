@@ -169,8 +169,9 @@ class Session:
     def settled(self) -> bool:
         """Whether the store may be dropped now (see `new_segment`): every byte read
         decided, no request waiting for its answer or its timeout, no row waiting to be
-        merged; the caller brings pairing and the statistics up to date first
-        (`refresh`)."""
+        merged, no source event waiting for the bytes before it; the caller brings the
+        pairing up to date first (`pipeline.sync`), and the annotation and statistics
+        before it drops the rows (`refresh`: see `Cutter.cut`)."""
         pipeline = self.pipeline
         store = self.store
         if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
