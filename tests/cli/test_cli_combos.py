@@ -19,7 +19,7 @@ from sniffer.cli.combos import TABLES, options_of, refusal
 from sniffer.cli.manual import _commands
 from sniffer.cli.parser import build_parser
 from sniffer.session.session import DEMO_CAPTURE
-from tests.support.broker import Broker
+from tests.support.broker import Broker, running
 
 
 def run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
@@ -186,12 +186,8 @@ def broker(tmp_path: Path) -> Iterator[Broker]:
     if shutil.which("mosquitto") is None and not Path("/usr/sbin/mosquitto").exists():
         pytest.skip("needs mosquitto (apt-get install mosquitto)")
     pytest.importorskip("paho.mqtt.client")
-    b = Broker(tmp_path)
-    b.start()
-    try:
+    with running(tmp_path) as b:
         yield b
-    finally:
-        b.stop()
 
 
 def _retained(broker: Broker, topic: str) -> dict[str, str]:

@@ -34,7 +34,7 @@ from sniffer.outputs.mqtt.publish import (
 )
 from sniffer.session.session import DEMO_BUS, Session, open_session
 from sniffer.sources import open_capture
-from tests.support.broker import Broker
+from tests.support.broker import Broker, running
 from tests.support.virtual_bus import VirtualBus, wait_ready
 
 MODSCOPE = str(Path(sys.executable).with_name("modscope"))
@@ -116,12 +116,8 @@ def test_raw_messages_carry_the_publishers_count() -> None:
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[Broker]:
     pytest.importorskip("paho.mqtt.client")
-    b = Broker(tmp_path)
-    b.start()
-    try:
+    with running(tmp_path) as b:
         yield b
-    finally:
-        b.stop()
 
 
 class Reader:

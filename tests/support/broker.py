@@ -7,6 +7,7 @@ import socket
 import subprocess
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,12 +115,19 @@ class Broker:
             self.proc = None
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Broker]:
-    """A Mosquitto broker of its own for one test (import this fixture by name)."""
-    b = Broker(tmp_path)
+@contextmanager
+def running(folder: Path) -> Iterator[Broker]:
+    """A Mosquitto broker of its own, its files in `folder`, stopped when the block ends."""
+    b = Broker(folder)
     b.start()
     try:
         yield b
     finally:
         b.stop()
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Broker]:
+    """A Mosquitto broker of its own for one test (import this fixture by name)."""
+    with running(tmp_path) as b:
+        yield b
