@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import BinaryIO, TextIO
 
-from sniffer.cli.filtering import Selection, add_filter_options, query_of
+from sniffer.cli.filtering import add_filter_options, query_of
 from sniffer.cli.heap import settle
 from sniffer.cli.options import (
     READ_EPILOG,
@@ -52,8 +52,8 @@ from sniffer.outputs.export import (
     transaction_records,
     write_table,
 )
-from sniffer.outputs.parallel import workers_for, write_binary, write_text
-from sniffer.outputs.parquet import ParquetError, ParquetTable, require_pyarrow, write_parquet
+from sniffer.outputs.parallel import workers_for, write_binary
+from sniffer.outputs.parquet import ParquetError, ParquetTable, require_pyarrow
 from sniffer.session.session import Session, open_session
 from sniffer.session.streamed import Learnt
 from sniffer.sources import Capture
@@ -124,23 +124,19 @@ def _export(
     told = line_warnings(options, capture.info.recorded_line, given or str(source))
     progress = Progress(err, given or source.name, None if given else source)
     settle()
-    # a serial capture is written a segment at a time, as replay lists it
-    # (`sniffer.session.streamed`); a network capture's rows are not windowed: one store
-    learnt = None
+    # the capture is written a segment at a time, as replay lists it
+    # (`sniffer.session.streamed`)
     moves = [Moves(session.line)]  # (pcapng: the first pass's, for its interface block)
-    if not capture.info.network:
 
-        def moved(s: Session) -> None:
-            if not s.base:  # a first segment: of a pass learnt again too (`first_pass`)
-                moves[0] = Moves(s.line)
-            moves[0].add(s.store)
+    def moved(s: Session) -> None:
+        if not s.base:  # a first segment: of a pass learnt again too (`first_pass`)
+            moves[0] = Moves(s.line)
+        moves[0].add(s.store)
 
-        also = moved if fmt == "pcapng" else None
-        session, capture, learnt = first_pass(
-            session, capture, progress.reading, anew, not args.no_index, also
-        )
-    else:
-        session.ingest(capture.chunks(), progress.reading)
+    also = moved if fmt == "pcapng" else None
+    session, capture, learnt = first_pass(
+        session, capture, progress.reading, anew, not args.no_index, also
+    )
     progress.done()
     session.warnings.extend(capture.warnings)
     for note in [*capture.info.notes, *session.notes]:
@@ -148,14 +144,11 @@ def _export(
     for w in [*told, *session.warnings]:
         err.write(f"modscope: warning: {plain(w)}\n")
     status = finish_read(capture, session, err)
-    if learnt is not None:
-        # what the times are worth over the whole capture (pcapng: its interface block)
-        timing = exported_timing(session.store, session.line, moves[0].moved)
-        n = _streamed(
-            args, out, given or source.name, fmt, learnt, anew(False), query, progress, timing
-        )
-    else:
-        n = _whole(args, out, given or source.name, fmt, session, query, progress)
+    # what the times are worth over the whole capture (pcapng: its interface block)
+    timing = exported_timing(session.store, session.line, moves[0].moved)
+    n = _streamed(
+        args, out, given or source.name, fmt, learnt, anew(learnt.indexed), query, progress, timing
+    )
     progress.done()
     if fmt == "pcapng":
         err.write(f"{plain(args.output)}: {n} packets {_carried(args.style)}\n")
@@ -195,12 +188,12 @@ def _streamed(
     progress: Progress,
     timing: tuple[Stamp, float],
 ) -> int:
-    """The export of one serial capture a segment at a time, in memory flat in its
-    size: `learnt` from the first pass, `second` a new session on the capture, which
-    hands on each segment's rows as it drops them (`each_segment`), `timing` what the
-    first pass found the times worth (`exported_timing`: a pcapng's interface block).
-    The bytes are those of the export of one store of every row (`_whole`). Returns how
-    many rows, records or packets were written."""
+    """The export of one capture a segment at a time, in memory flat in its size:
+    `learnt` from the first pass, `second` a new session on the capture, which hands on
+    each segment's rows as it drops them (`each_segment`), `timing` what the first pass
+    found the times worth (`exported_timing`: a pcapng's interface block). The bytes are
+    those of the export of one store of every row. Returns how many rows, records or
+    packets were written."""
     shown = progress.share if args.output != "-" else None  # (not over a listing on a tty)
     if fmt == "pcapng":
         session = second[0]
@@ -238,62 +231,6 @@ def _streamed(
             text.close()
 
 
-def _whole(
-    args: argparse.Namespace,
-    out: TextIO,
-    name: str,
-    fmt: str,
-    session: Session,
-    query: Query | None,
-    progress: Progress,
-) -> int:
-    """The export of the rows of one store (a network capture), `--jobs` processes
-    sharing them. Returns how many rows, records or packets were written."""
-    chosen = Selection(session, query, args.count).take(len(session.store), final=True)
-    describer = session.describer
-    if fmt == "parquet":
-        try:
-            return write_parquet(
-                args.output, args.what, describer, progress.rows(chosen, len(chosen))
-            )
-        except ParquetError as exc:
-            raise UsageError(str(exc)) from None
-
-    def shown(part: Sequence[int], first: bool) -> Iterable[int]:
-        # the parent's own range runs alongside the workers': its share is the whole's
-        return progress.rows(part, len(part)) if first else part
-
-    if fmt == "pcapng":
-        binary = sys.stdout.buffer if args.output == "-" else _open_binary(args.output)
-
-        def packets(stream: BinaryIO, part: Sequence[int], first: bool) -> int:
-            exporter = PcapExporter(
-                stream, describer, session.line, name=name, style=args.style, header=first
-            )
-            return exporter.write(shown(part, first))
-
-        try:
-            return write_binary(
-                binary, chosen, workers_for(args.jobs, len(chosen), binary), packets
-            )
-        finally:
-            if args.output != "-":
-                binary.close()
-    text = out if args.output == "-" else _open_text(args.output)
-    writer = _text_writer(args, fmt, session.store.t[0] if len(session.store) else None)
-
-    def table(stream: TextIO, part: Sequence[int], first: bool) -> int:
-        return writer(stream, shown(part, first), first, describer, 0)
-
-    try:
-        n = write_text(text, chosen, workers_for(args.jobs, len(chosen), text), table)
-        text.flush()
-        return n
-    finally:
-        if text is not out:
-            text.close()
-
-
 def _carried(style: str) -> str:
     """What a pcapng export's packets carry, as its last line says."""
     if style == "modbus-tcp":
@@ -309,7 +246,7 @@ def _packets_streamed(
     query: Query | None,
     shown: Callable[[int, int], None] | None = None,
 ) -> int:
-    """The pcapng export of one serial capture a segment at a time, in memory flat in
+    """The pcapng export of one capture a segment at a time, in memory flat in
     its size, as `write_streamed` lists it: `exporter` has written the section and
     interface blocks (what the times are worth over the whole capture, from the first
     pass: `Moves`), `learnt` is the first pass's, `second` a new session on the capture,

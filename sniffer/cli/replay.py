@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import TextIO
 
 from sniffer.analysis.baud import SpeedCheck, wrong_speed
-from sniffer.analysis.gateway_report import server_table
-from sniffer.analysis.pollcycle import PollCycles, cycle_table, poll_cycles
+from sniffer.analysis.gateway_report import ServerCounts
+from sniffer.analysis.pollcycle import PollCycles, cycle_table
 from sniffer.cli.filtering import add_filter_options, query_of
 from sniffer.cli.heap import settle
 from sniffer.cli.metrics import add_metrics_options, finish_metrics, open_metrics, reading_with
@@ -29,7 +29,7 @@ from sniffer.cli.options import (
     read_options,
 )
 from sniffer.cli.progress import Progress
-from sniffer.cli.replaying import first_pass, stdin_copy, write_listing, write_streamed
+from sniffer.cli.replaying import first_pass, stdin_copy, write_streamed
 from sniffer.cli.together import replay_together
 from sniffer.cli.verdicts import finish_read
 from sniffer.errors import UsageError
@@ -127,8 +127,8 @@ def _read(
     progress = Progress(err, shown or path.name, None if shown else path)
     reading = reading_with(metrics, progress.reading)  # (the metrics' figures taken too)
     settle()
-    cycles = speed = None
-    origin: float | None = None  # the first row's time: where the listing counts from
+    counted: Counted | None = None  # what --stats counts of every row, a segment at a time
+    speed: SpeedCheck | None = None  # the line-speed check of every row
     learnt: Learnt | None = None  # a listing's first pass (see sniffer.session.streamed)
     publish_status = 0  # --mqtt: 1 where messages never reached the broker
 
@@ -144,12 +144,11 @@ def _read(
         # counted a segment at a time; a listing asked for alongside (--format) reads
         # the capture again, in the two passes of a listing alone
         counted = Counted()
-        window = None if capture.info.network else REPLAY_WINDOW
         publish_status = cmd_replay_mqtt(
-            args, session, capture, bindings, path.name, err, window=window, segment=counted
+            args, session, capture, bindings, path.name, err, window=REPLAY_WINDOW, segment=counted
         )
-        cycles, speed, origin = counted.cycles, counted.speed, counted.first
-        if args.format and not args.stats and window is not None:
+        speed = counted.speed
+        if args.format and not args.stats:
             session, capture = anew(not args.no_index)
             session, capture, learnt = first_pass(
                 session, capture, reading, anew, not args.no_index
@@ -158,21 +157,20 @@ def _read(
     elif args.stats:
         # nothing needs every row at the end: the rows go a segment at a time
         try:
-            cycles, speed, origin = _windowed(session, capture, reading)
+            counted = _windowed(session, capture, reading)
         except DamagedError:  # a sidecar damaged after rows of it were counted
             session, capture = open_session(
                 path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
             )  # (the damaged sidecar is not read again: indexed, and written anew)
             if metrics is not None:
                 metrics.rewatch(path.name, session)
-            cycles, speed, origin = _windowed(session, capture, reading)
-    elif not capture.info.network:
+            counted = _windowed(session, capture, reading)
+        speed = counted.speed
+    else:
         # a listing: a first pass keeping a window of rows, then the rows listed a
-        # segment at a time by a second one (network captures are not windowed)
+        # segment at a time by a second one
         session, capture, learnt = first_pass(session, capture, reading, anew, not args.no_index)
         speed = learnt.speed
-    else:
-        session.ingest(capture.chunks(), reading)
     progress.done()
     session.warnings.extend(capture.warnings)
     slow = None
@@ -197,20 +195,18 @@ def _read(
         )
         out.write(f"{plain(str(shown or path))} ({plain(what)})\n")
         out.write(session.stats.table(labels) + "\n\n")
-        if session.store.servers:
-            out.write(server_table(session.store) + "\n\n")
-        found = poll_cycles(session.store) if cycles is None else cycles.cycles()
-        if origin is None and len(session.store):
-            origin = session.store.t[0]
-        out.write(cycle_table(found, labels, origin or 0.0) + "\n")
+        assert counted is not None  # (--stats counts every row a segment at a time: above)
+        table = counted.servers.text()
+        if table:
+            out.write(table + "\n\n")
+        found = counted.cycles.cycles()
+        out.write(cycle_table(found, labels, counted.first or 0.0) + "\n")
         return status
-    if published and not args.format:
-        return status
-    if learnt is not None:
-        second = open_session(path, options, bindings=bindings, timeout=args.timeout, index=False)
+    if learnt is not None:  # (--mqtt without --format lists nothing)
+        second = open_session(
+            path, options, bindings=bindings, timeout=args.timeout, index=learnt.indexed
+        )
         write_streamed(out, args, learnt, second, query)
-        return status
-    write_listing(out, args, session, query)
     return status
 
 
@@ -243,11 +239,13 @@ REPLAY_WINDOW = 1 << 16
 
 class Counted:
     """What `--stats` counts of every row, a segment at a time (`segment` of
-    `Session.ingest`): the poll cycle, the baud check, the first row's time."""
+    `Session.ingest`): the poll cycle, the baud check, the network server table, the
+    first row's time."""
 
     def __init__(self) -> None:
         self.cycles = PollCycles()
         self.speed = SpeedCheck()
+        self.servers = ServerCounts()
         self.first: float | None = None
 
     def __call__(self, s: Session) -> None:
@@ -255,20 +253,19 @@ class Counted:
             self.first = s.store.t[0]
         self.cycles.add(s.store)
         self.speed.add(s.store)
+        self.servers.add(s.store)
 
 
-def _windowed(
-    session: Session, capture: Capture, reading: Callable[[int, int], None]
-) -> tuple[PollCycles, SpeedCheck, float | None]:
-    """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle and
-    the baud check count each segment before it goes, the statistics carry on, bounded
-    (their values kept on disk for a sidecar being written: `index.Spill`), the sidecar
-    index is written (or read) a segment at a time. The network server table and a
-    network capture's rows are not windowed (`Session.settled`: they stay in one store)."""
+def _windowed(session: Session, capture: Capture, reading: Callable[[int, int], None]) -> Counted:
+    """Ingest the capture keeping a window of rows (`Session.ingest`): the poll cycle, the
+    baud check and the network server table count each segment before it goes, the
+    statistics carry on, bounded (their values kept on disk for a sidecar being written:
+    `index.Spill`), the sidecar index is written (or read) a segment at a time. A
+    segment ends only where no request waits for an answer (`Session.settled`)."""
     counted = Counted()
     # the statistics bounded, a sidecar being written given their values on disk
     session.ingest(capture.chunks(), reading, window=REPLAY_WINDOW, segment=counted, bounded=True)
-    return counted.cycles, counted.speed, counted.first
+    return counted
 
 
 REPLAY_EXAMPLES = """\

@@ -68,14 +68,11 @@ def first_pass(
     """The first pass of a listing a segment at a time (`sniffer.session.streamed.learn`),
     the session and capture it ends with: `reopen(index)` a new session on the capture,
     taken where a sidecar read back was found damaged (indexed again, the sidecar
-    written anew, as for `replay --stats`) or cut a read it should have learnt from
-    (`Learnt.unsure`: learnt again from the capture itself). `also`: see `learn`."""
+    written anew, as for `replay --stats`). `also`: see `learn`."""
     try:
-        learnt: Learnt | None = learn(session, capture, progress, also=also)
+        learnt = learn(session, capture, progress, also=also)
     except DamagedError:
-        learnt = None
-    if learnt is None or learnt.unsure:
-        session, capture = reopen(index and learnt is None)
+        session, capture = reopen(index)
         learnt = learn(session, capture, progress, also=also)
     return session, capture, learnt
 

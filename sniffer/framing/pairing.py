@@ -50,6 +50,16 @@ class Pairer:
         1 s clock cannot show a 200 ms timeout; infinite when the stamps bound nothing)."""
         return self.timeout + self.store.resolution
 
+    def settled(self) -> bool:
+        """No request waits for its answer: no row to come pairs with a row so far."""
+        return self.open < 0
+
+    def rebase(self, store: FrameStore) -> None:
+        """A settled pairer goes on in `store`, empty, numbering rows from 0 again
+        (`sniffer.session.session.Session.new_segment`)."""
+        self.store = store
+        self.next = 0
+
     def update(self) -> None:
         s = self.store
         s.sync()

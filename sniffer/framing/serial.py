@@ -247,8 +247,13 @@ class _Framer:
 
     def settled(self) -> bool:
         """Whether every byte given has been decided and no answer it predicted is
-        awaited: the next row owes nothing to the bytes before (see `rebase`)."""
-        return self.pos == len(self.stream) == self.timeline.offset and self.pending_unit < 0
+        awaited: the next row owes nothing to the bytes before (see `rebase`). Where the
+        pairer pairs the rows (several channels: `pair_inline` false), the answer a
+        request predicts comes on another channel as often as not (one port or
+        connection a direction), and the pairer says whether it is awaited: what the
+        framer predicts of it is no offset, and carries over."""
+        decided = self.pos == len(self.stream) == self.timeline.offset
+        return decided and (self.pending_unit < 0 or not self.pair_inline)
 
     def rebase(self) -> None:
         """A settled framer's stream offsets from 0 again, its stream about to be emptied
@@ -298,9 +303,9 @@ class RtuFramer(_Framer):
         return self.noise_start if self.noise_start >= 0 else self.pos
 
     def settled(self) -> bool:
-        # no noise span under way, no row waiting for its answer, no pair unrecorded
-        owed = self.noise_start >= 0 or self.pending_row >= 0 or len(self.pairs) > 0
-        return super().settled() and not owed
+        # no noise span under way, no row of `out` waiting for its answer, no pair unrecorded
+        waiting = self.pair_inline and self.pending_row >= 0
+        return super().settled() and self.noise_start < 0 and not waiting and not len(self.pairs)
 
     def rebase(self) -> None:
         super().rebase()

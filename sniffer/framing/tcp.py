@@ -12,8 +12,10 @@ until a position where a plausible header starts; a frame cut short by a gap in 
 captured stream, or by the end of the capture, keeps its bytes and the `CUT_SHORT`
 flag. `NetPairer` pairs by connection and transaction id with any number of requests in
 flight; a request reusing an id still in flight gets `TID_REUSED`; an answer to an id
-nobody asked for is an orphan. RTU frames over TCP/UDP are paired one transaction at a
-time per connection, as on a serial line.
+nobody asked for is an orphan. A request that timed out still takes a late answer with
+its id for `LATE_WAITS` timeouts after it was sent, no longer (see `NetPairer`). RTU
+frames over TCP/UDP are paired one transaction at a time per connection, as on a serial
+line.
 
 `PacketRtuFramer` is the RTU framer for RTU over TCP/UDP. No serial line speed applies
 to a payload: the sender (a serial server that read the frame off its line, or a device
@@ -71,6 +73,14 @@ CUT_SHORT = int(Flag.CUT_SHORT)  # the frame was cut by a gap in the captured st
 
 STAGING_ROWS = 4096  # rows a channel's staging store may hold merged before it is replaced
 TCP_TIMEOUT = 3.0  # seconds: Modbus TCP clients (pymodbus, libmodbus) wait about this long
+# How long a Modbus TCP request that timed out still takes a late answer with its
+# transaction id, in timeouts from its sending (9 s at the default timeout). The
+# protocol leaves it open: an id means nothing once the client gave up (pymodbus and
+# libmodbus drop an answer that comes after their timeout), and Wireshark pairs by id
+# whenever the answer comes. An answer later than this is an orphan. Without a bound, a
+# capture with one timeout would never be settled again (`settled`) and could not be
+# read a window of rows at a time.
+LATE_WAITS = 3
 
 
 def body(raw: bytes, flags: int) -> bytes:
@@ -140,6 +150,18 @@ class TcpFramer:
 
     def undecided(self) -> bool:
         return self.decided() < len(self.stream)
+
+    def settled(self) -> bool:
+        """Every byte given is in a row: the next row owes nothing to the bytes before
+        (see `rebase`)."""
+        return self.pos == len(self.stream) and self.noise_start < 0
+
+    def rebase(self) -> None:
+        """A settled framer's stream offsets from 0 again, its stream about to be emptied
+        (`sniffer.session.session.Session.new_segment`)."""
+        self.pos = 0
+        self.starts.clear()
+        self.times.clear()
 
     # -- internals -------------------------------------------------------------------
 
@@ -305,6 +327,8 @@ class NetPairer:
         # Modbus TCP: (connection, transaction id) -> requests waiting, oldest first
         self.open: dict[tuple[int, int], deque[int]] = {}
         self.late: dict[tuple[int, int], int] = {}  # timed out, an answer may still come
+        # (until when, key, request) of each entry of `late`, in time order: LATE_WAITS
+        self.late_until: deque[tuple[float, tuple[int, int], int]] = deque()
         self.waiting: deque[int] = deque()  # requests in time order, for timeouts
         self.serial_open: dict[int, int] = {}  # RTU over TCP/UDP: connection -> request
 
@@ -333,6 +357,20 @@ class NetPairer:
         if len(s):
             end = max(s.t_end[len(s) - 1], self.end_time)
             self._expire(end)
+
+    def settled(self) -> bool:
+        """No request waits for its answer, nor a late one (`LATE_WAITS`): no row to come
+        pairs with a row so far."""
+        return not self.open and not self.late and not self.serial_open
+
+    def rebase(self, store: FrameStore) -> None:
+        """A settled pairer goes on in `store`, empty, numbering rows from 0 again
+        (`sniffer.session.session.Session.new_segment`): the requests waiting for their
+        timeout are all answered or timed out, and are forgotten."""
+        self.store = store
+        self.next = 0
+        self.waiting.clear()
+        self.late_until.clear()
 
     # -- internals -------------------------------------------------------------------
 
@@ -411,6 +449,11 @@ class NetPairer:
             req = waiting.popleft()
             if s.status[req] == Status.OPEN and s.partner[req] == NO_PARTNER:
                 self._time_out(req)
+        late, until = self.late, self.late_until
+        while until and now > until[0][0]:
+            _, key, req = until.popleft()
+            if late.get(key) == req:
+                del late[key]  # too late now: an answer with its id is an orphan
 
     def end_connection(self, conn: int) -> None:
         """Connection `conn` ended and another takes its channels: its open requests time
@@ -440,6 +483,7 @@ class NetPairer:
                 if not queue:
                     del self.open[key]
             self.late[key] = req
+            self.late_until.append((s.t_end[req] + LATE_WAITS * self.timeout, key, req))
         else:
             conn = s.channel[req] >> 1
             if self.serial_open.get(conn) == req:
@@ -506,14 +550,23 @@ class NetPipeline(Pipeline):
         """Packets carry bytes as fast as the network does: no line speed applies."""
         return 0, None
 
+    def _add_channel(self, number: int, direction: Direction) -> _Channel:
+        ch = super()._add_channel(number, direction)
+        label = parse_label(self.channel_labels.get(number, ""))
+        if label is not None:
+            # named from its first row on, events too (a connection's opening comes
+            # before its bytes, which start its framer; and a window of rows may be
+            # listed before any come)
+            self.store.peers[number] = label.sender
+            server = label.sender if label.role == Direction.SLAVE else label.receiver
+            self.store.servers[number] = server
+        return ch
+
     def _start_framer(self, ch: _Channel) -> None:
         label = parse_label(self.channel_labels.get(ch.number, ""))
         if label is None:  # a serial interface of the same file
             super()._start_framer(ch)
             return
-        self.store.peers[ch.number] = label.sender
-        server = label.sender if label.role == Direction.SLAVE else label.receiver
-        self.store.servers[ch.number] = server
         out = ch.staging if ch.staging is not None else self.store
         if label.carrier in MBAP_CARRIERS:
             framer = TcpFramer(self.line, out, channel=ch.number, direction=ch.direction)

@@ -77,7 +77,9 @@ from sniffer.sources import Capture
 from sniffer.vocab import Kind
 
 MAGIC = b"MODSCOPE-INDEX\n\0"
-FORMAT = 3  # the file's layout: a sidecar of another format is ignored (indexed again)
+FORMAT = 4  # the file's layout: a sidecar of another format is ignored (indexed again)
+# (4: a network capture's peers and servers kept; format 3 lost them, and with them
+# the per-server table of `replay --stats` and the peer column of the TUI read back)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
@@ -343,6 +345,9 @@ def _header_of(
         "stamps": store.stamps.name,
         "resolution": store.resolution,
         "fill_channel": store.fill_channel,
+        # a network channel's sender and server (ip:port), as the framers set them
+        "peers": {str(ch): text for ch, text in store.peers.items()},
+        "servers": {str(ch): text for ch, text in store.servers.items()},
         "mode": state.pipeline.mode,
         "session_warnings": state.warnings,
         "session_notes": state.notes,
@@ -1092,12 +1097,13 @@ def load(
     its path, or None (nothing was changed) when there is none.
 
     `segment`: the rows are not kept. After each block but the last, `segment()` is
-    called with its rows in the store (row `i` is row `state.base + i` of the capture,
+    called with the rows in the store (row `i` is row `state.base + i` of the capture,
     offsets counted from `state.stream_base`), then they are dropped, as a windowed
     `Session.ingest` drops its segments; the last block's rows stay. Rows handed to it
-    are never taken back: a damaged block after the first raises `DamagedError`. (A
-    block may begin with the answer to a request at the end of the block before: its
-    partner is then given as none.)
+    are never taken back: a damaged block after the first raises `DamagedError`. No pair
+    is cut: where the next block holds the answer to a request in the store (a block of
+    a segment ends at `BLOCK` rows, wherever that is), its rows join the store's instead
+    (`_awaited`), so that every row handed on is paired as in one store.
 
     The rows come block by block, each checked (CRC-32, rows inside their bytes) before
     it joins the store, and `progress(bytes, rows)` is called after each block, the
@@ -1245,6 +1251,7 @@ class _Filling:
         self.stopped = False
         store = state.store
         self.before = (store.stamps, store.resolution, store.fill_channel)
+        self.named_before = (dict(store.peers), dict(store.servers))
         self.streams_before = {ch: len(data) for ch, data in store.streams.items()}
         self.rows = int(header["rows"])
         self.file_size = os.fstat(handle.fileno()).st_size
@@ -1262,6 +1269,8 @@ class _Filling:
         store.stamps = Stamp[header["stamps"]]
         store.resolution = float(header["resolution"])
         store.fill_channel = int(header["fill_channel"])
+        store.peers.update(channel_texts(header["peers"]))
+        store.servers.update(channel_texts(header["servers"]))
         streams = {int(ch): int(size) for ch, size in header["streams"]}
         for ch in streams:
             store.stream(ch)
@@ -1269,7 +1278,8 @@ class _Filling:
         state = self.state
         blocks = header["blocks"]
         for k, (count, pieces, crc, length) in enumerate(blocks):
-            if k and self.segment is not None:  # the rows before go (see `load`)
+            if k and self.segment is not None and not _awaited(store):
+                # the rows before go (see `load`)
                 self.segment()
                 _drop(state)
                 self.handed_out = True
@@ -1386,6 +1396,14 @@ class _Filling:
                 del store.streams[ch]
         store.notes.clear()
         store.stamps, store.resolution, store.fill_channel = self.before
+        for named, before in zip((store.peers, store.servers), self.named_before, strict=True):
+            named.clear()
+            named.update(before)
+
+
+def channel_texts(table: Any) -> dict[int, str]:
+    """A header's table of channel -> text (`peers`, `servers`)."""
+    return {int(ch): str(text) for ch, text in table.items()}
 
 
 def _local(
@@ -1416,6 +1434,12 @@ def _local(
     if base:
         out["partner"] = memoryview(shifted_partners(columns["partner"], base, -base)).cast("i")
     return out
+
+
+def _awaited(store: FrameStore) -> bool:
+    """Whether a row of `store` is paired with a row still to come (its partner, in the
+    store's numbering, at or past its end: the next block's)."""
+    return len(store) > 0 and max(store.partner) >= len(store)
 
 
 def _drop(state: SessionState) -> None:

@@ -35,10 +35,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from sniffer.framing.pipeline import Pipeline
 from sniffer.framing.store import COLUMNS, FrameStore
 from sniffer.model import Stamp
-from sniffer.session.index import Packed, shifted_partners
+from sniffer.session.index import Packed, channel_texts, shifted_partners
 
 if TYPE_CHECKING:
     from sniffer.session.index import Writer
@@ -60,9 +59,8 @@ _SIZES = {name: array(code).itemsize for name, code in _TYPECODES.items()}
 
 def wanted(session: Session, live: bool, speed: float | None) -> bool:
     """Whether the TUI should page a capture's rows: a capture file read as fast as it
-    can be (not a live line, not at its own speed) that gets a sidecar index, on a serial
-    line (network captures are not windowed: `Session.settled`)."""
-    return not live and speed is None and session.indexing and type(session.pipeline) is Pipeline
+    can be (not a live line, not at its own speed) that gets a sidecar index."""
+    return not live and speed is None and session.indexing
 
 
 class _Block:
@@ -233,6 +231,8 @@ class PagedStore(FrameStore):
         self.stamps = Stamp[header["stamps"]]
         self.resolution = float(header["resolution"])
         self.fill_channel = int(header["fill_channel"])
+        self.peers.update(channel_texts(header["peers"]))
+        self.servers.update(channel_texts(header["servers"]))
         for ch, _size in header["streams"]:
             self._stream(int(ch))
 
@@ -256,6 +256,8 @@ class PagedStore(FrameStore):
         store.sync()
         self.stamps, self.resolution = store.stamps, store.resolution
         self.fill_channel = store.fill_channel
+        self.peers.update(store.peers)  # (a network capture's: in place, as rows read it)
+        self.servers.update(store.servers)
         base = session.base
         if base != self._rows:
             raise ValueError(f"rows {base:,} onwards given after {self._rows:,}")

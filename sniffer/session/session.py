@@ -132,6 +132,7 @@ class Session:
         self.batch_reads = True  # let readers pass runs of reads as one batch (ingest)
         # the sidecar index (sniffer.session.index): where it came from, or what to save it as
         self.indexed_from: Path | None = None
+        self.indexed_to: Path | None = None  # the sidecar `ingest` wrote, if it wrote one
         self._sidecar: tuple[Path, Capture, str] | None = None
 
     @property
@@ -168,20 +169,21 @@ class Session:
 
     def settled(self) -> bool:
         """Whether the store may be dropped now (see `new_segment`): every byte read
-        decided, no request waiting for its answer or its timeout, no row waiting to be
-        merged, no source event waiting for the bytes before it; the caller brings the
+        decided, no request waiting for its answer or its timeout (nor, on a network, a
+        request that timed out for a late answer: `NetPairer.settled`), no row waiting to
+        be merged, no source event waiting for the bytes before it; the caller brings the
         pairing up to date first (`pipeline.sync`), and the annotation and statistics
         before it drops the rows (`refresh`: see `Cutter.cut`)."""
         pipeline = self.pipeline
         store = self.store
-        if type(pipeline) is not Pipeline or not len(store) or pipeline.pairer.open >= 0:
-            return False  # network captures (several open requests) are not windowed
+        if not len(store) or not pipeline.pairer.settled():
+            return False
         if pipeline.holding:  # bytes read but not framed yet
             return False
         for ch in pipeline.channels.values():
             framer = ch.framer
-            if framer is None or ch.held is not None or ch.events or not framer.settled():
-                return False
+            if ch.held or ch.events or (framer is not None and not framer.settled()):
+                return False  # (no framer and nothing held: a channel of events alone)
             if ch.staging is not None and ch.read < len(ch.staging):
                 return False
         # the scan of every row last: a replay waiting for a settled moment tries often
@@ -214,18 +216,17 @@ class Session:
         fresh.fill_channel = store.fill_channel
         fresh.peers, fresh.servers = store.peers, store.servers
         for ch in pipeline.channels.values():
-            assert ch.framer is not None
-            ch.framer.rebase()
-            if ch.staging is None:
-                ch.framer.out = fresh
+            if ch.framer is not None:  # (none: a channel of events alone, no bytes)
+                ch.framer.rebase()
+                if ch.staging is None:
+                    ch.framer.out = fresh
             ch.fed = 0
             if ch.hint_at is not None and ch.hint_dir:
                 ch.hint_at, ch.hint_dir = [0], ch.hint_dir[-1:]
         for stream in store.streams.values():
             del stream[:]
         pipeline.store = fresh
-        pipeline.pairer.store = fresh
-        pipeline.pairer.next = 0
+        pipeline.pairer.rebase(fresh)
         pipeline._hint_checked = 0
         self.forget_annotation()
         self.stats.store = fresh
@@ -399,9 +400,9 @@ class Session:
                         if written is not None:
                             written(self, _open(writer))
                             written = None
-                        writer.close(self.state, capture, key)
+                        self.indexed_to = writer.close(self.state, capture, key)
                     else:
-                        sidecar.save(self.state, capture, path, key)
+                        self.indexed_to = sidecar.save(self.state, capture, path, key)
                     self._sidecar = None
             if written is not None and window is not None:
                 written(self, None)  # the last segment, not in a sidecar

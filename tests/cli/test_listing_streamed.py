@@ -218,21 +218,25 @@ def test_the_rows_kept_do_not_grow_with_the_capture(
     assert 50 <= Kept.rows <= 8 * 100 <= len(rows) / 10
 
 
-def test_a_sidecar_read_back_in_the_first_pass(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("selection", [[], *SELECTIONS[1:]])
+@pytest.mark.parametrize("fmt", FORMATS, ids=lambda f: f[1])
+def test_a_sidecar_read_back_in_both_passes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fmt: list[str], selection: list[str]
 ) -> None:
     """With a sidecar (written by the first run, read back by the next, a block at a
-    time), the listing is the same."""
+    time, in both passes: nothing framed), the listing is the same, -c and filters too."""
     monkeypatch.delenv("MODSCOPE_NO_INDEX")
     monkeypatch.setattr(index, "MIN_SIZE", 0)
     monkeypatch.setattr(index, "BLOCK", 50)
     reg = device_image()
     reads = [*[(40072, 50), (40124, 53)] * 60, *discovery(reg, 40000), (40072, 50)]
     path = write_capture(tmp_path / "sunspec.pcapng", frames_of(reg, reads))
-    argv = [str(path), "--format", "jsonl"]
+    argv = [str(path), *fmt, *selection]
     first = listed(argv, monkeypatch, 7, 5)
-    assert Path(str(path) + index.SUFFIX).exists()
+    assert Path(str(path) + index.SUFFIX).exists() and Kept.cuts > 0
+    Kept.cuts = 0
     assert listed(argv, monkeypatch, 7, 5) == first
+    assert Kept.cuts == 0
     assert first[0] == whole(argv)
 
 

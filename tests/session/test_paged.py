@@ -20,6 +20,7 @@ from sniffer.session.state import SessionState
 from sniffer.tui.feed import FeedProgress, Pacing, feed_capture
 from sniffer.tui.model import ViewModel
 from sniffer.tui.render import Styles, columns_for
+from tests.support.netbus import STEPS, network_bus
 
 
 @pytest.fixture
@@ -327,3 +328,27 @@ def test_the_first_rows_are_published_once_written_not_at_the_next_progress(
         )
         assert [p.done for p in published] == [False, True]
         assert 0 < published[0].rows < published[1].rows == len(store)
+
+
+@pytest.mark.parametrize("again", [False, True])
+def test_a_network_capture_pages_with_its_peers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, again: bool
+) -> None:
+    """A network capture is paged too (cut where no request waits for an answer), and
+    its rows keep their senders and servers (`ip:port`), written segment by segment or
+    read back from the sidecar (which lost them before its format 4)."""
+    monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "BLOCK", 64)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
+    path = tmp_path / "net.pcap"
+    path.write_bytes(network_bus([(k % 3, STEPS[k % len(STEPS)]) for k in range(700)]))
+    full = whole(path)
+    assert full.store.peers and full.store.servers
+    if again:
+        paged(path)  # writes the sidecar
+    session, store, _ = paged(path)
+    assert (session.indexed_from is not None) == again
+    assert_same_rows(full, session, store)
+    assert len(store._blocks) > 10
+    assert (store.peers, store.servers) == (full.store.peers, full.store.servers)

@@ -2,9 +2,9 @@
 the rows a publisher has seen, as one retained JSON message under the base topic.
 
 The rows are those the session holds: a publisher's memory starts a new segment every
-`sniffer.live.engine.WINDOW_ROWS` rows or so live, and every 65,536 in a replay of a
-serial capture (a network capture's rows are all kept), so the findings are those of
-the current segment. The message says which: `first_row`, the
+`sniffer.live.engine.WINDOW_ROWS` rows or so live, and every 65,536 in a replay (a
+network capture's once no request waits for an answer: `Session.settled`), so the
+findings are those of the current segment. The message says which: `first_row`, the
 capture's number of the first of them, and `rows`, how many (a finding that needs
 older rows cannot be made, and none is claimed of them).
 
