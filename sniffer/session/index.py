@@ -62,7 +62,7 @@ from array import array
 from bisect import bisect_left
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from functools import cache, lru_cache
-from itertools import compress
+from itertools import accumulate, compress
 from pathlib import Path
 from typing import Any
 
@@ -78,8 +78,11 @@ from sniffer.vocab import Kind
 
 MAGIC = b"MODSCOPE-INDEX\n\0"
 FORMAT = 4  # the file's layout: a sidecar of another format is ignored (indexed again)
-# (4: a network capture's peers and servers kept; format 3 lost them, and with them
-# the per-server table of `replay --stats` and the peer column of the TUI read back)
+# (4: a network capture's peers and servers kept, which format 3 lost, and with them
+# the per-server table of `replay --stats` and the peer column of the TUI read back;
+# the tail in pieces of TAIL_PIECE values, which format 3 unpacked whole: 253 MB for a
+# day's `replay --stats` read back)
+TAIL_PIECE = 1 << 16  # values a piece of the tail holds (512 KiB unpacked)
 SUFFIX = ".modscope-index"
 MIN_SIZE = 4 << 20  # smaller captures index in about a second: no sidecar for them
 HEAD = 1 << 16  # bytes of the capture hashed to tell it from another of the same size
@@ -304,15 +307,18 @@ def _publish(tmp: str, target: Path) -> None:
 
 
 def _tail(state: SessionState, spill: Spill | None = None) -> Iterator[bytes | None]:
-    """The per-unit latencies and request times written after the blocks, each packed
-    (`_pack_tail`), in pieces: those of a unit whose values `spill` kept (a windowed
-    replay's bounded statistics) packed from it, a piece at a time."""
+    """The per-unit latencies and request times written after the blocks: each unit's
+    values of each kind (a part) in pieces of TAIL_PIECE values, each piece packed on
+    its own (`_pack_tail`) so that a reader unpacks one at a time; those of a unit whose
+    values `spill` kept (a windowed replay's bounded statistics) read from it. None
+    after each part."""
     for unit in state.stats.units.values():
         for which, values in ((LATENCIES, unit.latencies), (REQUEST_TIMES, unit.request_times)):
             if spill is not None and unit.tallies is not None:
                 yield from spill.packed(unit.unit, which)
             else:
-                yield _pack_tail(values)
+                for at in range(0, len(values), TAIL_PIECE):
+                    yield _pack_tail(values[at : at + TAIL_PIECE])
             yield None  # (the part ends here)
 
 
@@ -327,7 +333,7 @@ def _header_of(
     streams: list[list[int]],
     blocks: list[Any],
     tail_crc: int,
-    tail_sizes: list[int],
+    tail_sizes: list[list[int]],
     notes: dict[str, str],
 ) -> dict[str, Any]:
     store = state.store
@@ -432,15 +438,16 @@ class Spill:
             yield rest.tobytes()
 
     def packed(self, unit: int, which: int) -> Iterator[bytes]:
-        """The key's values packed as `_pack_tail` packs an array of them (byte planes,
-        zlib), in pieces: each plane read through the chunks (deflate's output does not
-        depend on how its input is cut)."""
-        key = (unit, which)
-        packer = zlib.compressobj(LEVEL, zlib.DEFLATED, -15)
-        for k in range(8):
-            for piece in self._pieces(key):
-                yield packer.compress(piece[k::8])
-        yield packer.flush()
+        """The key's values as `_tail` packs an array of them: in pieces of TAIL_PIECE
+        values, each packed by `_pack_tail`, read through the chunks."""
+        values: array[float] = array("d")
+        for chunk in self._pieces((unit, which)):
+            values.frombytes(chunk)
+            while len(values) >= TAIL_PIECE:
+                yield _pack_tail(values[:TAIL_PIECE])
+                del values[:TAIL_PIECE]
+        if values:
+            yield _pack_tail(values)
 
     def close(self) -> None:
         self.closed = True
@@ -528,17 +535,19 @@ class Writer:
         if out is None or target is None or who is None:
             self.abandon()
             return None
-        crc, sizes, size = 0, [], 0
+        crc = 0
+        sizes: list[list[int]] = []  # each part's pieces' lengths
+        pieces: list[int] = []
         try:
             out.seek(0, os.SEEK_END)
-            for part in _tail(state, self.spill):
-                if part is None:
-                    sizes.append(size)
-                    size = 0
+            for piece in _tail(state, self.spill):
+                if piece is None:
+                    sizes.append(pieces)
+                    pieces = []
                 else:
-                    crc = zlib.crc32(part, crc)
-                    size += len(part)
-                    out.write(part)
+                    crc = zlib.crc32(piece, crc)
+                    pieces.append(len(piece))
+                    out.write(piece)
         except OSError:
             self.abandon()
             return None
@@ -1062,6 +1071,34 @@ def _unpack_tail(packed: bytes, count: int) -> array[float]:
     return out
 
 
+class Tail:
+    """A sidecar's tail, its CRC-32 checked, read a piece at a time: part `k` (a unit's
+    latencies, then its request times, in the order `_tail` writes them) holds
+    `counts[k]` values in pieces of TAIL_PIECE, `sizes[k]` their packed lengths, from
+    `start` in `handle` on."""
+
+    def __init__(self, handle: Any, start: int, sizes: list[list[int]], counts: list[int]):
+        self.handle, self.sizes, self.counts = handle, sizes, counts
+        self.starts = list(accumulate((sum(part) for part in sizes), initial=start))
+
+    def part(self, k: int) -> Iterator[array[float]]:
+        """Part `k`'s values, a piece at a time."""
+        at, left = self.starts[k], self.counts[k]
+        for size in self.sizes[k]:
+            self.handle.seek(at)
+            at += size
+            count = min(TAIL_PIECE, left)
+            left -= count
+            yield _unpack_tail(self.handle.read(size), count)
+
+    def whole(self, k: int) -> array[float]:
+        """Part `k`'s values in one array."""
+        out = array("d")
+        for values in self.part(k):
+            out.extend(values)
+        return out
+
+
 # -------------------------------------------------------------------------- reading
 
 
@@ -1217,11 +1254,14 @@ def _header(
     counts = [
         int(u[name]) for u in header["stats"]["units"] for name in ("latencies", "request_times")
     ]
-    tail = [int(length) for length in header["tail"]]
-    if len(tail) != len(counts) or min(tail, default=0) < 0:
+    tail = [[int(length) for length in part] for part in header["tail"]]
+    if len(tail) != len(counts) or any(
+        len(part) != -(-count // TAIL_PIECE) or min(part, default=0) < 0
+        for part, count in zip(tail, counts, strict=True)
+    ):
         return None
     start = len(MAGIC) + _PREFIX.size + size
-    if start + body + sum(tail) != file_size:
+    if start + body + sum(map(sum, tail)) != file_size:
         return None  # cut short, or more than the header says
     return header, counts
 
@@ -1354,20 +1394,25 @@ class _Filling:
             self.state.annotator.update(store)  # before the rows are handed out
         return True
 
-    def tail(self, counts: list[int]) -> list[array[float]] | None:
-        """The per-unit latencies and request times, after the last block (None: damaged;
-        last, not first: they grow with the capture, and the first rows should not wait)."""
-        packed = []
+    def tail(self, counts: list[int]) -> Tail | None:
+        """The per-unit latencies and request times, after the last block, checked (None:
+        damaged; last, not first: they grow with the capture, and the first rows should
+        not wait), to be unpacked a piece at a time as they are counted."""
+        start = self.handle.tell()
+        sizes = [[int(length) for length in part] for part in self.header["tail"]]
         crc = 0
-        for length in self.header["tail"]:
-            part = self.handle.read(int(length))
-            crc = zlib.crc32(part, crc)
-            packed.append(part)
+        left = sum(map(sum, sizes))
+        while left:
+            chunk = self.handle.read(min(left, 1 << 20))
+            if not chunk:
+                return None
+            crc = zlib.crc32(chunk, crc)
+            left -= len(chunk)
         if crc != self.header["tail_crc32"]:
             return None
-        return [_unpack_tail(part, count) for part, count in zip(packed, counts, strict=True)]
+        return Tail(self.handle, start, sizes, counts)
 
-    def finish(self, tail: list[array[float]]) -> None:
+    def finish(self, tail: Tail) -> None:
         """What needs every row: pairing's and the annotator's state, the statistics, the
         warnings."""
         state, capture, header = self.state, self.capture, self.header
@@ -1494,22 +1539,26 @@ def _consistent(
     return bool(min(partner) >= -1 and max(partner) < n and max(columns["kind"]) < 8)
 
 
-def _restore_stats(
-    state: SessionState, saved: dict[str, Any], tail: list[array[float]], n: int
-) -> None:
+def _restore_stats(state: SessionState, saved: dict[str, Any], tail: Tail, n: int) -> None:
     stats = state.stats
     units = {}
-    arrays = iter(tail)
-    for u in saved["units"]:
+    for part, u in enumerate(saved["units"]):
         unit = UnitStats(int(u["unit"]))
         unit.requests, unit.responses = int(u["requests"]), int(u["responses"])
         unit.exceptions.update({int(code): int(k) for code, k in u["exceptions"].items()})
         unit.timeouts, unit.check_errors = int(u["timeouts"]), int(u["check_errors"])
         unit.last_seen = float(u["last_seen"])
         unit.below_resolution, unit.unmeasured = int(u["below_resolution"]), int(u["unmeasured"])
-        unit.latencies, unit.request_times = next(arrays), next(arrays)
         if stats.bounded:  # (a windowed replay: counted as it counts them, `Stats.bound`)
             unit.bound(stats.spill)
+            tallies = unit.tallies
+            assert tallies is not None
+            for values in tail.part(2 * part):  # a piece at a time: memory flat in the day
+                tallies.add_latencies(values)
+            for values in tail.part(2 * part + 1):
+                tallies.add_requests(values)
+        else:
+            unit.latencies, unit.request_times = tail.whole(2 * part), tail.whole(2 * part + 1)
         units[unit.unit] = unit
     stats.units.clear()
     stats.units.update(units)

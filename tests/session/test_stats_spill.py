@@ -43,12 +43,13 @@ def _windowed(capture: Path) -> Session:
     return session
 
 
-@pytest.mark.parametrize("chunk", [3, 8192])
+@pytest.mark.parametrize(("chunk", "piece"), [(3, 4), (3, 1 << 16), (8192, 7), (8192, 1 << 16)])
 def test_the_sidecar_keeps_every_value_the_bounded_statistics_counted(
-    framed: Path, monkeypatch: pytest.MonkeyPatch, chunk: int
+    framed: Path, monkeypatch: pytest.MonkeyPatch, chunk: int, piece: int
 ) -> None:
     capture = framed
     monkeypatch.setattr(index.Spill, "CHUNK", chunk)  # 3: many chunks and a rest
+    monkeypatch.setattr(index, "TAIL_PIECE", piece)  # 4, 7: many pieces a part
     whole = _ingested(capture, index=False)  # every value kept, no sidecar
     expected = _values(whole)
     assert sum(len(lat) for lat, _ in expected.values()) > 300
@@ -67,7 +68,21 @@ def test_the_sidecar_keeps_every_value_the_bounded_statistics_counted(
     assert back.stats.table() == whole.stats.table()
 
 
-def test_the_sidecar_read_back_by_a_windowed_replay_is_counted_bounded(framed: Path) -> None:
+@pytest.mark.parametrize("piece", [5, 1 << 16])
+def test_the_sidecar_read_back_by_a_windowed_replay_is_counted_bounded(
+    framed: Path, monkeypatch: pytest.MonkeyPatch, piece: int
+) -> None:
+    """Counted a piece of the tail at a time (5: pieces of 5 values, each unpacked only
+    as it is counted), the statistics are those of every value."""
+    monkeypatch.setattr(index, "TAIL_PIECE", piece)
+    unpacked: list[int] = []
+    unpack = index._unpack_tail
+
+    def counting(packed: bytes, count: int) -> object:
+        unpacked.append(count)
+        return unpack(packed, count)
+
+    monkeypatch.setattr(index, "_unpack_tail", counting)
     capture = framed
     whole = _ingested(capture, index=False)
     _ingested(capture)  # writes the sidecar (every row in one store)
@@ -77,6 +92,14 @@ def test_the_sidecar_read_back_by_a_windowed_replay_is_counted_bounded(framed: P
     for st in session.stats.units.values():
         assert st.tallies is not None and not st.latencies
     assert session.stats.table() == whole.stats.table()
+    assert max(unpacked) <= piece and sum(unpacked) > 600
+    for unit, st in whole.stats.units.items():
+        tallies = session.stats.units[unit].tallies
+        assert tallies is not None
+        assert list(tallies.recent_latencies) == list(
+            st.latencies[-len(tallies.recent_latencies) :]
+        )
+        assert tallies.requests == len(st.request_times)
 
 
 def test_without_a_temporary_file_the_values_stay_in_memory(
