@@ -120,6 +120,8 @@ def each_segment(
     row, rows are described as after every row and numbered `base` on. `shown(done,
     total)`: told the rows of the capture done after each segment (`Progress.share`)."""
     session, capture = second
+    if learnt.kept is not None:  # the first pass kept every row: listed from its store
+        session = learnt.kept
     selection = Selection(session, query, args.count, first=learnt.origin)
 
     def each(s: Session, describer: Describer) -> bool:
