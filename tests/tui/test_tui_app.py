@@ -13,7 +13,7 @@ from textual.widgets import ContentSwitcher, Input, Static
 from sniffer.live.port import PortSpec
 from sniffer.live.recorder import Recorder
 from sniffer.model import Chunk, SourceInfo
-from sniffer.session.session import Session
+from sniffer.session.session import Session, open_session
 from sniffer.sources import Capture
 from sniffer.tui.app import ModscopeApp
 from sniffer.tui.screens.dialogs import HelpScreen
@@ -22,6 +22,7 @@ from sniffer.tui.widgets.detail import DetailPane, FieldTree, HexView
 from sniffer.tui.widgets.frame_list import FrameList
 from sniffer.tui.widgets.units import UnitsPanel
 from sniffer.tui.widgets.watch import WatchPanel
+from tests.support.netbus import network_bus
 from tests.support.tui import (
     HOSTILE_SHOWN,
     LINE,
@@ -670,3 +671,17 @@ async def test_a_word_spelled_as_the_unit_column_is_answered_with_the_unit_term(
         await settle(pilot, app)
         rows = [app.model.view.row(k) for k in range(app.frames.count)]
         assert rows and all(app.session.store.unit[r] == 3 for r in rows)
+
+
+async def test_the_status_bar_says_what_a_network_capture_carries(tmp_path: Path) -> None:
+    """A network capture has no serial line: the status bar names its carriers, never
+    the default 19200 8E1 it once showed (`StatusLine`, `carried`)."""
+    path = tmp_path / "net.pcap"
+    path.write_bytes(network_bus([(k % 3, "poll") for k in range(30)]))
+    session, capture = open_session(path, index=False)
+    app = ModscopeApp(session, capture)
+    async with app.run_test(size=(120, 30)) as pilot:
+        await ready(pilot, app)
+        text = screen_text(app)
+        assert "network: modbus-tcp, rtu-over-tcp" in text
+        assert "8E1" not in text and "19200" not in text

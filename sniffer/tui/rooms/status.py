@@ -8,6 +8,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from sniffer.analysis.liveness import LineLiveness, liveness
+from sniffer.framing.tcp import NetPipeline
+from sniffer.session.session import Session
+from sniffer.sources.net.carrier import parse_label
 from sniffer.tui.feed import LiveStatus, live_status
 from sniffer.tui.rooms.base import Room
 from sniffer.tui.screens.ladder import LadderScreen
@@ -73,12 +76,9 @@ class StatusLine(Room):
         live = app.live
         alive = self.liveness()
         status = live_status(live) if live is not None else LiveStatus()
-        line = session.line.describe()
-        if session.mode != session.line.mode:
-            line += f" ({session.mode})"
         info = StatusInfo(
             source=Path(session.source).name if live is None else session.source,
-            line=line,
+            line=carried(session),
             rows=model.published,
             bytes=model.reader.bytes_total,
             errors=errors,
@@ -102,3 +102,17 @@ class StatusLine(Room):
         screen = app.screen
         if isinstance(screen, LadderScreen | TableScreen):
             screen.status.show(info)
+
+
+def carried(session: Session) -> str:
+    """What the status bar says the capture carries: the serial line's settings and mode,
+    or, for a network capture (no serial line: `--baud` does not apply), its carriers."""
+    pipeline = session.pipeline
+    if isinstance(pipeline, NetPipeline):
+        labels = map(parse_label, pipeline.channel_labels.values())
+        carriers = sorted({label.carrier for label in labels if label is not None})
+        return f"network: {', '.join(carriers)}" if carriers else "network"
+    line = session.line.describe()
+    if session.mode != session.line.mode:
+        line += f" ({session.mode})"
+    return line
