@@ -43,7 +43,8 @@ def _windowed(capture: Path) -> Session:
     return session
 
 
-@pytest.mark.parametrize(("chunk", "piece"), [(3, 4), (3, 1 << 16), (8192, 7), (8192, 1 << 16)])
+# chunks of 3 values in pieces of 4 (neither divides the other), and the real sizes
+@pytest.mark.parametrize(("chunk", "piece"), [(3, 4), (8192, 1 << 16)])
 def test_the_sidecar_keeps_every_value_the_bounded_statistics_counted(
     framed: Path, monkeypatch: pytest.MonkeyPatch, chunk: int, piece: int
 ) -> None:
@@ -68,12 +69,12 @@ def test_the_sidecar_keeps_every_value_the_bounded_statistics_counted(
     assert back.stats.table() == whole.stats.table()
 
 
-@pytest.mark.parametrize("piece", [5, 1 << 16])
 def test_the_sidecar_read_back_by_a_windowed_replay_is_counted_bounded(
-    framed: Path, monkeypatch: pytest.MonkeyPatch, piece: int
+    framed: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Counted a piece of the tail at a time (5: pieces of 5 values, each unpacked only
     as it is counted), the statistics are those of every value."""
+    piece = 5
     monkeypatch.setattr(index, "TAIL_PIECE", piece)
     unpacked: list[int] = []
     unpack = index._unpack_tail
