@@ -8,6 +8,7 @@ import statistics
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from math import isnan
 
 from sniffer.analysis.gateway import Link, Verdict
 from sniffer.analysis.stats import nearest_rank
@@ -122,7 +123,7 @@ class ServerCounts:
             if k == Kind.EXCEPTION:
                 c.exceptions += 1
             measured = measure(store, i)
-            if measured is not None and not measured.bound and measured.seconds == measured.seconds:
+            if measured is not None and not measured.bound and not isnan(measured.seconds):
                 c.latencies[_figure(measured.seconds)] += 1
 
     def text(self) -> str:

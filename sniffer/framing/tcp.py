@@ -112,7 +112,6 @@ class TcpFramer:
         self.pair_inline = False  # pairing is NetPairer's, over the merged store
         self.starts: list[int] = []  # stream offset where each chunk starts
         self.times: list[float] = []  # its time
-        self.noise_start = -1
 
     # -- the framer interface --------------------------------------------------------
 
@@ -145,8 +144,9 @@ class TcpFramer:
         return self._time(self.pos) if self.pos < len(self.stream) else None
 
     def decided(self) -> int:
-        """The offset of the first byte not yet decided (see `_Framer.decided`)."""
-        return self.noise_start if self.noise_start >= 0 else self.pos
+        """The offset of the first byte not yet decided (see `_Framer.decided`): noise is
+        written as soon as it is found, so none is ever under way."""
+        return self.pos
 
     def undecided(self) -> bool:
         return self.decided() < len(self.stream)
@@ -154,7 +154,7 @@ class TcpFramer:
     def settled(self) -> bool:
         """Every byte given is in a row: the next row owes nothing to the bytes before
         (see `rebase`)."""
-        return self.pos == len(self.stream) and self.noise_start < 0
+        return not self.undecided()
 
     def rebase(self) -> None:
         """A settled framer's stream offsets from 0 again, its stream about to be emptied

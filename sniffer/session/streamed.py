@@ -119,12 +119,12 @@ def segments(
     each segment's rows in `session.store` (row `i` is row `session.base + i` of the
     capture), `describer` describing them as after the whole capture (`learnt`, from
     `learn`). Stops reading once `each` returns False. Where the first pass kept every
-    row (`Learnt.kept`: a capture that fits in a window), `session` is that pass's, and
-    its store is handed on as the one segment: the capture is read once (a network
-    capture of 65,536 rows frames in about 7 s)."""
+    row (`Learnt.kept`: a capture that fits in a window), there is no second pass: its
+    session's store is handed on as the one segment, so the capture is read once (a
+    network capture of 65,536 rows frames in about 7 s); `session` is not read."""
     if learnt.kept is not None:
-        assert session is learnt.kept
-        each(session, Describer(session.store, session.annotator, size=0))
+        kept = learnt.kept
+        each(kept, Describer(kept.store, kept.annotator, size=0))
         return
     describer = Describer(session.store, session.annotator, size=0)  # (no row is read twice)
     done = False
