@@ -11,7 +11,7 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
-from math import ceil, floor, log10
+from math import ceil, floor, log10, ulp
 
 from sniffer import core
 from sniffer.framing.store import NO_PARTNER, FrameStore
@@ -349,7 +349,7 @@ def clock_step(stamps: Sequence[float]) -> float:
     # a whole multiple to within what a float of the stamps' size keeps (a few of its
     # last bits), never to a share of the step: 30 µs past a tenth of a second is not a
     # tenth, however small a share of one it is
-    near = max(top, 1.0) * 2.0**-48
+    near = 4 * ulp(max(top, 1.0))  # (6.2 µs at epoch times once, 26 ulps: 994 µs read as 1 ms)
     for step in DECIMAL_STEPS:
         if top / step > TOLD_APART:
             break

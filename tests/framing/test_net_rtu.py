@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
@@ -75,6 +75,8 @@ def polls(delays: list[float], period: float = 0.1) -> list[tuple[float, bytes]]
     baud=st.sampled_from([1200, 9600, 19200, 115200]),
     delays=st.lists(st.integers(500, 3000).map(lambda us: us / 1e6), min_size=1, max_size=8),
 )
+# every stamp within 6 µs of a millisecond: once taken for a 1 ms clock (clock_step)
+@example(baud=1200, delays=[0.000994] * 4)
 def test_answers_follow_their_requests_at_any_baud(
     tmp_path_factory: pytest.TempPathFactory, baud: int, delays: list[float]
 ) -> None:
