@@ -115,6 +115,7 @@ def make_files(folder: Path, n: int) -> tuple[Path, Path]:
 
 def write_files(folder: Path, n: int) -> None:
     """Write the two files of `make_files` here (in the child process)."""
+    folder.mkdir(parents=True, exist_ok=True)
     reads, one = folder / f"reads-{n}.pcapng", folder / f"frames-{n}.pcapng"
     t = time.perf_counter()
     frames = _frames(n)
@@ -139,28 +140,37 @@ COLD = {**os.environ, "MODSCOPE_NO_INDEX": "1"}  # no sidecar index read or writ
 WARM = {k: v for k, v in os.environ.items() if k != "MODSCOPE_NO_INDEX"}
 
 
+def _once(argv: list[str], env: dict[str, str] | None) -> tuple[float, float, float]:
+    """One run of `argv`: its wall time, CPU time (user + system, from wait4) and peak
+    resident memory in MB."""
+    t = time.perf_counter()
+    with subprocess.Popen(
+        argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env or COLD
+    ) as proc:
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        assert proc.stderr is not None
+        err = proc.stderr.read()
+    wall = time.perf_counter() - t
+    if proc.returncode not in (0, 1):
+        raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {err[-2000:]!r}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
+
+
 def run(argv: list[str], runs: int, env: dict[str, str] | None = None) -> Run:
     """Median wall time, median CPU time and the largest peak RSS of `runs` runs of
     `argv`. The CPU time is the process's own (user + system, from wait4): on a machine
     shared with other work it moves far less than the wall time, which waits for a CPU."""
-    times: list[float] = []
-    cpus: list[float] = []
-    rss = 0.0
-    for _ in range(runs):
-        t = time.perf_counter()
-        with subprocess.Popen(
-            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env or COLD
-        ) as proc:
-            _, status, usage = os.wait4(proc.pid, 0)
-            proc.returncode = os.waitstatus_to_exitcode(status)
-            assert proc.stderr is not None
-            err = proc.stderr.read()
-        times.append(time.perf_counter() - t)
-        cpus.append(usage.ru_utime + usage.ru_stime)
-        rss = max(rss, usage.ru_maxrss / 1024)
-        if proc.returncode not in (0, 1):
-            raise SystemExit(f"{' '.join(argv)} failed ({proc.returncode}): {err[-2000:]!r}")
-    return Run(statistics.median(times), rss, statistics.median(cpus))
+    done = [_once(argv, env) for _ in range(runs)]
+    return _summed(done)
+
+
+def _summed(done: list[tuple[float, float, float]]) -> Run:
+    return Run(
+        statistics.median(w for w, _, _ in done),
+        max(m for _, _, m in done),
+        statistics.median(c for _, c, _ in done),
+    )
 
 
 def modscope(*args: str) -> list[str]:
@@ -215,13 +225,67 @@ def measure(
     env: dict[str, str] | None = None,
 ) -> Figure:
     fig = Figure(label, n, run(big, runs, env), run(small, runs, env))
+    _shown(fig)
+    return fig
+
+
+def _shown(fig: Figure) -> None:
+    label = fig.label
     print(
         f"  {label:<44} {fig.big.seconds:8.2f} s {fig.whole:>11,.0f}/s whole "
         f"{fig.per_frame:>11,.0f}/s per frame  start {fig.small.seconds:.2f} s  "
         f"peak {fig.big.rss_mb:6.0f} MB  CPU {fig.per_frame_cpu:>11,.0f}/s per frame",
         flush=True,
     )
-    return fig
+
+
+@dataclass
+class Shape:
+    """How fast one file reads per frame against another of the same frames, from
+    alternated runs (a, b, a, b...): the median of each pair's ratio, start-up taken off
+    both, in wall and in CPU time. A pair's two runs meet the same load, so their ratio
+    moves far less than the ratio of two medians taken minutes apart."""
+
+    wall: float
+    cpu: float
+    pairs: int
+
+
+def measure_alternated(
+    labels: tuple[str, str],
+    n: int,
+    bigs: tuple[list[str], list[str]],
+    smalls: tuple[list[str], list[str]],
+    pairs: int,
+) -> tuple[Figure, Figure, Shape]:
+    """Two commands on n frames, run in `pairs` alternated pairs (their start-up, the
+    same commands on `SMALL` frames, the median of `pairs` runs each): both figures, and
+    how much faster per frame the first reads than the second (`Shape`)."""
+    small = [[_once(argv, None) for _ in range(pairs)] for argv in smalls]
+    done: tuple[list[tuple[float, float, float]], ...] = ([], [])
+    for _ in range(pairs):
+        for k in (0, 1):
+            done[k].append(_once(bigs[k], None))
+    figs = [Figure(labels[k], n, _summed(done[k]), _summed(small[k])) for k in (0, 1)]
+    for fig in figs:
+        _shown(fig)
+    start = [f.small for f in figs]
+    wall = [
+        (b[0] - start[1].seconds) / (a[0] - start[0].seconds)
+        for a, b in zip(done[0], done[1], strict=True)
+        if a[0] > start[0].seconds
+    ]
+    cpu = [
+        (b[1] - start[1].cpu) / max(a[1] - start[0].cpu, 1e-6)
+        for a, b in zip(done[0], done[1], strict=True)
+    ]
+    shape = Shape(statistics.median(wall) if wall else float("nan"), statistics.median(cpu), pairs)
+    print(
+        f"  => {labels[0]} / {labels[1]}, per frame, median of {pairs} alternated pairs: "
+        f"{shape.wall:.2f} ({shape.cpu:.2f} in CPU time)",
+        flush=True,
+    )
+    return figs[0], figs[1], shape
 
 
 def compare(ours: Figure, theirs: Figure) -> None:
@@ -261,6 +325,7 @@ class MixResult:
     one: Figure | None
     tshark: Figure | None
     listings: dict[str, tuple[Figure, Figure | None]]
+    shape: Shape | None = None  # reads as recorded against one frame per packet
 
 
 def _ratio(ours: Figure | None, theirs: Figure | None) -> float:
@@ -315,43 +380,47 @@ def measure_mix(
     only_export: bool = False,
     only_listings: bool = False,
     jobs: str = "auto",
+    pairs: int = 7,
 ) -> MixResult:
     """The mix's figures: modscope on n frames, tshark on its first `tshark` frames (0:
     none). tshark's rate per frame falls as a file grows (its Modbus request tracking),
     so a ratio to tshark on fewer frames than modscope read is, if anything, low.
     `only_export`: the export of the `listings` frames and tshark's plain summary of
     them, nothing else. `only_listings`: the listings and the export alone (no index
-    figures), with `--jobs jobs`."""
+    figures), with `--jobs jobs`. The two shapes' index figures come from `pairs`
+    alternated runs (`measure_alternated`)."""
     print(f"{mix.name}: {mix.describe()}", flush=True)
     reads10, one10 = make_mix_files(folder, mix, SMALL)
     ix = ix1 = ts = None
+    shape = None
     if not (only_listings or only_export):
-        ix, ix1, ts = _index_figures(mix, n, folder, runs, tshark, reads10, one10)
+        ix, ix1, ts, shape = _index_figures(mix, n, folder, runs, tshark, reads10, one10, pairs)
     rows: dict[str, tuple[Figure, Figure | None]] = {}
     if listings:
         kinds = ("export",) if only_export else ("jsonl", "text", "export")
         rows = _listing_figures(mix, listings, folder, runs, tshark, reads10, one10, jobs, kinds)
-    return MixResult(mix, n, ix, ix1, ts, rows)
+    return MixResult(mix, n, ix, ix1, ts, rows, shape)
 
 
 def _index_figures(
-    mix: Mix, n: int, folder: Path, runs: int, tshark: int, reads10: Path, one10: Path
-) -> tuple[Figure, Figure, Figure | None]:
-    """`replay --stats` of the mix's two shapes, and tshark's plain summary."""
+    mix: Mix,
+    n: int,
+    folder: Path,
+    runs: int,
+    tshark: int,
+    reads10: Path,
+    one10: Path,
+    pairs: int,
+) -> tuple[Figure, Figure, Figure | None, Shape]:
+    """`replay --stats` of the mix's two shapes in `pairs` alternated pairs, and tshark's
+    plain summary (median of `runs`)."""
     reads, one = make_mix_files(folder, mix, n)
-    ix = measure(
-        "replay --stats (reads as recorded)",
+    ix, ix1, shape = measure_alternated(
+        ("replay --stats (reads as recorded)", "replay --stats (frame per packet)"),
         n,
-        modscope("replay", str(reads), "--stats"),
-        modscope("replay", str(reads10), "--stats"),
-        runs,
-    )
-    ix1 = measure(
-        "replay --stats (frame per packet)",
-        n,
-        modscope("replay", str(one), "--stats"),
-        modscope("replay", str(one10), "--stats"),
-        runs,
+        (modscope("replay", str(reads), "--stats"), modscope("replay", str(one), "--stats")),
+        (modscope("replay", str(reads10), "--stats"), modscope("replay", str(one10), "--stats")),
+        pairs,
     )
     ts = None
     if tshark:
@@ -369,7 +438,7 @@ def _index_figures(
             f"{_cpu_ratio(ix, ts):.1f}x, {_cpu_ratio(ix1, ts):.1f}x",
             flush=True,
         )
-    return ix, ix1, ts
+    return ix, ix1, ts, shape
 
 
 def _listing_figures(
@@ -479,11 +548,17 @@ def summarize(results: list[MixResult]) -> None:
         )
     if not indexed:
         return
-    ratio = [x.per_frame / y.per_frame for _, x, y in indexed]
-    print(
-        f"  reads as recorded / frame per packet, per frame: worst {min(ratio):.2f}, "
-        f"median {statistics.median(ratio):.2f}"
-    )
+    shapes = [(r.shape, r.mix.name) for r in results if r.shape is not None]
+    if shapes:
+        wall = sorted((s.wall, name) for s, name in shapes if s.wall == s.wall)
+        by_cpu = sorted((s.cpu, name) for s, name in shapes)
+        print(
+            f"  reads as recorded / frame per packet, per frame, the median of "
+            f"{shapes[0][0].pairs} alternated pairs of each mix: worst {wall[0][0]:.2f} "
+            f"({wall[0][1]}), median {wall[(len(wall) - 1) // 2][0]:.2f}; in CPU time worst "
+            f"{by_cpu[0][0]:.2f} ({by_cpu[0][1]}), median "
+            f"{by_cpu[(len(by_cpu) - 1) // 2][0]:.2f}"
+        )
     print("\nthe same in CPU time (user + system of each process; the load moves it least)")
     for r, x, y in indexed:
         print(
@@ -497,11 +572,6 @@ def summarize(results: list[MixResult]) -> None:
     ):
         cpu = sorted(_cpu_ratio(ours, theirs) for ours, theirs in pairs)
         print(f"  {label:<36} worst {cpu[0]:5.1f}x median {cpu[(len(cpu) - 1) // 2]:5.1f}x")
-    cpu_shape = [x.per_frame_cpu / y.per_frame_cpu for _, x, y in indexed]
-    print(
-        f"  reads as recorded / frame per packet, per frame of CPU: worst {min(cpu_shape):.2f}, "
-        f"median {statistics.median(cpu_shape):.2f}"
-    )
 
 
 def main() -> None:
@@ -511,6 +581,12 @@ def main() -> None:
         "--listing-frames", type=int, default=100_000, help="frames for listings and export"
     )
     parser.add_argument("--runs", type=int, default=3, help="runs per figure (median)")
+    parser.add_argument(
+        "--pairs",
+        type=int,
+        default=7,
+        help="with --mixes: alternated pairs of runs of the two shapes' index (median)",
+    )
     parser.add_argument("--dir", type=Path, default=Path("/tmp/modscope-bench"))
     parser.add_argument("--no-tshark", action="store_true", help="time modscope only")
     parser.add_argument("--only-index", action="store_true", help="skip listings and export")
@@ -585,6 +661,7 @@ def main() -> None:
                 args.only_export,
                 args.only_listings,
                 args.jobs,
+                args.pairs,
             )
             for mix in mixes(args.mixes, args.seed)
         ]
