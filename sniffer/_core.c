@@ -21,8 +21,9 @@
  *    content it has a template for (sniffer/outputs/export.py: PcapExporter.write, _rows);
  *  - listing_table, listing_rows: the text and JSONL listings' lines of the rows whose
  *    content it has the parts of (sniffer/outputs/listing.py: Lister.write);
- *  - shift_partners: a sidecar block's partners renumbered (sniffer/session/index.py:
- *    shifted_partners);
+ *  - shift_partners, bounds: a sidecar block's partners renumbered, and the least and
+ *    greatest word of a column its checks take (sniffer/session/index.py:
+ *    shifted_partners, _bounds);
  *  - constants: the product's numbers this file says itself, which
  *    tests/core/test_core_constants.py holds to the Python that defines them.
  *
@@ -3312,6 +3313,58 @@ done:
     return result;
 }
 
+/* bounds(column, code) -> (low, high), or None for an empty column: the least and the
+ * greatest of a column of words of array typecode `code` ("B", "H", "i", "I" or "Q"),
+ * which the sidecar's checks take of every block (sniffer/session/index.py: _bounds, the
+ * reference, is min and max over the column, a Python int a word). */
+static PyObject *py_bounds(PyObject *self, PyObject *args) {
+    Py_buffer v;
+    int code;
+    if (!PyArg_ParseTuple(args, "y*C", &v, &code)) return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t width = code == 'B' ? 1 : code == 'H' ? 2 : code == 'i' || code == 'I' ? 4
+                                                     : code == 'Q'                 ? 8
+                                                                                   : 0;
+    if (width == 0 || v.len % width) {
+        PyErr_SetString(PyExc_ValueError, "bounds: a column of B, H, i, I or Q words");
+        goto done;
+    }
+    Py_ssize_t n = v.len / width;
+    if (n == 0) {
+        result = Py_NewRef(Py_None);
+        goto done;
+    }
+    if (code == 'i') {
+        const int32_t *w = v.buf;
+        int32_t lo = w[0], hi = w[0];
+        for (Py_ssize_t i = 1; i < n; i++) {
+            if (w[i] < lo) lo = w[i];
+            if (w[i] > hi) hi = w[i];
+        }
+        result = Py_BuildValue("(ll)", (long)lo, (long)hi);
+        goto done;
+    }
+    uint64_t lo = UINT64_MAX, hi = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        uint64_t x;
+        if (width == 1) {
+            x = ((const uint8_t *)v.buf)[i];
+        } else if (width == 2) {
+            x = ((const uint16_t *)v.buf)[i];
+        } else if (width == 4) {
+            x = ((const uint32_t *)v.buf)[i];
+        } else {
+            x = ((const uint64_t *)v.buf)[i];
+        }
+        if (x < lo) lo = x;
+        if (x > hi) hi = x;
+    }
+    result = Py_BuildValue("(KK)", (unsigned long long)lo, (unsigned long long)hi);
+done:
+    PyBuffer_Release(&v);
+    return result;
+}
+
 /* ---- the numbers said back ---------------------------------------------------------- */
 
 /* One entry of constants(): `value` (a new reference, or NULL with an exception set) put
@@ -3448,6 +3501,7 @@ static PyMethodDef methods[] = {
     {"listing_floats", py_listing_floats, METH_VARARGS, "listing_rows' round, repr and time of a float."},
     {"listing_rows", py_listing_rows, METH_VARARGS, "Lister.write's text or JSONL lines of a run of rows."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
+    {"bounds", py_bounds, METH_VARARGS, "The least and greatest word of a column."},
     {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},
     {NULL, NULL, 0, NULL},
 };

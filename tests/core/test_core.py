@@ -440,3 +440,30 @@ def test_partners_shift_alike_with_either_core(partners: list[int], base: int) -
         core.FAST = saved
     with pytest.raises(OverflowError):
         fast.shift_partners(memoryview(array("i", [2**31 - 5])), 0, 10)
+
+
+_WIDE = {"B": 8, "H": 16, "I": 32, "Q": 64}
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.sampled_from("BHIQi"), st.data())
+def test_column_bounds_alike_with_either_core(code: str, data: st.DataObject) -> None:
+    """The sidecar's checks take the least and greatest word of each block's columns:
+    the compiled scan gives min and max of every word, at each width's extremes too."""
+    fast = _compiled()
+    words = (
+        st.integers(-(2**31), 2**31 - 1) if code == "i" else st.integers(0, 2 ** _WIDE[code] - 1)
+    )
+    values = data.draw(st.lists(words, min_size=1, max_size=200))
+    column = memoryview(array(code, values))
+    saved = core.FAST
+    try:
+        core.FAST = None
+        pure = index._bounds(column, code)
+        core.FAST = fast
+        assert index._bounds(column, code) == pure == (min(values), max(values))
+    finally:
+        core.FAST = saved
+    assert fast.bounds(memoryview(array(code)), code) is None
+    with pytest.raises(ValueError):
+        fast.bounds(b"\0\0\0", "H")  # (not a whole number of words)
