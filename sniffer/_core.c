@@ -15,6 +15,8 @@
  *  - poll_table, poll_block: the poll cycle's requests, keyed and grouped by the same-poll
  *    rule Python hands over (sniffer/analysis/pollcycle.py: PollCycles.add; the rule:
  *    sniffer/analysis/polls.py);
+ *  - waits_count: the poll cycle's waits between sendings, counted in buckets
+ *    (sniffer/analysis/pollcycle.py: _Waits.count);
  *  - tally_latencies, tally_gaps: the bounded statistics' counts of printed figures
  *    (sniffer/analysis/stats.py: Tallies.add_latencies, Tallies.add_requests);
  *  - export_table, export_rows: the pcapng export's packet blocks of the rows whose
@@ -3365,6 +3367,106 @@ done:
     return result;
 }
 
+/* ---- the poll cycle's waits, counted in buckets ------------------------------------------ */
+
+/* waits_count(seq, inv, quantum, dense, far, exact) -> (high, exact), or None
+ * _Waits.count's counting (sniffer/analysis/pollcycle.py: _Waits._count, the reference):
+ * each wait between consecutive float64 times of `seq` in the bucket
+ * floor((b - a) * inv), `inv` being 1 / quantum as Python divides it; a bucket
+ * 0 <= k < len(dense) counted in `dense` (uint32 words, in place), any other in the dict
+ * `far` ({bucket: count}: the _Waits' Counter, in place). `high`: the greatest bucket;
+ * `exact`: still true where `exact` was and every wait is a whole number of quanta
+ * (k * quantum == b - a). None, with nothing counted: a wait that is not a number, is
+ * infinite, or whose bucket passes 63 bits (Python counts those). The buckets of `far`
+ * are summed here first (a host's reads give waits of few values), then added to it a
+ * distinct bucket at a time. */
+static PyObject *py_waits_count(PyObject *self, PyObject *args) {
+    Py_buffer sv, dv;
+    double inv, quantum;
+    PyObject *far;
+    int exact;
+    if (!PyArg_ParseTuple(args, "y*ddw*O!p", &sv, &inv, &quantum, &dv, &PyDict_Type, &far,
+                          &exact))
+        return NULL;
+    PyObject *result = NULL;
+    int64_t *keys = NULL, *slot_key = NULL;
+    Py_ssize_t *slot_count = NULL;
+    if (sv.len % 8 || dv.len % 4 || sv.len < 16) {
+        PyErr_SetString(PyExc_ValueError, "waits_count: two float64 times or more, uint32 buckets");
+        goto done;
+    }
+    Py_ssize_t n = sv.len / 8 - 1, span = dv.len / 4;
+    const double *t = sv.buf;
+    uint32_t *dense = dv.buf;
+    keys = PyMem_Malloc(sizeof(int64_t) * (size_t)n);
+    if (keys == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    int64_t high = INT64_MIN;
+    Py_ssize_t outside = 0; /* waits whose bucket is not a dense one */
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double w = t[i + 1] - t[i];
+        double y = floor(w * inv);
+        if (!(y > -9.2e18 && y < 9.2e18)) { /* NaN, infinite, or past 63 bits */
+            result = Py_NewRef(Py_None);
+            goto done;
+        }
+        int64_t k = (int64_t)y;
+        keys[i] = k;
+        if (k > high) high = k;
+        if (exact && (double)k * quantum != w) exact = 0;
+        outside += !(k >= 0 && k < span);
+    }
+    Py_ssize_t cap = 16;
+    while (cap < 2 * outside) cap *= 2;
+    if (outside) {
+        slot_key = PyMem_Malloc(sizeof(int64_t) * (size_t)cap);
+        slot_count = PyMem_Calloc((size_t)cap, sizeof(Py_ssize_t));
+        if (slot_key == NULL || slot_count == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int64_t k = keys[i];
+        if (k >= 0 && k < span) {
+            dense[k] += 1;
+            continue;
+        }
+        Py_ssize_t j = (Py_ssize_t)(((uint64_t)k * 0x9E3779B97F4A7C15ull) >> 40) & (cap - 1);
+        while (slot_count[j] && slot_key[j] != k) j = (j + 1) & (cap - 1);
+        slot_key[j] = k;
+        slot_count[j] += 1;
+    }
+    for (Py_ssize_t j = 0; outside && j < cap; j++) {
+        if (!slot_count[j]) continue;
+        PyObject *key = PyLong_FromLongLong(slot_key[j]);
+        if (key == NULL) goto done;
+        PyObject *had = PyDict_GetItemWithError(far, key);
+        PyObject *value = NULL;
+        if (had != NULL) {
+            PyObject *more = PyLong_FromSsize_t(slot_count[j]);
+            value = more == NULL ? NULL : PyNumber_Add(had, more);
+            Py_XDECREF(more);
+        } else if (!PyErr_Occurred()) {
+            value = PyLong_FromSsize_t(slot_count[j]);
+        }
+        int bad = value == NULL || PyDict_SetItem(far, key, value) < 0;
+        Py_XDECREF(value);
+        Py_DECREF(key);
+        if (bad) goto done;
+    }
+    result = Py_BuildValue("(LO)", (long long)high, exact ? Py_True : Py_False);
+done:
+    PyMem_Free(keys);
+    PyMem_Free(slot_key);
+    PyMem_Free(slot_count);
+    PyBuffer_Release(&sv);
+    PyBuffer_Release(&dv);
+    return result;
+}
+
 /* ---- the numbers said back ---------------------------------------------------------- */
 
 /* One entry of constants(): `value` (a new reference, or NULL with an exception set) put
@@ -3502,6 +3604,7 @@ static PyMethodDef methods[] = {
     {"listing_rows", py_listing_rows, METH_VARARGS, "Lister.write's text or JSONL lines of a run of rows."},
     {"shift_partners", py_shift_partners, METH_VARARGS, "A block's partners in another range."},
     {"bounds", py_bounds, METH_VARARGS, "The least and greatest word of a column."},
+    {"waits_count", py_waits_count, METH_VARARGS, "_Waits.count's counting in buckets."},
     {"constants", py_constants, METH_NOARGS, "The product's numbers this module says itself."},
     {NULL, NULL, 0, NULL},
 };

@@ -1,5 +1,5 @@
 """The compiled poll cycle and tallies (sniffer/_core.c: poll_table, poll_block,
-tally_latencies, tally_gaps) give what their Python references give, bit for bit.
+waits_count, tally_latencies, tally_gaps) give what their Python references give, bit for bit.
 
 `PollCycles.add` is fed random stores in parts (one store growing, or a new store for
 each segment as a windowed replay feeds it; blocks of a few rows): RTU reads and
@@ -251,6 +251,65 @@ def test_the_poll_cycle_of_many_rows_is_the_same_with_either_core() -> None:
     states = [_poll_run(module, rows, [7000, 1, 13000], [False]) for module in (fast, None)]
     assert states[0] == states[1]
     assert "retries" in states[0][-1] and "write holding" in states[0][-1]
+
+
+def _waits_state(waits: pollcycle._Waits) -> str:
+    """Everything a `_Waits` keeps, floats by repr."""
+    return repr(
+        (
+            waits.span,
+            waits.quantum,
+            list(waits.dense),
+            sorted(waits.far.items()),
+            waits.exact,
+            waits.unknown,
+            sorted(map(repr, waits.top)),
+            list(map(repr, waits.starts)),
+            list(map(repr, waits.lengths)),
+            waits.cut,
+        )
+    )
+
+
+_WAIT = st.one_of(
+    st.integers(0, 40).map(lambda k: k * 2.0**-8),  # whole numbers of a quantum
+    st.floats(0, 2.0, allow_nan=False),
+    st.floats(-3.0, 0.0, allow_nan=False),  # a clock set back
+    st.sampled_from((math.nan, math.inf, -math.inf, 1e10, -7e9, 2.0**-31)),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    start=st.sampled_from((0.0, 1768464000.0)),
+    parts=st.lists(st.lists(_WAIT, min_size=1, max_size=60), min_size=1, max_size=8),
+    span=st.sampled_from((0, 0, 4, 64)),
+    shift=st.integers(-30, 4),
+)
+def test_the_waits_are_counted_the_same_with_either_core(
+    start: float, parts: list[list[float]], span: int, shift: int
+) -> None:
+    """`_Waits.count` on sendings at random waits (exact multiples of a quantum, not,
+    negative, NaN, infinite, past 63 bits of buckets), in parts, sparse or already in
+    buckets: the compiled counting (`waits_count`) keeps what the Python one keeps."""
+    fast = _compiled()
+    seen = []
+    for module in (fast, None):
+        with running(module):
+            waits = pollcycle._Waits(span=max(span, 4))
+            waits.quantum = 2.0**shift
+            if span:
+                waits.dense = array("I", bytes(4 * span))
+            t, states = start, []
+            for part in parts:
+                seq = array("d", [t])
+                for w in part:
+                    t = t + w if math.isfinite(t + w) else start
+                    seq.append(t if w == w else math.nan)
+                waits.count(seq)
+                states.append(_waits_state(waits))
+            seen.append(states)
+    assert seen[0] == seen[1]
 
 
 def _poll(fast: ModuleType, table: object, store: FrameStore, hi: int, resolve: Any) -> Any:
