@@ -79,7 +79,12 @@ def _replay(args: argparse.Namespace, out: TextIO, err: TextIO, shown: str | Non
         and sys.stdin.isatty()
     )
     session, capture = open_session(
-        path, options, bindings=bindings, timeout=args.timeout, index=not args.no_index
+        path,
+        options,
+        bindings=bindings,
+        timeout=args.timeout,
+        index=not args.no_index,
+        interactive=use_tui,
     )
     told = line_warnings(options, capture.info.recorded_line, str(path))
     if use_tui and getattr(args, "metrics", None):
@@ -121,7 +126,9 @@ def _read(
         from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
         def reopen() -> tuple[Session, Capture]:
-            return open_session(path, options, bindings=bindings, timeout=args.timeout)
+            return open_session(
+                path, options, bindings=bindings, timeout=args.timeout, interactive=True
+            )
 
         return run_tui(session, capture, reopen=reopen)
     progress = Progress(err, shown or path.name, None if shown else path)

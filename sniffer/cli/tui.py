@@ -57,7 +57,9 @@ def cmd_tui(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     path = capture_path(files[0] if files else None)
     bindings = bindings_for(args, DEMO_BUS if not files else None)
     options = read_options(args)
-    session, capture = open_session(path, options, bindings=bindings, timeout=args.timeout)
+    session, capture = open_session(
+        path, options, bindings=bindings, timeout=args.timeout, interactive=True
+    )
     from sniffer.tui.app import run_tui  # here: only the commands that open it load Textual
 
     return run_tui(session, capture, speed=1.0 if args.speed == "original" else None)

@@ -468,13 +468,15 @@ def open_session(
     bindings: Mapping[int, Binding] | None = None,
     timeout: float | None = None,
     index: bool = True,
+    interactive: bool = False,
 ) -> tuple[Session, Capture]:
     """A session for a capture file, not yet ingested: feed it `capture.chunks()`.
 
     With `index` (and MODSCOPE_NO_INDEX unset), a capture of at least
     `sniffer.session.index.MIN_SIZE` bytes is read back by `Session.ingest` from its sidecar index
     when one fits it (the capture itself is then not read), and gets one once it has been
-    read to its end.
+    read to its end: for the TUI (`interactive`) whatever the capture, for a command that
+    reads it through once where a sidecar pays (`sniffer.session.index.pays`).
     """
     options = options or ReadOptions()
     if options.estimator is None:  # a logic capture without --baud: its line measured
@@ -494,7 +496,7 @@ def open_session(
         network=capture.info.channels if capture.info.network else None,
     )
     session.pipeline.clock.basis = basis
-    if index:
+    if index and (interactive or sidecar.pays(capture, line.mode)):
         _sidecar(session, capture, Path(path), options, timeout)
     return session, capture
 

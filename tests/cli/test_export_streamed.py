@@ -154,6 +154,7 @@ def test_a_sidecar_read_back_in_both_passes(
     unit with no dictionary once had the first pass learn again from the capture."""
     monkeypatch.delenv("MODSCOPE_NO_INDEX")
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 51)  # (odd: blocks of one store cut pairs)
     reg = device_image()
     reads = [*[(40072, 50), (40124, 53)] * 60, *discovery(reg, 40000), (40072, 50)]

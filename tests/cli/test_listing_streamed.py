@@ -227,6 +227,7 @@ def test_a_sidecar_read_back_in_both_passes(
     time, in both passes: nothing framed), the listing is the same, -c and filters too."""
     monkeypatch.delenv("MODSCOPE_NO_INDEX")
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 50)
     reg = device_image()
     reads = [*[(40072, 50), (40124, 53)] * 60, *discovery(reg, 40000), (40072, 50)]

@@ -74,6 +74,7 @@ class Bench:
 def bench(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Bench]:
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(index, "MIN_SIZE", 0)
+        mp.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
         mp.setattr(index, "BLOCK", BLOCK)
         folder = tmp_path_factory.mktemp("sidecar")
         mp.setenv("XDG_CACHE_HOME", str(folder / "cache"))
@@ -141,6 +142,7 @@ class Loose(Bench):
 def loose(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Loose]:
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(index, "MIN_SIZE", 0)
+        mp.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
         mp.setattr(index, "BLOCK", BLOCK)
         mp.setattr(index, "HEAD", 256)
         folder = tmp_path_factory.mktemp("loose")

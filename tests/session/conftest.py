@@ -24,6 +24,7 @@ def capture(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     sidecars allowed for it (MIN_SIZE 0, the cache folder in tmp_path), in blocks of 500
     rows."""
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 500)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)

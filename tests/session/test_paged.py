@@ -28,6 +28,7 @@ def demo(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """The demo capture in tmp_path, allowed a sidecar (MIN_SIZE 0) in blocks of 64 rows,
     so that its 1,600 rows come in some 25 segments."""
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 64)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
@@ -48,7 +49,7 @@ def paged(path: Path, batch: bool = False) -> tuple[Session, PagedStore, list[Fe
     at the end of a chunk at the soonest: `batch` False has the reader pass the demo's
     reads one at a time (many segments), True in the runs it passes a big capture in
     (the demo: two segments)."""
-    session, capture = open_session(path, bindings=load_bindings(DEMO_BUS))
+    session, capture = open_session(path, bindings=load_bindings(DEMO_BUS), interactive=True)
     session.batch_reads = batch
     assert wanted(session, live=False, speed=None)
     store = PagedStore()
@@ -338,6 +339,7 @@ def test_a_network_capture_pages_with_its_peers(
     its rows keep their senders and servers (`ip:port`), written segment by segment or
     read back from the sidecar (which lost them before its format 4)."""
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 64)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)

@@ -273,6 +273,7 @@ def test_the_sidecar_written_and_read_a_segment_at_a_time(
     written in front of a copy of the blocks.)"""
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "RESERVE", reserve)
     monkeypatch.setattr(index, "BLOCK", 40)  # several blocks a segment, too
     steps = ["read", "read2", "write", "silent", "broadcast", "exception", "retry"] * 30
@@ -317,6 +318,7 @@ def test_a_sidecar_damaged_after_blocks_were_counted_is_indexed_again(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     monkeypatch.setattr(index, "BLOCK", 40)
     steps = ["read", "read2", "silent", "broadcast", "retry"] * 30
     path = recorded(tmp_path / "bus.pcapng", reads_of(scripted(steps, [0.02, 0.4]), 0.004))
@@ -396,6 +398,7 @@ def test_an_interrupted_replay_leaves_no_half_written_sidecar(
 ) -> None:
     monkeypatch.delenv("MODSCOPE_NO_INDEX", raising=False)
     monkeypatch.setattr(index, "MIN_SIZE", 0)
+    monkeypatch.setattr(index, "pays", lambda capture, mode: True)  # (serial pcapng too)
     steps = ["read", "read2", "silent"] * 40
     path = recorded(tmp_path / "bus.pcapng", reads_of(scripted(steps, [0.02]), 0.004))
     calls = 0

@@ -87,6 +87,7 @@ def reopen_file(session: Session) -> tuple[Session, Capture]:
         options,
         bindings=session.annotator.bindings,
         timeout=session.pipeline.pairer.timeout,
+        interactive=True,
     )
 
 
