@@ -6,7 +6,9 @@ walk over link type 250 data records (`sniffer.sources.pcap`), the RTU framer's 
 paths with its timeline of reads (`sniffer.framing.serial`), and the passes over the indexed
 rows: pairing (`sniffer.framing.pairing.Pairer.update`, `FrameStore.pair_rows`), the per-unit
 statistics, their bounded tallies and their quantiles (`sniffer.analysis.stats`), the poll
-cycle's requests (`sniffer.analysis.pollcycle.PollCycles.add`), SunSpec's first look at FC 3 and
+cycle's requests and their waits (`sniffer.analysis.pollcycle.PollCycles.add`,
+`_Waits.count`), the sidecar's checks of each block (`sniffer.session.index`), SunSpec's
+first look at FC 3 and
 FC 4 answers in any envelope (`sniffer.meaning.sunspec`), the joining of held batches of reads
 (`sniffer.framing.pipeline`),
 the pcapng export's packets from the templates it keeps
