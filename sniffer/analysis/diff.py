@@ -14,10 +14,12 @@ broadcasts, and a request the capture ended on are left out.
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass, field
+from typing import Any
 
 from sniffer.analysis.draft import observe
-from sniffer.analysis.pollcycle import Poll, poll_cycles
+from sniffer.analysis.pollcycle import Poll, PollCycles
 from sniffer.analysis.polls import FRAMED_APART, frame_body, poll_identity
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.vocab import BAD_CHECK, Kind, Status
@@ -79,6 +81,14 @@ class Fared:
             self.exceptions + (status == Status.EXCEPTION),
             self.bad + (status == Status.BAD_ANSWER),
             self.timeouts + (status == Status.TIMEOUT),
+        )
+
+    def plus(self, other: Fared) -> Fared:
+        return Fared(
+            self.answered + other.answered,
+            self.exceptions + other.exceptions,
+            self.bad + other.bad,
+            self.timeouts + other.timeouts,
         )
 
     def why(self) -> str:
@@ -219,14 +229,20 @@ def _ms(seconds: float) -> str:
     return f"{seconds * 1000:.1f}ms" if seconds < 10 else f"{seconds:.1f}s"
 
 
-def _latencies(store: FrameStore) -> dict[int, float]:
+def _waits(store: FrameStore) -> dict[int, list[float]]:
+    """Each unit's answer times (an answer's first byte less its request's last)."""
     found: dict[int, list[float]] = {}
     for i in range(len(store)):
         if store.kind[i] != Kind.REQUEST or store.partner[i] == NO_PARTNER:
             continue
         j = store.partner[i]
         found.setdefault(store.unit[i], []).append(store.t[j] - store.t_end[i])
-    return {u: sorted(v)[len(v) // 2] for u, v in found.items()}
+    return found
+
+
+def _medians(waits: dict[int, array[float]]) -> dict[int, float]:
+    """Each unit's median answer time (the upper of the two middle ones)."""
+    return {u: sorted(v)[len(v) // 2] for u, v in waits.items() if v}
 
 
 def _units(store: FrameStore) -> set[int]:
@@ -265,13 +281,13 @@ def fared(store: FrameStore) -> tuple[dict[int, Fared], dict[tuple[int, str], Fa
 
 def _answers(
     out: CaptureDiff,
-    a: FrameStore,
-    b: FrameStore,
+    a: Side,
+    b: Side,
     polls_in_both: set[tuple[int, str]],
 ) -> None:
     """Units gone silent or back, polls that began failing or recovered."""
-    units_a, polls_a = fared(a)
-    units_b, polls_b = fared(b)
+    units_a, polls_a = a.fared_units, a.fared_polls
+    units_b, polls_b = b.fared_units, b.fared_polls
     for unit in sorted(units_a.keys() & units_b.keys()):
         fa, fb = units_a[unit], units_b[unit]
         if fa.replied and not fb.replied:
@@ -291,15 +307,87 @@ def _answers(
     out.recovered.sort(key=lambda c: c.moved)
 
 
+@dataclass(slots=True)
+class _Range:
+    """The values read at one place of one unit: their range and count, and (in B) how
+    many lay outside the range A kept there."""
+
+    low: int
+    high: int
+    readings: int = 0
+    outside: int = 0
+
+
+class Side:
+    """What `diff` keeps of one capture, counted a segment of rows at a time (`add`, the
+    `segment` of a windowed `sniffer.session.session.Session.ingest`), so that two days of
+    a bus compare in memory that does not grow with their rows: the units seen, what
+    became of each unit's and each poll's requests, the poll cycle (bounded, as
+    `--stats` counts it), each answer's latency (8 bytes a transaction: the median is
+    that of every value) and each register's range of values read. `before`: A's side,
+    complete, when this is B's: a value read in B is counted outside A's range as it is
+    met. A segment holds each of its requests' answers (segments end where no request
+    waits), so what a pair says is counted whole."""
+
+    def __init__(self, before: Side | None = None) -> None:
+        self.before = before
+        self.units: set[int] = set()
+        self.fared_units: dict[int, Fared] = {}
+        self.fared_polls: dict[tuple[int, str], Fared] = {}
+        self.cycles = PollCycles()
+        self.latencies: dict[int, array[float]] = {}
+        self.ranges: dict[tuple[int, str, int], _Range] = {}  # (unit, table, address)
+
+    def __call__(self, session: Any) -> None:  # (a Session: analysis does not import it)
+        self.add(session.store)
+
+    def add(self, store: FrameStore) -> None:
+        """Count the rows of `store` (a whole capture, or one segment after another)."""
+        store.sync()
+        units = _units(store)
+        self.units |= units
+        fared_units, fared_polls = fared(store)
+        for unit, f in fared_units.items():
+            self.fared_units[unit] = self.fared_units.get(unit, Fared()).plus(f)
+        for key, f in fared_polls.items():
+            self.fared_polls[key] = self.fared_polls.get(key, Fared()).plus(f)
+        self.cycles.add(store)
+        for unit, waits in _waits(store).items():
+            self.latencies.setdefault(unit, array("d")).extend(waits)
+        earlier = self.before.ranges if self.before is not None else None
+        for unit in sorted(units):
+            for (table, address), place in observe(store, unit).places.items():
+                if not place.reads:
+                    continue
+                values = [v for _t, v in place.reads]
+                where = (unit, table, address)
+                kept = self.ranges.get(where)
+                if kept is None:
+                    kept = self.ranges[where] = _Range(min(values), max(values))
+                kept.low, kept.high = min(kept.low, *values), max(kept.high, *values)
+                kept.readings += len(values)
+                a = earlier.get(where) if earlier is not None else None
+                if a is not None:
+                    kept.outside += sum(1 for v in values if not a.low <= v <= a.high)
+
+
 def diff_stores(a: FrameStore, b: FrameStore, name_a: str = "A", name_b: str = "B") -> CaptureDiff:
     """Compare two framed captures of one bus."""
-    a.sync()
-    b.sync()
+    side_a = Side()
+    side_a.add(a)
+    side_b = Side(before=side_a)
+    side_b.add(b)
+    return diff_sides(side_a, side_b, name_a, name_b)
+
+
+def diff_sides(a: Side, b: Side, name_a: str = "A", name_b: str = "B") -> CaptureDiff:
+    """Compare two captures of one bus from what was counted of each (`Side`; B's
+    counted with A's as its `before`)."""
     out = CaptureDiff(name_a, name_b)
-    units_a, units_b = _units(a), _units(b)
+    units_a, units_b = a.units, b.units
     out.units_new = sorted(units_b - units_a)
     out.units_gone = sorted(units_a - units_b)
-    cycles_a, cycles_b = poll_cycles(a), poll_cycles(b)
+    cycles_a, cycles_b = a.cycles.cycles(), b.cycles.cycles()
     repeating = {
         (unit, p.what)
         for cycles in (cycles_a, cycles_b)
@@ -316,23 +404,28 @@ def diff_stores(a: FrameStore, b: FrameStore, name_a: str = "A", name_b: str = "
             pa, pb = polls_a[what], polls_b[what]
             if abs(pb.period - pa.period) > PERIOD_CHANGE * pa.period:
                 out.periods.append((pa, pb))
-    lat_a, lat_b = _latencies(a), _latencies(b)
+    lat_a, lat_b = _medians(a.latencies), _medians(b.latencies)
     for unit in sorted(lat_a.keys() & lat_b.keys()):
         la, lb = lat_a[unit], lat_b[unit]
         if abs(lb - la) > max(LATENCY_CHANGE * la, LATENCY_FLOOR):
             out.latencies.append((unit, la, lb))
-    for unit in sorted(units_a & units_b):
-        seen_a, seen_b = observe(a, unit), observe(b, unit)
-        for key, place_b in sorted(seen_b.places.items()):
-            place_a = seen_a.places.get(key)
-            if place_a is None or not place_a.reads or not place_b.reads:
-                continue
-            va = [v for _t, v in place_a.reads]
-            vb = [v for _t, v in place_b.reads]
-            low, high = min(va), max(va)
-            outside = sum(1 for v in vb if not low <= v <= high)
-            if outside:
-                out.moved.append(
-                    Moved(unit, key[0], key[1], low, high, min(vb), max(vb), outside, len(vb))
-                )
+    both = units_a & units_b
+    for key in sorted(k for k in b.ranges if k[0] in both):
+        kept_a, kept_b = a.ranges.get(key), b.ranges[key]
+        if kept_a is None or not kept_b.outside:
+            continue
+        unit, table, address = key
+        out.moved.append(
+            Moved(
+                unit,
+                table,
+                address,
+                kept_a.low,
+                kept_a.high,
+                kept_b.low,
+                kept_b.high,
+                kept_b.outside,
+                kept_b.readings,
+            )
+        )
     return out

@@ -6,21 +6,25 @@ import argparse
 from pathlib import Path
 from typing import TextIO
 
-from sniffer.analysis.diff import diff_stores
+from sniffer.analysis.diff import Side, diff_sides
 from sniffer.cli.options import SubParsers, add_line_options, add_network_options, read_options
+from sniffer.cli.replay import REPLAY_WINDOW
 from sniffer.session.session import open_session
 from sniffer.text import plain
 
 
 def cmd_diff(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    stores = []
+    # each capture counted a segment of rows at a time (`Side`), A before B: B's values
+    # are held to the ranges A kept as they are met; no capture is kept whole
+    sides: list[Side] = []
     for name in (args.a, args.b):
+        side = Side(before=sides[0] if sides else None)
         session, capture = open_session(Path(name), read_options(args))
-        session.ingest(capture.chunks())
+        session.ingest(capture.chunks(), window=REPLAY_WINDOW, segment=side, bounded=True)
         for w in capture.warnings:
             err.write(f"modscope: warning: {plain(w)}\n")
-        stores.append(session.store)
-    result = diff_stores(stores[0], stores[1], args.a, args.b)
+        sides.append(side)
+    result = diff_sides(sides[0], sides[1], args.a, args.b)
     for line in result.text().splitlines():
         out.write(plain(line, 2000) + "\n")
     return 0 if result.same else 1
