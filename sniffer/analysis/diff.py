@@ -10,18 +10,39 @@ A request counts for its unit's answers when the capture says what became of it:
 answer, an exception answer, an answer with a wrong check, or none before the timeout.
 Requests that are themselves damaged (a wrong CRC or LRC: the slave must ignore them),
 broadcasts, and a request the capture ended on are left out.
+
+Times are compared only as far as each capture's stamps back them (as `--stats` shows
+them, `sniffer.framing.pairing.judge`): a median answer time is a value when at least
+half of a unit's answers came later than twice the stamps' resolution, a bound (`<32ms`)
+when more than half came sooner, unknown when the stamps measure none (a log's print
+times, a synthetic clock); a poll period from coarse stamps is a bound (at most). A
+bound against a value, or two bounds, are a change only where no time both allow fits:
+a 16 ms read clock's `<32ms` against 2.2 ms in B is no change, against 80 ms it is.
 """
 
 from __future__ import annotations
 
 from array import array
+from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from math import ceil
 from typing import Any
 
 from sniffer.analysis.draft import observe
 from sniffer.analysis.pollcycle import Poll, PollCycles
 from sniffer.analysis.polls import FRAMED_APART, frame_body, poll_identity
+from sniffer.framing.pairing import (
+    INF,
+    RESOLVED,
+    TIMING_WORDS,
+    UNRESOLVED,
+    Latency,
+    duration,
+    shown_step,
+)
 from sniffer.framing.store import NO_PARTNER, FrameStore
+from sniffer.model import Stamp
 from sniffer.vocab import BAD_CHECK, Kind, Status
 
 PERIOD_CHANGE = 0.2  # a period that moved by more than 20 % is reported
@@ -131,7 +152,9 @@ class CaptureDiff:
     requests_new: list[Poll] = field(default_factory=list)
     requests_gone: list[Poll] = field(default_factory=list)
     periods: list[tuple[Poll, Poll]] = field(default_factory=list)
-    latencies: list[tuple[int, float, float]] = field(default_factory=list)  # unit, a, b
+    latencies: list[tuple[int, Latency, Latency]] = field(default_factory=list)  # unit, a, b
+    # why answer times of units in both were not compared: one line a capture
+    untimed: list[str] = field(default_factory=list)
     moved: list[Moved] = field(default_factory=list)
     silent: list[Change] = field(default_factory=list)  # answered in A, never in B
     back: list[Change] = field(default_factory=list)  # never answered in A, does in B
@@ -158,6 +181,7 @@ class CaptureDiff:
         out = [f"A: {self.a}", f"B: {self.b}"]
         if self.same:
             out.append("no difference in units, answers, polls, latencies or register ranges")
+            out += self.untimed
             return "\n".join(out)
         for u in self.units_new:
             out.append(f"unit {u}: new in B")
@@ -183,21 +207,22 @@ class CaptureDiff:
                 f"unit {c.unit}: {c.what} recovered in B: {_failed(c.b)}; {_failed(c.a, 'in A')}"
             )
         for p in self.requests_new:
-            out.append(f"unit {p.unit}: new poll in B: {p.what} every {_ms(p.period)}")
+            out.append(f"unit {p.unit}: new poll in B: {p.what} every {p.period_text()}")
         for p in self.requests_gone:
-            out.append(f"unit {p.unit}: poll gone in B: {p.what} (every {_ms(p.period)} in A)")
+            out.append(f"unit {p.unit}: poll gone in B: {p.what} (every {p.period_text()} in A)")
         for pa, pb in self.periods:
             out.append(
-                f"unit {pa.unit}: {pa.what} every {_ms(pa.period)} in A, {_ms(pb.period)} in B"
+                f"unit {pa.unit}: {pa.what} every {pa.period_text()} in A, {pb.period_text()} in B"
             )
         for unit, la, lb in self.latencies:
-            out.append(f"unit {unit}: median answer time {_ms(la)} in A, {_ms(lb)} in B")
+            out.append(f"unit {unit}: median answer time {la.text()} in A, {lb.text()} in B")
         for m in self.moved:
             where = f"{TABLE_WORDS.get(m.table, m.table)} {m.address}"
             out.append(
                 f"unit {m.unit}: {where} left its range: {m.a_low}..{m.a_high} in A, "
                 f"{m.b_low}..{m.b_high} in B ({m.outside} of {m.readings} readings outside)"
             )
+        out += self.untimed
         return "\n".join(out)
 
 
@@ -225,10 +250,6 @@ def _failed(f: Fared, where: str = "failed") -> str:
     return f"{f.failed} of {f.sent} {where} ({share})"
 
 
-def _ms(seconds: float) -> str:
-    return f"{seconds * 1000:.1f}ms" if seconds < 10 else f"{seconds:.1f}s"
-
-
 def _waits(store: FrameStore) -> dict[int, list[float]]:
     """Each unit's answer times (an answer's first byte less its request's last)."""
     found: dict[int, list[float]] = {}
@@ -240,9 +261,19 @@ def _waits(store: FrameStore) -> dict[int, list[float]]:
     return found
 
 
-def _medians(waits: dict[int, array[float]]) -> dict[int, float]:
-    """Each unit's median answer time (the upper of the two middle ones)."""
-    return {u: sorted(v)[len(v) // 2] for u, v in waits.items() if v}
+def _apart(
+    a: float, a_bound: bool, b: float, b_bound: bool, change: Callable[[float], float]
+) -> bool:
+    """Whether two times (each a value, or a bound: at most it) differ by more than
+    `change(x)` for any pair of times they allow: a value `x` allows only itself, a bound
+    `y` anything from 0 to `y`. Two bounds allow the same small times: never apart."""
+    if a_bound and b_bound:
+        return False
+    if a_bound:  # B a value: apart only if above every time A allows, by more than that
+        return b - a > change(a)
+    if b_bound:
+        return a - b > change(a)
+    return abs(b - a) > change(a)
 
 
 def _units(store: FrameStore) -> set[int]:
@@ -335,7 +366,13 @@ class Side:
         self.fared_units: dict[int, Fared] = {}
         self.fared_polls: dict[tuple[int, str], Fared] = {}
         self.cycles = PollCycles()
+        # each unit's answer times the stamps measure; those too short for them (below
+        # twice the resolution) and those they cannot tell at all, counted
         self.latencies: dict[int, array[float]] = {}
+        self.below: Counter[int] = Counter()
+        self.unmeasured: Counter[int] = Counter()
+        self.stamps = Stamp.EXACT
+        self.resolution = 0.0
         self.ranges: dict[tuple[int, str, int], _Range] = {}  # (unit, table, address)
 
     def __call__(self, session: Any) -> None:  # (a Session: analysis does not import it)
@@ -352,8 +389,15 @@ class Side:
         for key, f in fared_polls.items():
             self.fared_polls[key] = self.fared_polls.get(key, Fared()).plus(f)
         self.cycles.add(store)
+        self.stamps, self.resolution = store.stamps, store.resolution
+        threshold = self.threshold
         for unit, waits in _waits(store).items():
-            self.latencies.setdefault(unit, array("d")).extend(waits)
+            if threshold is None:
+                self.unmeasured[unit] += len(waits)
+                continue
+            timed = [w for w in waits if not w < threshold]  # (a NaN: kept, as --stats)
+            self.below[unit] += len(waits) - len(timed)
+            self.latencies.setdefault(unit, array("d")).extend(timed)
         earlier = self.before.ranges if self.before is not None else None
         for unit in sorted(units):
             for (table, address), place in observe(store, unit).places.items():
@@ -369,6 +413,61 @@ class Side:
                 a = earlier.get(where) if earlier is not None else None
                 if a is not None:
                     kept.outside += sum(1 for v in values if not a.low <= v <= a.high)
+
+    @property
+    def threshold(self) -> float | None:
+        """The shortest answer time the stamps measure (shorter ones are only bounded by
+        it); None where they measure none (print times, a synthetic clock, stamps that
+        bound nothing), as `--stats` counts them."""
+        if self.stamps in (Stamp.NONE, Stamp.PRINT) or not self.resolution < INF:
+            return None
+        return max(RESOLVED * self.resolution, UNRESOLVED)
+
+    def median(self, unit: int) -> Latency | None:
+        """`unit`'s median answer time (the upper of the two middle ones) as far as the
+        stamps vouch for it: a value, a bound below the threshold when the middle
+        answer came sooner than the stamps resolve, None when they cannot tell."""
+        kept = self.latencies.get(unit, ())
+        below = self.below[unit]
+        n = len(kept) + below + self.unmeasured[unit]
+        threshold = self.threshold
+        if not n or self.unmeasured[unit] or threshold is None:
+            return None
+        step = shown_step(self.resolution)
+        rank = n // 2
+        if rank < below:  # (every answer below the threshold came sooner than any kept)
+            return Latency(ceil(threshold / step - 1e-9) * step, True, step, threshold)
+        x = sorted(kept)[rank - below]
+        return Latency(round(x / step) * step, False, step, x)
+
+    def untimed(self, name: str, units: set[int]) -> str:
+        """Why answer times of `units` (answered in both) were left uncompared here, or ''."""
+        told = {u: self.median(u) for u in units if self.latencies.get(u) or self.below[u]}
+        told |= {u: None for u in units if self.unmeasured[u]}
+        unknown = sorted(u for u, m in told.items() if m is None)
+        bounded = sorted(u for u, m in told.items() if m is not None and m.bound)
+        how = f"its stamps ({TIMING_WORDS.get(self.stamps, self.stamps.value)}"
+        if self.resolution > 0 and self.resolution < INF:
+            how += f", resolution {duration(self.resolution)}"
+        how += ")"
+        if unknown:
+            return (
+                f"{name}: answer times of {_units_text(unknown)} unknown: {how} cannot measure them"
+            )
+        if bounded:
+            return (
+                f"{name}: median answer times of {_units_text(bounded)} only bounded by {how}: "
+                "compared where they still tell"
+            )
+        return ""
+
+
+def _units_text(units: list[int]) -> str:
+    return (
+        f"unit {units[0]}"
+        if len(units) == 1
+        else f"{len(units)} units ({', '.join(map(str, units))})"
+    )
 
 
 def diff_stores(a: FrameStore, b: FrameStore, name_a: str = "A", name_b: str = "B") -> CaptureDiff:
@@ -402,13 +501,35 @@ def diff_sides(a: Side, b: Side, name_a: str = "A", name_b: str = "B") -> Captur
         out.requests_gone += [polls_a[w] for w in sorted(polls_a.keys() - polls_b.keys())]
         for what in sorted(polls_a.keys() & polls_b.keys()):
             pa, pb = polls_a[what], polls_b[what]
-            if abs(pb.period - pa.period) > PERIOD_CHANGE * pa.period:
+            if _apart(
+                pa.period,
+                pa.period_bound,
+                pb.period,
+                pb.period_bound,
+                lambda x: PERIOD_CHANGE * x,
+            ):
                 out.periods.append((pa, pb))
-    lat_a, lat_b = _medians(a.latencies), _medians(b.latencies)
-    for unit in sorted(lat_a.keys() & lat_b.keys()):
-        la, lb = lat_a[unit], lat_b[unit]
-        if abs(lb - la) > max(LATENCY_CHANGE * la, LATENCY_FLOOR):
+    for unit in sorted(units_a & units_b):
+        la, lb = a.median(unit), b.median(unit)
+        if la is None or lb is None:
+            continue
+        if _apart(
+            la.raw,
+            la.bound,
+            lb.raw,
+            lb.bound,
+            lambda x: max(LATENCY_CHANGE * x, LATENCY_FLOOR),
+        ):
             out.latencies.append((unit, la, lb))
+    answered = {
+        u
+        for u in units_a & units_b
+        if (a.latencies.get(u) or a.below[u] or a.unmeasured[u])
+        and (b.latencies.get(u) or b.below[u] or b.unmeasured[u])
+    }
+    for name, side in (("A", a), ("B", b)):
+        if why := side.untimed(name, answered):
+            out.untimed.append(why)
     both = units_a & units_b
     for key in sorted(k for k in b.ranges if k[0] in both):
         kept_a, kept_b = a.ranges.get(key), b.ranges[key]

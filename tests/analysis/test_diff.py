@@ -5,32 +5,60 @@ at the read's end or at both ends of each frame."""
 
 from __future__ import annotations
 
+from math import ceil
+
 import pytest
 
 from dissectors.checks import with_crc
-from sniffer.analysis.diff import Change, Fared, diff_stores
-from sniffer.framing.pipeline import frame_capture
+from sniffer.analysis.diff import Change, Fared, _apart, diff_stores
+from sniffer.framing.pairing import duration
+from sniffer.framing.pipeline import Pipeline, frame_capture
 from sniffer.framing.store import FrameStore
-from sniffer.model import Chunk, Direction, LineSettings
+from sniffer.model import Chunk, Direction, LineSettings, Stamp
 from sniffer.vocab import BAD_CHECK, Kind
 
 LINE = LineSettings(19200, 8, "E", 1)
 
 
 def read(unit: int, address: int, words: list[int], t: float, latency: float) -> list[Chunk]:
+    """A read sent at `t` and answered `latency` after its last byte, stamped exactly (a
+    logic analyser's both ends)."""
     request = with_crc(bytes([unit, 3, 0, address, 0, len(words)]))
     body = b"".join(w.to_bytes(2, "big") for w in words)
     answer = with_crc(bytes([unit, 3, 2 * len(words)]) + body)
-    return [Chunk(request, t), Chunk(answer, t + latency)]
+    end = t + len(request) * LINE.char_time
+    return [
+        Chunk(request, t_end=end, t_start=t),
+        Chunk(answer, t_end=end + latency + len(answer) * LINE.char_time, t_start=end + latency),
+    ]
 
 
-def bus(*, period_2: float, latency_3: float, value: int, unit_9: bool, extra: bool) -> FrameStore:
+def host_reads(chunks: list[Chunk], every: float) -> list[Chunk]:
+    """The same bytes as a program reading the port every `every` seconds gets them: each
+    read stamped when it returned, holding what came since the last one."""
+    reads: dict[int, bytearray] = {}
+    for c in sorted(chunks, key=lambda c: c.t_end):
+        reads.setdefault(ceil(c.t_end / every), bytearray()).extend(c.data)
+    return [Chunk(bytes(data), k * every) for k, data in sorted(reads.items())]
+
+
+def bus(
+    *,
+    period_2: float,
+    latency_3: float,
+    value: int,
+    unit_9: bool,
+    extra: bool,
+    reads: float = 0.0,
+) -> FrameStore:
+    """10 s of a bus: units 3 and 9 polled every 0.5 s, unit 2 every `period_2`; stamped
+    exactly, or as host reads every `reads` seconds."""
     chunks: list[Chunk] = []
     t = 0.0
     while t < 10:
         chunks += read(3, 0, [100 + int(t) % 3, value], t, latency_3)
         if unit_9:
-            chunks += read(9, 5, [1], t + 0.05, 0.01)
+            chunks += read(9, 5, [1], t + 0.25, 0.01)
         if extra:
             chunks += read(3, 40, [7], t + 0.1, latency_3)
         t += 0.5
@@ -39,7 +67,12 @@ def bus(*, period_2: float, latency_3: float, value: int, unit_9: bool, extra: b
         chunks += read(2, 8, [0], t, 0.01)
         t += period_2
     chunks.sort(key=lambda c: c.t_end)
-    return frame_capture(chunks, LINE)
+    if reads:
+        return frame_capture(host_reads(chunks, reads), LINE)
+    pipeline = Pipeline(LINE, exact_timing=True, stamps=Stamp.EXACT)  # a logic analyser's
+    pipeline.feed_all(chunks)
+    pipeline.finish()
+    return pipeline.store
 
 
 def test_same_bus_twice_shows_no_difference() -> None:
@@ -59,7 +92,7 @@ def test_every_kind_of_change_is_found() -> None:
     ((pa, pb),) = result.periods
     assert (pa.unit, round(pa.period, 2), round(pb.period, 2)) == (2, 1.0, 2.0)
     ((unit, la, lb),) = result.latencies
-    assert unit == 3 and lb > la
+    assert unit == 3 and (la.raw, lb.raw) == pytest.approx((0.01, 0.03), abs=2e-3)
     (moved,) = result.moved
     assert (moved.unit, moved.address, moved.a_low, moved.a_high) == (3, 1, 50, 50)
     assert moved.b_low == 80 and moved.outside == moved.readings
@@ -68,6 +101,56 @@ def test_every_kind_of_change_is_found() -> None:
     assert "unit 3: holding 1 left its range: 50..50 in A, 80..80 in B" in text
     # register 0 moves within 100..102 in both: not reported
     assert "holding 0 " not in text
+
+
+def test_answer_times_are_compared_only_as_far_as_the_stamps_tell() -> None:
+    """A day read every 16 ms (the reads' resolution measured from their rhythm: some
+    30 ms on this sparse bus) bounds a 2 ms answer time only (`<64ms`, as --stats shows
+    it): against 30 ms on an exact day that is no change (30 ms is allowed), against
+    170 ms it is; 2 ms against 30 ms both exact is."""
+    same = {"period_2": 1.0, "value": 50, "unit_9": True, "extra": False}
+    coarse = bus(latency_3=0.002, reads=0.016, **same)  # type: ignore[arg-type]
+    exact_2, exact_30, exact_170 = (
+        bus(latency_3=x, **same)  # type: ignore[arg-type]
+        for x in (0.002, 0.03, 0.17)
+    )
+    resolution = coarse.resolution
+    assert 0.016 <= resolution < 0.05
+    bound = f"<{ceil(2 * resolution * 1000 - 1e-6)}ms"
+
+    result = diff_stores(coarse, exact_30)
+    assert result.latencies == [] and result.same
+    why = (
+        "A: median answer times of 3 units (2, 3, 9) only bounded by its stamps (end of "
+        f"each host read, resolution {duration(resolution)}): compared where they still tell"
+    )
+    assert result.untimed == [why]
+    assert result.text().splitlines()[-1] == why
+    far = diff_stores(coarse, exact_170)
+    ((unit, la, lb),) = far.latencies
+    assert (unit, la.text(), lb.text()) == (3, bound, "170ms")
+    assert f"unit 3: median answer time {bound} in A, 170ms in B" in far.text()
+    ((unit, la, lb),) = diff_stores(exact_2, exact_30).latencies
+    assert (unit, la.text(), lb.text()) == (3, "2ms", "30ms")
+    assert diff_stores(exact_2, exact_30).untimed == []
+
+
+@pytest.mark.parametrize(
+    ("a", "a_bound", "b", "b_bound", "apart"),
+    [
+        (10.0, False, 13.0, False, True),  # a value each, 30 % apart
+        (10.0, False, 11.0, False, False),
+        (10.0, True, 11.0, False, False),  # at most 10 against 11: within 20 %
+        (10.0, True, 13.0, False, True),  # at most 10 against 13: no time fits both
+        (10.0, False, 5.0, True, True),  # 10 against at most 5
+        (10.0, False, 9.0, True, False),
+        (10.0, True, 1000.0, True, False),  # two bounds: the same small times fit both
+    ],
+)
+def test_times_are_apart_only_where_no_time_fits_both(
+    a: float, a_bound: bool, b: float, b_bound: bool, apart: bool
+) -> None:
+    assert _apart(a, a_bound, b, b_bound, lambda x: 0.2 * x) is apart
 
 
 # -- answers: units that went silent or came back, polls that began failing or recovered -----
