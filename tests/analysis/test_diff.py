@@ -5,17 +5,23 @@ at the read's end or at both ends of each frame."""
 
 from __future__ import annotations
 
+import random
 from math import ceil
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.analysis.diff import Change, Fared, _apart, diff_stores
+from sniffer.analysis.diff import Change, Fared, _apart, diff_stores, readings
+from sniffer.analysis.draft import observe
 from sniffer.framing.pairing import duration
 from sniffer.framing.pipeline import Pipeline, frame_capture
 from sniffer.framing.store import FrameStore
 from sniffer.model import Chunk, Direction, LineSettings, Stamp
+from sniffer.sources.synth import polling_frames
 from sniffer.vocab import BAD_CHECK, Kind
+from tests.support.random_rows import random_store
 
 LINE = LineSettings(19200, 8, "E", 1)
 
@@ -275,3 +281,29 @@ def test_damaged_requests_are_not_counted_as_unanswered(exact: bool) -> None:
     result = diff_stores(polled("ok", exact=exact), b)
     assert result.silent == [Change(9, "", Fared(answered=24), Fared(timeouts=4))]
     assert "unit 9: silent in B: none of 4 requests answered (4 timeouts)" in result.text()
+
+
+# -- the values read: one pass for every unit, as `observe` finds them unit by unit ------
+
+
+def _observed(store: FrameStore) -> dict[tuple[int, str, int], list[int]]:
+    """What `observe` keeps as reads, unit by unit: the reference `readings` is held to."""
+    found: dict[tuple[int, str, int], list[int]] = {}
+    for unit in sorted({store.unit[i] for i in range(len(store))}):
+        for (table, address), place in observe(store, unit).places.items():
+            if place.reads:
+                found[(unit, table, address)] = [v for _t, v in place.reads]
+    return found
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32), rows=st.integers(0, 400))
+def test_the_values_read_are_those_observe_finds(seed: int, rows: int) -> None:
+    """Random rows (answers of any length, exceptions, damaged frames, ASCII and Modbus
+    TCP among RTU), and a polling bus of reads of registers and bits."""
+    store = random_store(random.Random(seed), rows, odd_framing=True)
+    assert readings(store) == _observed(store)
+    frames = polling_frames(rows, seed=seed, line=LINE)
+    chunks = [Chunk(f.raw, f.t + len(f.raw) * LINE.char_time) for f in frames]
+    polled = frame_capture(chunks, LINE)
+    assert readings(polled) == _observed(polled)
