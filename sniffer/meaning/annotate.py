@@ -30,6 +30,7 @@ from dissectors.dissect import dissect
 from dissectors.functions import FUNCTIONS, Registry
 from dissectors.values import Dissection, RegisterData, Role
 from sniffer.framing.columns import both, but_not, marking
+from sniffer.framing.pairing import measure
 from sniffer.framing.store import NO_PARTNER, FrameStore
 from sniffer.meaning.sunspec import READS, SunSpecTracker
 from sniffer.vocab import Flag, Kind
@@ -87,6 +88,18 @@ def load_bindings(
         d = own.get(b.model) or load_model(b.model, extra, named_in=named_in, line=b.line)
         out[b.address] = Binding(b.address, b.label or d.name, d)
     return out
+
+
+def surely_over(store: FrameStore, i: int, ms: float) -> bool:
+    """Whether answer row `i` came more than `ms` milliseconds after its request for
+    whatever times its stamps allow: a latency the timing measures (not a bound, not
+    unknown: `sniffer.framing.pairing.measure`) and longer than `ms` by more than one
+    resolution, since each stamp may be off by that much. A 1 s clock's answer a second
+    after its request is not slow against a 40 ms response time: it may have taken 0 s."""
+    measured = measure(store, i)
+    if measured is None or measured.bound:
+        return False
+    return (measured.raw - store.resolution) * 1000 > ms
 
 
 class Annotator:
@@ -169,8 +182,7 @@ class Annotator:
         if timing is None or req == NO_PARTNER:
             return
         fc = store.fc[req]
-        latency_ms = (store.t[i] - store.t_end[req]) * 1000
-        if timing.response_ms is not None and latency_ms > timing.response_ms:
+        if timing.response_ms is not None and surely_over(store, i, timing.response_ms):
             store.flags[i] |= Flag.DEVICE_SLOW
         if fc in timing.quiet_after_functions and not store.fc[i] & 0x80:
             self.last_write[unit] = (store.t_end[i], fc)

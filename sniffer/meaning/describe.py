@@ -23,9 +23,9 @@ from dissectors.dictionary import RegisterValue, Timing
 from dissectors.dissect import dissect
 from dissectors.functions import function_name
 from dissectors.values import Dissection, Field, Problem, Role
-from sniffer.framing.pairing import latency, measure
+from sniffer.framing.pairing import measure
 from sniffer.framing.store import NO_PARTNER, FrameStore, FrameView
-from sniffer.meaning.annotate import Annotator
+from sniffer.meaning.annotate import Annotator, surely_over
 from sniffer.meaning.problems import frame_problems
 from sniffer.text import plain
 from sniffer.vocab import BAD_CHECK, FLAG_MEANINGS, STATUS_NAMES, WARNING, Flag, Kind
@@ -222,12 +222,14 @@ class FrameDetail:
         return self.dissection.fields if self.dissection is not None else ()
 
 
-def _slow_text(ms: float, timing: Timing | None) -> str:
+def _slow_text(store: FrameStore, i: int, ms: float, timing: Timing | None) -> str:
+    """What a slow answer (row `i`, `ms` after its request as measured) is slower than:
+    beyond the longest response time only where every time its stamps allow is."""
     if timing is None or timing.response_ms is None:
         return f"answer after {ms:.0f} ms, slower than the device's documented response time"
     text = f"answer after {ms:.0f} ms; the device normally answers within {timing.response_ms:g} ms"
     if timing.long_response_ms is not None:
-        if ms > timing.long_response_ms:
+        if surely_over(store, i, timing.long_response_ms):
             return (
                 f"answer after {ms:.0f} ms, beyond the longest response time the device "
                 f"documents ({timing.long_response_ms:g} ms)"
@@ -625,13 +627,12 @@ class Describer:
             c = content
             return FrameDetail(view, c.name, c.summary, None, (), problems, None, c.label)
         binding = self.annotator.bindings.get(view.unit)
-        lat = latency(store, i)
         measured = measure(store, i)
         if view.flags & _DEVICE_SLOW:
             slow = FLAG_MEANINGS[Flag.DEVICE_SLOW]
             text = slow.text
-            if lat is not None and binding is not None:
-                text = _slow_text(lat * 1000, binding.dictionary.timing)
+            if measured is not None and not measured.bound and binding is not None:
+                text = _slow_text(store, i, measured.seconds * 1000, binding.dictionary.timing)
             problems += (Problem(slow.kind, slow.severity, plain(text), None),)
         return FrameDetail(
             view,

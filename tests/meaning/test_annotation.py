@@ -10,7 +10,7 @@ import pytest
 
 from dissectors.dictionary import load_dictionary, load_model
 from sniffer.meaning.annotate import Binding, load_bindings
-from sniffer.model import Chunk, LineSettings
+from sniffer.model import Chunk, LineSettings, Stamp
 from sniffer.session.session import DEMO_BUS, DEMO_CAPTURE, Session, replay_file
 from sniffer.vocab import Flag, Kind, Status
 from tests.support.seedvectors import MODELS, by_id, load_examples, wire_bytes
@@ -208,3 +208,38 @@ def test_vendor_function_is_framed_from_its_layout_and_its_answered_broadcast_pa
     bare.feed(Chunk(req + resp + with_crc(poll), t_end=1.0))
     bare.finish()
     assert Kind.NOISE in {Kind(k) for k in bare.store.kind}
+
+
+@pytest.mark.parametrize(
+    ("after", "said"),
+    [
+        # 0.1 s stamps: 120 ms is only a bound (<0.2 s), so no slower than 40 ms for sure
+        (0.12, None),
+        # 250 ms is 150-350 ms: slow, but maybe within the long answers' 200 ms
+        (0.25, "answer after 250 ms; the device normally answers within 40 ms (long answers"),
+        (0.45, "answer after 450 ms, beyond the longest response time the device documents"),
+    ],
+)
+def test_a_slow_answer_is_one_the_stamps_show_slow(
+    demo: Session, after: float, said: str | None
+) -> None:
+    """The demo's RVS-DN (unit 3) documents 40 ms, long answers up to 200 ms; its answer
+    replayed `after` seconds after its request, stamped to 0.1 s. Slower than a
+    documented time only where every latency the stamps allow is."""
+    store = demo.store
+    answer = next(i for i in range(len(store)) if store.flags[i] & Flag.DEVICE_SLOW)
+    request = store.partner[answer]
+    req, ans = store.raw(request), store.raw(answer)
+    session = Session(
+        demo.line, bindings=load_bindings(DEMO_BUS), stamps=Stamp.READ_END, resolution=0.1
+    )
+    end = 10.0 + after + len(ans) * demo.line.char_time
+    session.ingest([Chunk(req, 10.0), Chunk(ans, end), Chunk(req, 11.0)])
+    replayed = session.store
+    assert [replayed.kind[k] for k in range(2)] == [Kind.REQUEST, Kind.RESPONSE]
+    slow = bool(replayed.flags[1] & Flag.DEVICE_SLOW)
+    problems = session.describer.detail(1).problem_texts
+    if said is None:
+        assert not slow and problems == ()
+    else:
+        assert slow and len(problems) == 1 and problems[0].startswith(said)
