@@ -35,12 +35,19 @@ def register(sub: SubParsers) -> None:
         "diff",
         help="compare two captures of the same bus",
         description=(
-            "Compare two captures of one bus: first units that went silent or answer "
-            "again and repeating requests that began failing (timeouts, exceptions) or "
-            "recovered, with counts and shares; then units and repeating requests that "
-            "appeared or vanished, poll periods and answer times that changed, and "
-            "registers whose values in B left the range they kept in A. Exit status 1 "
-            "when they differ."
+            "Compare two captures of one bus: first units that went silent or answer\n"
+            "again and repeating requests that began failing (timeouts, exceptions) or\n"
+            "recovered, with counts and shares; then units and repeating requests that\n"
+            "appeared or vanished, poll periods and answer times that changed, and\n"
+            "registers whose values in B left the range they kept in A.\n\n"
+            "Times are compared only as far as each capture's stamps back them (as\n"
+            "replay --stats shows them): a recording read every 16 ms bounds a fast\n"
+            "answer (<32ms) and is no change against 2 ms; the last lines say which\n"
+            "side's stamps left answer times uncompared. Each capture is read a segment\n"
+            "at a time, keeping 8 bytes an answer for the medians (1M frames a side:\n"
+            "about 110 MB).\n\n"
+            "Exit status: 0 no difference, 1 the captures differ, 2 an error (a file\n"
+            "missing or unreadable, named with the fix)."
         ),
         epilog="example:\n  modscope diff monday.pcapng friday.pcapng",
         formatter_class=argparse.RawDescriptionHelpFormatter,
