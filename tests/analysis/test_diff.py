@@ -141,6 +141,20 @@ def test_answer_times_are_compared_only_as_far_as_the_stamps_tell() -> None:
     assert diff_stores(exact_2, exact_30).untimed == []
 
 
+def test_answer_times_a_log_cannot_measure_are_unknown() -> None:
+    """A log's print times measure no answer time (`--stats` shows none): the diff
+    compares none and says why, rather than calling 10 ms against 30 ms a change."""
+    same = {"period_2": 1.0, "value": 50, "unit_9": True, "extra": False}
+    logged = bus(latency_3=0.01, **same)  # type: ignore[arg-type]
+    logged.stamps = Stamp.PRINT
+    result = diff_stores(logged, bus(latency_3=0.03, **same))  # type: ignore[arg-type]
+    assert result.latencies == [] and result.same
+    assert result.untimed == [
+        "A: answer times of 3 units (2, 3, 9) unknown: its stamps (when each line was "
+        "logged) cannot measure them"
+    ]
+
+
 @pytest.mark.parametrize(
     ("a", "a_bound", "b", "b_bound", "apart"),
     [
