@@ -181,7 +181,13 @@ class CaptureDiff:
     def text(self) -> str:
         out = [f"A: {self.a}", f"B: {self.b}"]
         if self.same:
-            out.append("no difference in units, answers, polls, latencies or register ranges")
+            if self.untimed:  # (not "no difference in latencies": some were not compared)
+                out.append(
+                    "no difference in units, answers, polls, register ranges, or the "
+                    "answer times both captures' stamps measure"
+                )
+            else:
+                out.append("no difference in units, answers, polls, latencies or register ranges")
             out += self.untimed
             return "\n".join(out)
         for u in self.units_new:

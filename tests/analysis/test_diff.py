@@ -153,6 +153,11 @@ def test_answer_times_a_log_cannot_measure_are_unknown() -> None:
         "A: answer times of 3 units (2, 3, 9) unknown: its stamps (when each line was "
         "logged) cannot measure them"
     ]
+    assert result.text().splitlines()[2:] == [
+        "no difference in units, answers, polls, register ranges, or the answer times "
+        "both captures' stamps measure",
+        *result.untimed,
+    ]
 
 
 @pytest.mark.parametrize(
