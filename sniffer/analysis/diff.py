@@ -98,12 +98,13 @@ class Fared:
         """Requests that did not bring their values."""
         return self.exceptions + self.bad + self.timeouts
 
-    def add(self, status: int) -> Fared:
+    def add(self, status: int, n: int = 1) -> Fared:
+        """These counts and `n` requests more whose fate was `status`."""
         return Fared(
-            self.answered + (status == Status.OK),
-            self.exceptions + (status == Status.EXCEPTION),
-            self.bad + (status == Status.BAD_ANSWER),
-            self.timeouts + (status == Status.TIMEOUT),
+            self.answered + n * (status == Status.OK),
+            self.exceptions + n * (status == Status.EXCEPTION),
+            self.bad + n * (status == Status.BAD_ANSWER),
+            self.timeouts + n * (status == Status.TIMEOUT),
         )
 
     def plus(self, other: Fared) -> Fared:
@@ -300,21 +301,23 @@ def fared(store: FrameStore) -> tuple[dict[int, Fared], dict[tuple[int, str], Fa
     poll cycle's `what`), over the requests whose fate the capture shows."""
     units: dict[int, Fared] = {}
     polls: dict[tuple[int, str], Fared] = {}
-    named: dict[tuple[bytes, int], str] = {}  # a polling master repeats its requests
-    for i in range(len(store)):
-        status = store.status[i]
-        if store.kind[i] != Kind.REQUEST or status not in _DECIDED:
-            continue
-        flags = store.flags[i]
-        if flags & BAD_CHECK:
-            continue
-        unit = store.unit[i]
-        key = (store.raw(i), flags & FRAMED_APART)
-        what = named.get(key)
+    kind, status, flags, unit = store.kind, store.status, store.flags, store.unit
+    request, decided = int(Kind.REQUEST), {int(s) for s in _DECIDED}
+    # a polling master repeats its requests: each distinct one (and its fate) counted
+    # first, then named once (1M frames of the project stream: 0.8-1.1 s, 3.7-5.3 s row
+    # by row)
+    seen = Counter(
+        (store.raw(i), flags[i] & FRAMED_APART, unit[i], status[i])
+        for i in range(len(store))
+        if kind[i] == request and status[i] in decided and not flags[i] & BAD_CHECK
+    )
+    named: dict[tuple[bytes, int], str] = {}
+    for (raw, apart, u, fate), n in seen.items():
+        what = named.get((raw, apart))
         if what is None:
-            what = named[key] = poll_identity(frame_body(*key))[1]
-        units[unit] = units.get(unit, Fared()).add(status)
-        polls[unit, what] = polls.get((unit, what), Fared()).add(status)
+            what = named[raw, apart] = poll_identity(frame_body(raw, apart))[1]
+        units[u] = units.get(u, Fared()).add(fate, n)
+        polls[u, what] = polls.get((u, what), Fared()).add(fate, n)
     return units, polls
 
 
@@ -479,8 +482,8 @@ def readings(store: FrameStore) -> dict[tuple[int, str, int], Sequence[int]]:
     asked is decoded here: the answers' data of one request kept end to end, each
     place's values then sliced out of them at once (the whole diff of 1M frames a side
     of the project's stream: 89 s through `observe` unit by unit, 27 s value by value,
-    17.7 s so). Any other answer goes through the dissector as `observe` does. Held equal to `observe` by
-    tests/analysis/test_diff.py."""
+    17.7 s so). Any other answer goes through the dissector as `observe` does. Held
+    equal to `observe` by tests/analysis/test_diff.py."""
     store.sync()
     runs: dict[tuple[int, int, int, int], bytearray] = {}  # (unit, fc, address, count)
     found: dict[tuple[int, str, int], Sequence[int]] = {}
