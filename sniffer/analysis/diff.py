@@ -32,6 +32,7 @@ from typing import Any
 
 from dissectors.dissect import dissect
 from dissectors.values import Role
+from sniffer.analysis.draft import READ_TABLES
 from sniffer.analysis.pollcycle import Poll, PollCycles
 from sniffer.analysis.polls import FRAMED_APART, frame_body, poll_identity
 from sniffer.framing.pairing import (
@@ -431,13 +432,18 @@ class Side:
             return None
         return max(RESOLVED * self.resolution, UNRESOLVED)
 
+    def answers(self, unit: int) -> int:
+        """`unit`'s answers with a request: measured, too short for the stamps, or not
+        measurable."""
+        return len(self.latencies.get(unit, ())) + self.below[unit] + self.unmeasured[unit]
+
     def median(self, unit: int) -> Latency | None:
         """`unit`'s median answer time (the upper of the two middle ones) as far as the
         stamps vouch for it: a value, a bound below the threshold when the middle
         answer came sooner than the stamps resolve, None when they cannot tell."""
         kept = self.latencies.get(unit, ())
         below = self.below[unit]
-        n = len(kept) + below + self.unmeasured[unit]
+        n = self.answers(unit)
         threshold = self.threshold
         if not n or self.unmeasured[unit] or threshold is None:
             return None
@@ -450,8 +456,7 @@ class Side:
 
     def untimed(self, name: str, units: set[int]) -> str:
         """Why answer times of `units` (answered in both) were left uncompared here, or ''."""
-        told = {u: self.median(u) for u in units if self.latencies.get(u) or self.below[u]}
-        told |= {u: None for u in units if self.unmeasured[u]}
+        told = {u: self.median(u) for u in units if self.answers(u)}
         unknown = sorted(u for u, m in told.items() if m is None)
         bounded = sorted(u for u, m in told.items() if m is not None and m.bound)
         how = f"its stamps ({TIMING_WORDS.get(self.stamps, self.stamps.value)}"
@@ -470,7 +475,6 @@ class Side:
         return ""
 
 
-_READS = {1: "coils", 2: "discrete_inputs", 3: "holding_registers", 4: "input_registers"}
 _UNREADABLE = int(Flag.CHECK_BAD | Flag.NON_HEX)
 
 
@@ -500,7 +504,7 @@ def readings(store: FrameStore) -> dict[tuple[int, str, int], Sequence[int]]:
         asked = frame_body(store.raw(i), flags[i])
         answer = frame_body(store.raw(j), flags[j])
         fc = asked[1] if len(asked) == 6 else 0
-        if fc in _READS and len(answer) >= 3 and answer[1] == fc:
+        if fc in READ_TABLES and len(answer) >= 3 and answer[1] == fc:
             count = asked[4] << 8 | asked[5]
             size = 2 * count if fc >= 3 else (count + 7) // 8
             if count and answer[2] == size == len(answer) - 3:
@@ -520,7 +524,7 @@ def readings(store: FrameStore) -> dict[tuple[int, str, int], Sequence[int]]:
             for k, value in enumerate(read.values):
                 others.setdefault((unit, read.table, read.address + k), []).append(value)
     for (unit, fc, address, count), run in runs.items():
-        table = _READS[fc]
+        table = READ_TABLES[fc]
         if fc >= 3:
             words = array("H", run)
             if _LITTLE:
@@ -611,12 +615,7 @@ def diff_sides(a: Side, b: Side, name_a: str = "A", name_b: str = "B") -> Captur
             lambda x: max(LATENCY_CHANGE * x, LATENCY_FLOOR),
         ):
             out.latencies.append((unit, la, lb))
-    answered = {
-        u
-        for u in units_a & units_b
-        if (a.latencies.get(u) or a.below[u] or a.unmeasured[u])
-        and (b.latencies.get(u) or b.below[u] or b.unmeasured[u])
-    }
+    answered = {u for u in units_a & units_b if a.answers(u) and b.answers(u)}
     for name, side in (("A", a), ("B", b)):
         if why := side.untimed(name, answered):
             out.untimed.append(why)
