@@ -13,11 +13,14 @@ broadcasts, and a request the capture ended on are left out.
 
 Times are compared only as far as each capture's stamps back them (as `--stats` shows
 them, `sniffer.framing.pairing.judge`): a median answer time is a value when at least
-half of a unit's answers came later than twice the stamps' resolution, a bound (`<32ms`)
-when more than half came sooner, unknown when the stamps measure none (a log's print
-times, a synthetic clock); a poll period from coarse stamps is a bound (at most). A
-bound against a value, or two bounds, are a change only where no time both allow fits:
-a 16 ms read clock's `<32ms` against 2.2 ms in B is no change, against 80 ms it is.
+half of a unit's answers came later than twice the stamps' resolution (good to one
+resolution either way), a bound when more than half came sooner (below twice the
+resolution, plus the one each stamp may be off: `<48ms` for 16 ms reads), unknown when
+the stamps measure none (a log's print times, a synthetic clock); a poll period is a
+value good to its resolution, or a bound (at most). Two times are a change only where
+no pair of times they allow is close: a 16 ms read clock's `<48ms` against 2.2 ms in B
+is no change, against 80 ms it is; 40 ms against 62 ms, both read every 16 ms, is none
+(both may be 50 ms).
 """
 
 from __future__ import annotations
@@ -271,19 +274,35 @@ def _waits(store: FrameStore) -> dict[int, list[float]]:
     return found
 
 
-def _apart(
-    a: float, a_bound: bool, b: float, b_bound: bool, change: Callable[[float], float]
-) -> bool:
-    """Whether two times (each a value, or a bound: at most it) differ by more than
-    `change(x)` for any pair of times they allow: a value `x` allows only itself, a bound
-    `y` anything from 0 to `y`. Two bounds allow the same small times: never apart."""
-    if a_bound and b_bound:
-        return False
-    if a_bound:  # B a value: apart only if above every time A allows, by more than that
-        return b - a > change(a)
-    if b_bound:
-        return a - b > change(a)
-    return abs(b - a) > change(a)
+Span = tuple[float, float]  # the least and the most a time may be
+
+
+def _apart(a: Span, b: Span, change: Callable[[float], float]) -> bool:
+    """Whether every time `b` allows differs from every time `a` allows by more than
+    `change` of A's (a value allows itself give or take its error, a bound anything from
+    0 to it): B above all of A by more than `change` of A's most, or below all of it by
+    more than `change` of A's least (`change` grows with the time). Two bounds allow the
+    same small times: never apart."""
+    (a_low, a_high), (b_low, b_high) = a, b
+    return b_low - a_high > change(a_high) or a_low - b_high > change(a_low)
+
+
+def _latency_span(t: Latency, resolution: float) -> Span:
+    """The answer times a median allows: to its bound, or its value give or take one
+    resolution (each stamp of each answer may be off by that much, so may the middle
+    one)."""
+    if t.bound:
+        return (0.0, t.raw)
+    return (max(0.0, t.raw - resolution), t.raw + resolution)
+
+
+def _period_span(p: Poll) -> Span:
+    """The periods a poll's allows: to its bound, or its value give or take its stamps'
+    resolution and half the buckets its waits were counted in."""
+    if p.period_bound:
+        return (0.0, p.period)
+    error = p.resolution + p.quantum / 2
+    return (max(0.0, p.period - error), p.period + error)
 
 
 def _units(store: FrameStore) -> set[int]:
@@ -449,8 +468,11 @@ class Side:
             return None
         step = shown_step(self.resolution)
         rank = n // 2
-        if rank < below:  # (every answer below the threshold came sooner than any kept)
-            return Latency(ceil(threshold / step - 1e-9) * step, True, step, threshold)
+        if rank < below:
+            # every answer below the threshold came sooner than any kept, each by less
+            # than the threshold plus the resolution its stamps may be off by
+            most = threshold + self.resolution
+            return Latency(ceil(most / step - 1e-9) * step, True, step, most)
         x = sorted(kept)[rank - below]
         return Latency(round(x / step) * step, False, step, x)
 
@@ -595,23 +617,15 @@ def diff_sides(a: Side, b: Side, name_a: str = "A", name_b: str = "B") -> Captur
         out.requests_gone += [polls_a[w] for w in sorted(polls_a.keys() - polls_b.keys())]
         for what in sorted(polls_a.keys() & polls_b.keys()):
             pa, pb = polls_a[what], polls_b[what]
-            if _apart(
-                pa.period,
-                pa.period_bound,
-                pb.period,
-                pb.period_bound,
-                lambda x: PERIOD_CHANGE * x,
-            ):
+            if _apart(_period_span(pa), _period_span(pb), lambda x: PERIOD_CHANGE * x):
                 out.periods.append((pa, pb))
     for unit in sorted(units_a & units_b):
         la, lb = a.median(unit), b.median(unit)
         if la is None or lb is None:
             continue
         if _apart(
-            la.raw,
-            la.bound,
-            lb.raw,
-            lb.bound,
+            _latency_span(la, a.resolution),
+            _latency_span(lb, b.resolution),
             lambda x: max(LATENCY_CHANGE * x, LATENCY_FLOOR),
         ):
             out.latencies.append((unit, la, lb))

@@ -42,7 +42,7 @@ def register(sub: SubParsers) -> None:
             "registers whose values in B left the range they kept in A.\n\n"
             "Times are compared only as far as each capture's stamps back them (as\n"
             "replay --stats shows them): a recording read every 16 ms bounds a fast\n"
-            "answer (<32ms) and is no change against 2 ms; the last lines say which\n"
+            "answer (<48ms) and is no change against 2 ms; the last lines say which\n"
             "side's stamps left answer times uncompared. Each capture is read a segment\n"
             "at a time, keeping 8 bytes an answer for the medians (1M frames a side:\n"
             "about 110 MB).\n\n"
