@@ -327,6 +327,7 @@ MIN_READ_GAPS = 16
 READ_DELAY_RANK = 0.999  # the late reads a bound allows for: all but the latest 0.1 %
 READ_BUSY = 4.0  # waits up to this many medians may be late reads rather than pauses
 CLOCK_STAMPS = 64  # stamps the clock's step is measured from
+CLOCK_NOTES = 65_536  # stamps looked at at most for them (a clock that never moves)
 MIN_CLOCK_STAMPS = 8
 # steps a clock may print to (what a time's fraction digits give): the coarsest that
 # every stamp is a whole multiple of is the clock's
@@ -404,13 +405,19 @@ class StampClock:
         self._gaps: list[float] = []
         self._last: float | None = None
         self._noted = 0
+        self._stamps = 0  # stamps noted, repeated ones too
         self._measured = (0, 0)
         self.due = False  # stamps enough for a new measurement (see `note`)
 
     def note(self, t: float) -> None:
         """One stamp of the source (a host read's end, a line's print time), in order."""
         seen = self._seen
-        if len(seen) < CLOCK_STAMPS:
+        self._stamps += 1
+        # distinct stamps only: a clock of 1 s gives a busy line's packets one stamp for
+        # many, and the first CLOCK_STAMPS of them may hold fewer instants than the step
+        # is told from (then taken as the declared microsecond: a request and its answer
+        # 0 µs apart, a poll every `<0ms`)
+        if len(seen) < CLOCK_STAMPS and (not seen or t != seen[-1]):
             seen.append(t)
             # measure the clock's step early, and again as stamps double: the framer's
             # leeway for stamps too close for the line speed follows it
@@ -427,7 +434,7 @@ class StampClock:
             enough = len(self._gaps) >= READ_GAPS and len(seen) >= CLOCK_STAMPS
             if enough or self._noted >= READ_NOTES:
                 self.learning = False
-        elif len(seen) >= CLOCK_STAMPS:
+        elif len(seen) >= CLOCK_STAMPS or self._stamps >= CLOCK_NOTES:
             self.learning = False
 
     def update(self) -> bool:

@@ -240,3 +240,17 @@ def test_a_garbled_answer_whose_request_the_capture_missed_is_still_a_frame(
         (Kind.RESPONSE, False),
     ]
     assert store.t[0] == pytest.approx(T0, abs=1e-6) and store.status[0] == Status.ORPHAN
+
+
+def test_whole_second_stamps_bound_every_latency(tmp_path: Path) -> None:
+    """A capture whose clock kept whole seconds (a pcap written by a tool that dropped the
+    fraction): 600 polls 0.1 s apart, answered 5 ms later, so the first 64 packets show
+    only 4 instants. The clock is told from distinct stamps (a request and its answer
+    stamped alike are not 0 µs apart): 1 s, and no latency is a value."""
+    packets = [(float(int(t)), data) for t, data in polls([0.005] * 600)]
+    store = frame(tmp_path, packets)
+    assert store.resolution == 1.0
+    answers = [i for i in rows(store) if store.kind[i] == Kind.RESPONSE]
+    assert len(answers) == 600
+    told = [measure(store, i) for i in answers]
+    assert all(m is None or m.bound for m in told)
