@@ -147,7 +147,7 @@ class Annotator:
         of_bound = units.translate(marking(bound))
         follow = but_not(both(answers, reads), of_bound)
         if 1 in follow:
-            self.sunspec.follow_rows(store, compress(range(start, n), follow))
+            self.sunspec.follow_mask(store, start, follow)
         if 1 in of_bound:
             kind = store.kind
             for i in compress(range(start, n), of_bound):

@@ -1,5 +1,5 @@
 """The compiled passes over the rows (sniffer/_core.c: pair_rows, pair_update,
-stats_scan, sunspec_rows) give what their Python references give, bit for bit.
+stats_scan, sunspec_rows, mask_rows) give what their Python references give, bit for bit.
 
 Stores are built row by row from random traffic (requests, answers, exceptions,
 broadcasts, unknown frames, noise, events; bad checks, ASCII rows, NaN and far-apart
@@ -374,14 +374,23 @@ def test_sunspec_follows_the_same_rows_with_either_core(
                 start, upto = upto, min(len(rows), upto + step)
                 _grow(store, rows, inline, upto)
                 wanted = range(start, upto)
-                if only_answers:  # as the annotator hands them on
+                if only_answers:  # as the annotator hands them on: a mask of the rows
                     answers = bytes(store.kind[i] == Kind.RESPONSE for i in wanted)
-                    tracker.follow_rows(store, compress(wanted, answers))
+                    tracker.follow_mask(store, start, answers)
                 else:
                     tracker.follow_rows(store, wanted)
                 seen.append(_tracker_state(tracker))
         states.append(seen)
     assert states[0] == states[1]
+
+
+@given(mask=st.binary(max_size=300), start=st.integers(0, 2**40))
+def test_the_rows_of_a_mask_are_those_compress_takes(mask: bytes, start: int) -> None:
+    """mask_rows gives, as int64, the rows `start + k` whose byte k of the mask is not
+    0 (the annotator's masks hold 0 and 1; any other byte counts as compress counts it)."""
+    got = array("q")
+    got.frombytes(_compiled().mask_rows(mask, start))
+    assert list(got) == list(compress(range(start, start + len(mask)), mask))
 
 
 def test_a_unit_found_in_the_middle_of_a_batch_has_all_its_later_reads_taken() -> None:
