@@ -25,7 +25,9 @@ It writes (once; kept in DIR and reused while their frame count matches):
   the full listings and the export, which run at thousands of rows a second.
 
 Then it times each command as a whole process (median of --runs; the machine is shared
-and noisy, so judge the ratios), with its peak resident memory, and prints per-frame
+and noisy, so judge the ratios; a mix's listings, export and tshark's figures are timed
+in rounds, each round running every command once, so that they share the machine's
+drift, see `measure_interleaved`), with its peak resident memory, and prints per-frame
 rates with start-up taken off: (frames - 10) / (time on N - time on 10); and the same in
 CPU time (user + system of each process, from wait4), which the load of a shared machine
 moves far less than the wall time (a process waiting for a CPU is not working).
@@ -140,7 +142,10 @@ COLD = {**os.environ, "MODSCOPE_NO_INDEX": "1"}  # no sidecar index read or writ
 WARM = {k: v for k, v in os.environ.items() if k != "MODSCOPE_NO_INDEX"}
 
 
-def _once(argv: list[str], env: dict[str, str] | None) -> tuple[float, float, float]:
+Once = tuple[float, float, float]  # a run's wall time, CPU time and peak memory (MB)
+
+
+def _once(argv: list[str], env: dict[str, str] | None) -> Once:
     """One run of `argv`: its wall time, CPU time (user + system, from wait4) and peak
     resident memory in MB."""
     t = time.perf_counter()
@@ -227,6 +232,37 @@ def measure(
     fig = Figure(label, n, run(big, runs, env), run(small, runs, env))
     _shown(fig)
     return fig
+
+
+def measure_interleaved(
+    specs: list[tuple[str, list[str], list[str]]], n: int, runs: int, fresh: Path | None = None
+) -> list[Figure]:
+    """Several commands, each given as (label, argv on n frames, argv on SMALL frames),
+    timed in `runs` rounds: a round runs every command once on each file, in turn, so
+    that all meet the same load over the minutes the rounds take and their medians
+    compare. Taken command after command, the medians of a shared machine whose speed
+    drifted put modscope's runs and tshark's in different minutes: the same code's
+    export of 200k frames measured 1.6x tshark in one run and 3x in the next
+    (2026-12-07). `fresh`: a file removed before every run (an export's output), so
+    that each run writes a new file, as an export usually does: the kernel writes a
+    file's pages to disk later, in the background, but a file opened again and cut to
+    nothing first waits for that (ext4 also starts writing a file cut and written again
+    when it is closed), and interleaved runs would leave that writing to whichever
+    command ran next."""
+    done: list[tuple[list[Once], list[Once]]] = [([], []) for _ in specs]
+    for _ in range(runs):
+        for (_, big, small), (bigs, smalls) in zip(specs, done, strict=True):
+            for argv, times in ((big, bigs), (small, smalls)):
+                if fresh is not None:
+                    fresh.unlink(missing_ok=True)
+                times.append(_once(argv, None))
+    figs = [
+        Figure(label, n, _summed(bigs), _summed(smalls))
+        for (label, _, _), (bigs, smalls) in zip(specs, done, strict=True)
+    ]
+    for fig in figs:
+        _shown(fig)
+    return figs
 
 
 def _shown(fig: Figure) -> None:
@@ -457,42 +493,49 @@ def _listing_figures(
     rows: dict[str, tuple[Figure, Figure | None]] = {}
     lreads, lone = make_mix_files(folder, mix, listings)
     out = folder / "out.pcapng"
-    plain = ek = None
+    specs: list[tuple[str, list[str], list[str]]] = []
     if tshark:
-        plain = measure(
-            "tshark plain summary (listing frames)",
-            listings,
-            [*TSHARK, "-r", str(lone)],
-            [*TSHARK, "-r", str(one10)],
-            runs,
+        specs.append(
+            (
+                "tshark plain summary (listing frames)",
+                [*TSHARK, "-r", str(lone)],
+                [*TSHARK, "-r", str(one10)],
+            )
         )
         if "jsonl" in kinds:
-            ek = measure(
-                "tshark -T ek",
-                listings,
-                [*TSHARK, "-T", "ek", "-r", str(lone)],
-                [*TSHARK, "-T", "ek", "-r", str(one10)],
-                runs,
+            specs.append(
+                (
+                    "tshark -T ek",
+                    [*TSHARK, "-T", "ek", "-r", str(lone)],
+                    [*TSHARK, "-T", "ek", "-r", str(one10)],
+                )
             )
-    for label, argv, peer in (
-        ("jsonl", ("replay", "--format", "jsonl"), ek),
-        ("text", ("replay", "--format", "text"), plain),
-        ("export", ("export", "-o", str(out)), plain),
-    ):
-        if label not in kinds:
-            continue
-        verb, *rest = argv
-        rest = [*rest, "--jobs", jobs]
-        fig = measure(
-            f"{verb} {' '.join(rest)}",
-            listings,
-            modscope(verb, str(lreads), *rest),
-            modscope(verb, str(reads10), *rest),
-            runs,
+    ours = [
+        (label, argv)
+        for label, argv in (
+            ("jsonl", ("replay", "--format", "jsonl")),
+            ("text", ("replay", "--format", "text")),
+            ("export", ("export", "-o", str(out))),
         )
+        if label in kinds
+    ]
+    for _, (verb, *rest) in ours:
+        rest = [*rest, "--jobs", jobs]
+        specs.append(
+            (
+                f"{verb} {' '.join(rest)}",
+                modscope(verb, str(lreads), *rest),
+                modscope(verb, str(reads10), *rest),
+            )
+        )
+    figs = measure_interleaved(specs, listings, runs, fresh=out)
+    plain = figs.pop(0) if tshark else None
+    ek = figs.pop(0) if tshark and "jsonl" in kinds else None
+    for (label, _), fig in zip(ours, figs, strict=True):
+        peer = ek if label == "jsonl" else plain
         rows[label] = (fig, peer)
-        if tshark:
-            print(f"  => {_ratio(fig, peer):.1f}x tshark", flush=True)
+        if peer is not None:
+            print(f"  => {label}: {_ratio(fig, peer):.1f}x tshark", flush=True)
     out.unlink(missing_ok=True)
     return rows
 
