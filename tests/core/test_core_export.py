@@ -222,6 +222,31 @@ def test_many_rows_share_templates_and_say_what_the_python_export_says() -> None
 
 
 @compiled
+def test_more_contents_than_the_table_keeps_export_as_in_python() -> None:
+    """The compiled table of templates starts small (1,024 slots) and doubles as
+    contents come: reads of a unit with a dictionary (whose packets share no template
+    across addresses) at 3,000 addresses, each twice, take it through three doublings
+    (its keys moved to their new slots, then found there) and export as the Python
+    exporter writes them."""
+    store = FrameStore()
+    stream = store.stream(0)
+    t = 1_700_000_000.0
+    for address in [*range(3_000), *range(3_000)]:
+        raw = with_crc(bytes([1, 3]) + address.to_bytes(2, "big") + b"\x00\x01")
+        stream.extend(raw)
+        store.add_row(0, len(stream) - len(raw), len(raw), t, t + 0.004, int(Kind.REQUEST), 0)
+        t += 0.01
+    store.sync()
+    annotator = Annotator(BINDINGS)
+    annotator.update(store)
+    rows = [range(len(store))]
+    for style in STYLES:
+        assert packets(store, annotator, style, FAST, rows) == packets(
+            store, annotator, style, None, rows, 0
+        )
+
+
+@compiled
 def test_the_demo_exports_the_same_with_either_core() -> None:
     s = replay_file(DEMO_CAPTURE, bindings=BINDINGS)
     n = len(s.store)
