@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from heapq import heappush, heapreplace
 from itertools import accumulate, compress, repeat
 from math import ceil, floor
-from operator import add, gt, lt, mul, ne, sub
+from operator import add, and_, gt, lt, mul, ne, rshift, sub
 from typing import Any, cast
 
 from sniffer import core
@@ -266,15 +266,21 @@ class _Waits:
     cut: bool = False  # RECORDS were kept and a later wait would have been too
 
     def densify(self) -> None:
-        """Count the waits kept apart (`far`) in `span` buckets from zero instead."""
-        far = sorted(self.far.items())
-        n = sum(c for _, c in far)
-        rank, seen, high = n * 99 // 100, 0, 1
-        for k, c in far:
-            seen += c
-            if seen > rank:
-                high = max(1, 2 * k)
-                break
+        """Count the waits kept apart (`far`) in `span` buckets from zero instead.
+
+        Its steps over the keys run in C where they can (the 99th percentile's key by
+        bisecting the running counts, the test of exactness by `any`): a request whose
+        waits are first counted when it has been sent EXACT times, with stamps exact
+        enough to tell each wait apart, brings some 32k keys here, and a Python step a
+        key in each was 3.5 of the 8 s of `replay --stats` of 5M frames one per packet
+        (58 requests, 2026-12-07)."""
+        far = self.far
+        keys = sorted(far)
+        counts = list(map(far.__getitem__, keys))
+        running = list(accumulate(counts))
+        rank = (running[-1] if running else 0) * 99 // 100
+        at = bisect_right(running, rank)  # the first key the count passes the rank at
+        high = max(1, 2 * keys[at]) if at < len(keys) else 1
         shift = 0
         while (self.span << shift) < high:
             shift += 1
@@ -283,14 +289,14 @@ class _Waits:
         dense = array("I", bytes(4 * span))
         kept: Counter[int] = Counter()
         low = (1 << shift) - 1
-        for k, c in far:
-            if k & low:
-                self.exact = False
-            k >>= shift
-            if 0 <= k < span:
-                dense[k] += c
-            else:
-                kept[k] += c
+        if low and any(map(and_, keys, repeat(low))):
+            self.exact = False
+        # the keys are sorted: those of the dense buckets are one run of them
+        lo, hi = bisect_left(keys, 0), bisect_left(keys, span << shift)
+        for k, c in zip(map(rshift, keys[lo:hi], repeat(shift)), counts[lo:hi], strict=True):
+            dense[k] += c
+        for k, c in zip(keys[:lo] + keys[hi:], counts[:lo] + counts[hi:], strict=True):
+            kept[k >> shift] += c
         self.dense, self.far = dense, kept
         if len(kept) > FAR:
             self.coarsen()

@@ -264,3 +264,62 @@ def test_the_demo_table_is_the_same_with_every_request_counted(
             assert abs(q.period - p.period) <= q.quantum / 2
             assert abs(q.jitter - p.jitter) <= q.quantum
             assert q.gap_count <= p.gap_count <= q.gap_count + q.unsure_gaps
+
+
+def _densified(
+    far: dict[int, int], span: int, quantum: float, exact: bool
+) -> tuple[list[int], dict[int, int], float, bool]:
+    """`_Waits.densify` as it was written first, a Python step a key: the reference."""
+    items = sorted(far.items())
+    n = sum(c for _, c in items)
+    rank, seen, high = n * 99 // 100, 0, 1
+    for k, c in items:
+        seen += c
+        if seen > rank:
+            high = max(1, 2 * k)
+            break
+    shift = 0
+    while (span << shift) < high:
+        shift += 1
+    dense = [0] * span
+    kept: dict[int, int] = {}
+    low = (1 << shift) - 1
+    for k, c in items:
+        if k & low:
+            exact = False
+        k >>= shift
+        if 0 <= k < span:
+            dense[k] += c
+        else:
+            kept[k] = kept.get(k, 0) + c
+    return dense, kept, quantum * (1 << shift), exact
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    far=st.dictionaries(
+        st.one_of(st.integers(-50, 5000), st.integers(-(2**40), 2**40)),
+        st.integers(0, 1000),
+        max_size=300,
+    ),
+    span=st.sampled_from((1, 2, 8, 64, 1024)),
+    exact=st.booleans(),
+)
+def test_densify_buckets_as_its_reference_does(far: dict[int, int], span: int, exact: bool) -> None:
+    """The waits kept apart go to the same buckets, the same far ones, with the same
+    width and exactness, as the first, key-by-key writing of `densify` puts them:
+    negative and huge keys (a clock set back, long gaps), keys of no count, ties at the
+    99th percentile."""
+    waits = pollcycle._Waits(span=span, exact=exact)
+    waits.far.update(far)  # (keys of a count of 0 too)
+    want_dense, want_far, want_quantum, want_exact = _densified(
+        dict(waits.far), span, waits.quantum, exact
+    )
+    pollcycle.FAR, saved = 1 << 30, pollcycle.FAR  # (no coarsening: densify alone)
+    try:
+        waits.densify()
+    finally:
+        pollcycle.FAR = saved
+    assert list(waits.dense) == want_dense
+    assert dict(waits.far) == want_far
+    assert (waits.quantum, waits.exact) == (want_quantum, want_exact)
