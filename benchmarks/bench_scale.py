@@ -376,6 +376,12 @@ def _ratio(ours: Figure | None, theirs: Figure | None) -> float:
     return ours.per_frame / theirs.per_frame
 
 
+def _x(ratio: float) -> str:
+    """A ratio as the tables print it: five wide, or a dash where there is none
+    (`--no-tshark`)."""
+    return "    -" if ratio != ratio else f"{ratio:5.1f}x"
+
+
 def _cpu_ratio(ours: Figure, theirs: Figure | None) -> float:
     return ours.per_frame_cpu / theirs.per_frame_cpu if theirs is not None else float("nan")
 
@@ -572,8 +578,8 @@ def summarize(results: list[MixResult]) -> None:
         print(f"  {'mix':<14} {'reads/s':>11} {'x':>6} {'frames/s':>11} {'x':>6}  mix")
     for r, x, y in indexed:
         print(
-            f"  {r.mix.name:<14} {x.per_frame:>11,.0f} {_ratio(x, r.tshark):>5.1f}x "
-            f"{y.per_frame:>11,.0f} {_ratio(y, r.tshark):>5.1f}x  {r.mix.describe()}"
+            f"  {r.mix.name:<14} {x.per_frame:>11,.0f} {_x(_ratio(x, r.tshark))} "
+            f"{y.per_frame:>11,.0f} {_x(_ratio(y, r.tshark))}  {r.mix.describe()}"
         )
     for key in ("jsonl", "text", "export"):
         for r in results:
@@ -582,7 +588,7 @@ def summarize(results: list[MixResult]) -> None:
                 peer = "" if theirs is None else f" tshark {theirs.per_frame:>9,.0f}/s"
                 print(
                     f"  {key:<6} {r.mix.name:<14} {ours.per_frame:>9,.0f}/s{peer} "
-                    f"{_ratio(ours, theirs):5.1f}x"
+                    f"{_x(_ratio(ours, theirs))}"
                 )
     print(f"\n  {'figure':<36} {'worst':>24} {'median':>24}")
     for label, values in figures:
@@ -592,14 +598,16 @@ def summarize(results: list[MixResult]) -> None:
         worst = ordered[0]
         median = ordered[(len(ordered) - 1) // 2]
         print(
-            f"  {label:<36} {worst[0]:5.1f}x {worst[1]:>10,.0f}/s {worst[2]:<7} "
-            f"{median[0]:5.1f}x {median[1]:>10,.0f}/s {median[2]}"
+            f"  {label:<36} {_x(worst[0])} {worst[1]:>10,.0f}/s {worst[2]:<7} "
+            f"{_x(median[0])} {median[1]:>10,.0f}/s {median[2]}"
         )
     if not indexed:
         return
     shapes = [(r.shape, r.mix.name) for r in results if r.shape is not None]
-    if shapes:
-        wall = sorted((s.wall, name) for s, name in shapes if s.wall == s.wall)
+    wall = sorted((s.wall, name) for s, name in shapes if s.wall == s.wall)
+    if shapes and not wall:  # (files so small that no run on them outlasted its start-up)
+        print("  reads as recorded / frame per packet: no figure (the files are too small)")
+    if wall:
         by_cpu = sorted((s.cpu, name) for s, name in shapes)
         print(
             f"  reads as recorded / frame per packet, per frame, the median of "
@@ -612,15 +620,15 @@ def summarize(results: list[MixResult]) -> None:
     for r, x, y in indexed:
         print(
             f"  {r.mix.name:<14} {x.per_frame_cpu:>11,.0f} "
-            f"{_cpu_ratio(x, r.tshark):>5.1f}x {y.per_frame_cpu:>11,.0f} "
-            f"{_cpu_ratio(y, r.tshark):>5.1f}x"
+            f"{_x(_cpu_ratio(x, r.tshark))} {y.per_frame_cpu:>11,.0f} "
+            f"{_x(_cpu_ratio(y, r.tshark))}"
         )
     for label, pairs in (
         ("replay --stats, reads as recorded", [(x, r.tshark) for r, x, _ in indexed]),
         ("replay --stats, frame per packet", [(y, r.tshark) for r, _, y in indexed]),
     ):
         cpu = sorted(_cpu_ratio(ours, theirs) for ours, theirs in pairs)
-        print(f"  {label:<36} worst {cpu[0]:5.1f}x median {cpu[(len(cpu) - 1) // 2]:5.1f}x")
+        print(f"  {label:<36} worst {_x(cpu[0])} median {_x(cpu[(len(cpu) - 1) // 2])}")
 
 
 def main() -> None:
