@@ -406,6 +406,10 @@ def make_mix_files(folder: Path, mix: Mix, n: int) -> tuple[Path, Path]:
             ],
             check=True,
         )
+        # written out before anything is timed: 5M frames of a mix are about 800 MB, and
+        # runs that met the kernel writing them (the mixes written just before their
+        # runs, 2026-12-07 16:33) took up to 1.7x as long as the same runs after
+        os.sync()
     return reads, one
 
 
