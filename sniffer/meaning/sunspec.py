@@ -166,7 +166,7 @@ class SunSpecTracker:
         row: a capture may hold hundreds of thousands of such answers."""
         fast = core.FAST
         if fast is not None:
-            self._follow_fast(fast, store, rows)
+            self._follow_fast(fast, store, array("q", rows))
             return
         self._follow(store, rows)
 
@@ -181,12 +181,12 @@ class SunSpecTracker:
             return
         self._follow(store, compress(range(start, start + len(mask)), mask))
 
-    def _follow_fast(self, fast: Any, store: FrameStore, rows: Iterable[int]) -> None:
-        """`follow_rows` with its first tests in the compiled core (sniffer/_core.c:
-        sunspec_rows), which hands on only the rows the loop of `_follow` may take; a
-        unit found on the way (its marker read) makes the rest be picked again, now with
-        all its reads. Most rows fail the first tests, so they never reach Python."""
-        todo = rows if isinstance(rows, array) and rows.typecode == "q" else array("q", rows)
+    def _follow_fast(self, fast: Any, store: FrameStore, todo: array[int]) -> None:
+        """`follow_rows` of the rows `todo` (int64) with its first tests in the compiled
+        core (sniffer/_core.c: sunspec_rows), which hands on only the rows the loop of
+        `_follow` may take; a unit found on the way (its marker read) makes the rest be
+        picked again, now with all its reads. Most rows fail the first tests, so they
+        never reach Python."""
         skip = bytes(u in self.skip for u in range(256))
         at = 0
         while at < len(todo):
