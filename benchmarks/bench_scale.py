@@ -242,7 +242,7 @@ def measure_interleaved(
     that all meet the same load over the minutes the rounds take and their medians
     compare. Taken command after command, the medians of a shared machine whose speed
     drifted put modscope's runs and tshark's in different minutes: the same code's
-    export of 200k frames measured 1.6x tshark in one run and 3x in the next
+    export of 200k frames measured 1.6x tshark in one run and 3.8x in the next
     (2026-12-07). `fresh`: a file removed before every run (an export's output), so
     that each run writes a new file, as an export usually does: the kernel writes a
     file's pages to disk later, in the background, but a file opened again and cut to
