@@ -436,6 +436,9 @@ class StampClock:
                 self.learning = False
         elif len(seen) >= CLOCK_STAMPS or self._stamps >= CLOCK_NOTES:
             self.learning = False
+        # measured once more with all it learnt, at this stamp, not at whatever moment
+        # a reader next looks (a live view's refresh): what is framed next is the same
+        self.due = self.due or not self.learning
 
     def update(self) -> bool:
         """Measure again from the stamps noted since the last time; whether the

@@ -243,6 +243,8 @@ class Pipeline:
                 clock.note(t)
                 if not clock.learning:
                     break  # measured enough here, as it would be read by read
+            if clock.due:
+                self.measure_stamps()
         ch.fed += len(reads.data)
         ch.last_t = reads.t_end
         # framed with the batches before it: the framer frames a batch read by read,

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
 from functools import partial
 from importlib import resources
-from itertools import chain, islice
+from itertools import chain
 from pathlib import Path
 from typing import Any, Generic, TypeVar, overload
 
@@ -249,27 +249,50 @@ class Session:
         stamps' resolution is still being measured (`Pipeline.clock`, from the first
         stamps and host reads), since what counts as a measured latency, a bound or a
         poll period depends on it. A whole store counts its rows at the end, and a
-        windowed replay must count them alike; one whose stamps never finish telling
-        (fewer than the clock looks at) keeps every row, as a whole store does."""
+        windowed replay must count them alike. (A replay measures the stamps before it
+        frames any, `learn_stamps`; a live capture learns them as they come.)"""
         return not self.pipeline.clock.learning
 
-    def _first_stamps(self, chunks: Iterable[Chunk]) -> Iterator[Chunk]:
-        """`chunks`, once their first READING_CHUNKS stamps were measured (the clock's
-        step: a log printing `.000` has a 1 s clock), before any is framed, so that the
-        framer takes stamps that coarse as they are; and, for per-frame stamps, once
-        they told whether they mark frame starts or frame ends: the reading under which
-        the bytes fit the line speed (`sniffer.framing.pairing.frame_reading`), which
-        the pipeline then takes them as."""
+    def learn_stamps(self, chunks: Iterable[Chunk]) -> Iterator[Chunk]:
+        """`chunks`, once the stamps' resolution was measured from the first of them
+        (`Pipeline.clock`: the clock's step, host reads' rhythm; a log printing `.000`
+        has a 1 s clock), before any is framed: then the framer takes stamps that coarse
+        as they are, and every wait the pairing and the statistics judge is judged
+        against the resolution the whole capture gets, not against the part measured
+        when a refresh happened to come (a replay's refreshes come every quarter second
+        of the reader's own time: on a slower machine, earlier in the capture). Held
+        at most until the clock stops learning (READ_NOTES host reads, CLOCK_NOTES
+        stamps); a capture that ends first was measured from every stamp it has.
+
+        For per-frame stamps, also whether they mark frame starts or frame ends: the
+        reading under which the first READING_CHUNKS frames fit the line speed
+        (`sniffer.framing.pairing.frame_reading`), which the pipeline then takes them
+        as.
+
+        `ingest` calls this; a reader that paces the chunks (a replay at the original
+        speed) calls it on them first, so that the stamps are measured at the file's
+        speed, not over the seconds they took on the line."""
         it = iter(chunks)
-        first = list(islice(it, READING_CHUNKS))
         pipeline, store = self.pipeline, self.store
-        for chunk in first:
-            if chunk.data and pipeline.clock.learning:
-                pipeline.clock.note(chunk.t_end)
+        clock = pipeline.clock
+        first: list[Chunk] = []
+        for chunk in it:
+            first.append(chunk)
+            if clock.learning:
+                if isinstance(chunk, Reads):
+                    for t in chunk.t_ends:  # each read, as Pipeline.feed notes them
+                        clock.note(t)
+                        if not clock.learning:
+                            break
+                elif chunk.data:
+                    clock.note(chunk.t_end)
+            if not clock.learning and len(first) >= READING_CHUNKS:
+                break
+        clock.learning = False  # (the capture's every stamp noted, if it ended first)
         pipeline.measure_stamps()
         if store.stamps in (Stamp.FRAME_END, Stamp.FRAME_START) and type(pipeline) is Pipeline:
             stamps, reading = frame_reading(
-                [c for c in first if not isinstance(c, Reads)],
+                [c for c in first[:READING_CHUNKS] if not isinstance(c, Reads)],
                 store.stamps,
                 self.line.char_time,
                 max(store.resolution, READING_SLACK),
@@ -351,8 +374,8 @@ class Session:
             if segment is not None:
                 segment(self)  # every row, or (windowed) the last block's
             return
-        if not len(self.store) and self.store.stamps not in (Stamp.READ_END, Stamp.NONE):
-            chunks = self._first_stamps(chunks)
+        if not len(self.store) and self.pipeline.clock.learning:
+            chunks = self.learn_stamps(chunks)
         last = time.monotonic()
         done = 0
         writer = None

@@ -244,6 +244,10 @@ def feed_capture(
             "opened": opened,
         }
     try:
+        if pacing.speed is not None and session.pipeline.clock.learning:
+            # the stamps measured from the file before the pace holds them back (a
+            # replay at the original speed would else show nothing while the clock learns)
+            chunks = session.learn_stamps(chunks)
         session.ingest(
             pacing.pace(chunks),
             progress,
