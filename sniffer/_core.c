@@ -609,13 +609,36 @@ static Py_ssize_t times_next_boundary(const Times *tm, Py_ssize_t pos) {
     return next;
 }
 
+/* What an echo of the request at p (code fc) must repeat of it, as lengths.echo_key: how
+ * many bytes (ECHO_REPEATS) above their value; -1 where the code says nothing. */
+#define KEY_BITS 48
+static Py_ssize_t echo_key(const unsigned char *p, Py_ssize_t avail, int fc) {
+    int n = (fc == 5 || fc == 6 || fc == 21 || fc == 22) ? 6 : fc == 8 ? 4 : 0;
+    if (!n || avail < n) return -1;
+    int64_t v = 0;
+    for (int i = 0; i < n; i++) v = v << 8 | p[i];
+    return (Py_ssize_t)((int64_t)n << KEY_BITS | v);
+}
+
+/* lengths.not_its_echo: the frame at pos does not repeat what `key` names (0 while its
+ * bytes are not all below end, or key names nothing) */
+static int not_its_echo(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
+                        Py_ssize_t key) {
+    if (key < 0) return 0;
+    int n = (int)((int64_t)key >> KEY_BITS);
+    if (pos + n > end) return 0;
+    int64_t v = 0;
+    for (int i = 0; i < n; i++) v = v << 8 | buf[pos + i];
+    return v != ((int64_t)key & (((int64_t)1 << KEY_BITS) - 1));
+}
+
 /* `rules`: RtuLengths.rule_bytes, the length rules of each code (compile_rules), two
  * slots of (kind, base, count_pos, count_size) int64; kind 0: no rule, -1: a rule this
  * copy cannot follow (a walker). */
 static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
                       const int64_t *rules, const int64_t *answer_pos, Py_ssize_t pu,
-                      Py_ssize_t pf, Py_ssize_t pl, double pdl, const Times *tm,
-                      Py_ssize_t *found, int *kind) {
+                      Py_ssize_t pf, Py_ssize_t pl, double pdl, double band, Py_ssize_t pe,
+                      const Times *tm, Py_ssize_t *found, int *kind) {
     int unit = buf[pos], fc = buf[pos + 1];
     Py_ssize_t len[3];
     int prio[3], knd[3], n = 0, waiting = 0;
@@ -624,7 +647,8 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
         if (!(fc & EXCEPTION_BIT) && pdl != Py_HUGE_VAL) { /* RtuLengths._expired */
             const Span *s = span_at(tm->entry, tm->spans, tm->n_spans, pos);
             if (s == NULL) return SEARCH_UNSURE;
-            live = !(span_start(s, pos) > pdl);
+            double t0 = span_start(s, pos);
+            live = !(t0 > pdl || (t0 > pdl - band && not_its_echo(buf, pos, end, pe)));
         }
         if (live) {
             if (fc & EXCEPTION_BIT) {
@@ -697,8 +721,8 @@ static int rtu_search(const unsigned char *buf, Py_ssize_t pos, Py_ssize_t end,
  *          cur_start, cur_t0, cur_rate, offset, last_end, slack, char_time, t35,
  *          too_fast, first_too_fast, ends, t_starts, t_ends, k, prev, base, split,
  *          held_start, held_end, held_t0, held_t1, rules, noise, boundaries,
- *          noise_start)
- * See RtuFramer._fast_scan, which calls it and applies what it returns. NaN stands for
+ *          noise_start, pe, band)
+ * See _compiled_scan (serial.py), which calls it and applies what it returns. NaN stands for
  * None in last_end, first_too_fast and t_starts.
  *
  * With `split` and `noise` (and not `final`), where the fast paths cannot decide, the
@@ -732,12 +756,14 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
     Py_buffer rview;
     double held_t0, held_t1;
     double pdl, timeout, cur_t0, cur_rate, last_end, slack, char_time, t35, first_too_fast;
-    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnnddy*pO!n", &view, &tview,
+    Py_ssize_t pe; /* what the open request's echo repeats of it (echo_key) */
+    double band;   /* from how long before pdl only a frame repeating pe is its echo */
+    if (!PyArg_ParseTuple(args, "y*y*nnppnnndnndnddnddddndy*y*y*nnnpnnddy*pO!nnd", &view, &tview,
                           &pos, &end, &final, &batch, &pu, &pf, &pl, &pdl, &pr, &row, &timeout,
                           &cur_start, &cur_t0, &cur_rate, &offset, &last_end, &slack, &char_time,
                           &t35, &too_fast, &first_too_fast, &eview, &sview, &teview, &k, &prev,
                           &base, &split, &held_start, &held_end, &held_t0, &held_t1, &rview,
-                          &noise, &PyList_Type, &old_bounds, &noise_start))
+                          &noise, &PyList_Type, &old_bounds, &noise_start, &pe, &band))
         return NULL;
     const int64_t *rules = (const int64_t *)rview.buf;
     Py_ssize_t noise_rows = 0;
@@ -836,7 +862,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                     }
                     t0 = span_start(s0, pos);
                 }
-                if (t0 > pdl) pu = -1;
+                if (t0 > pdl || (t0 > pdl - band && not_its_echo(buf, pos, end, pe))) pu = -1;
             }
             Py_ssize_t length, stop;
             if (unit == pu && (fc == pf || fc == pfx)) { /* fast path 1 */
@@ -896,6 +922,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                             goto done;
                         pr = pu = -1;
                         pdl = INF;
+                        pe = -1;
                         if (unit) { /* a broadcast gets no answer */
                             pr = row;
                             Py_ssize_t predicted = predict_answer(tab, buf + pos, length, fc);
@@ -904,7 +931,10 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                                 pf = fc;
                                 pfx = fc | EXCEPTION_BIT;
                                 pl = predicted;
-                                if (ap == ECHO) pdl = t0 + (double)length * cur_rate + timeout;
+                                if (ap == ECHO) {
+                                    pdl = t0 + (double)length * cur_rate + timeout;
+                                    pe = echo_key(buf + pos, end - pos, fc);
+                                }
                             }
                             if (pl > MAX_RTU) pu = -1;
                         }
@@ -922,7 +952,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                 Times tm = {entry, spans, n_spans, old_bounds, t35};
                 Py_ssize_t found = 0;
                 int fkind = 0;
-                int got = rtu_search(buf, pos, end, rules, answer_pos, pu, pf, pl, pdl, &tm,
+                int got = rtu_search(buf, pos, end, rules, answer_pos, pu, pf, pl, pdl, band, pe, &tm,
                                      &found, &fkind);
                 if (got == SEARCH_WAIT) break;
                 if (got == SEARCH_NONE) { /* noise: the search goes on at the next byte */
@@ -976,6 +1006,7 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                 if (fkind == K_REQUEST) {
                     pu = -1;
                     pdl = INF;
+                    pe = -1;
                     Py_ssize_t predicted = unit ? predict_answer(tab, buf + pos, found, fc7) : -1;
                     if (predicted >= MIN_RTU && predicted <= MAX_RTU) {
                         pu = unit;
@@ -983,7 +1014,10 @@ static PyObject *py_rtu_scan(PyObject *self, PyObject *args) {
                         pfx = fc7 | EXCEPTION_BIT;
                         pl = predicted;
                         /* from its start and length, as the fast path (serial.py) */
-                        if (ap == ECHO) pdl = t0 + (double)found * char_time + timeout;
+                        if (ap == ECHO) {
+                            pdl = t0 + (double)found * char_time + timeout;
+                            pe = echo_key(buf + pos, end - pos, fc7);
+                        }
                     }
                 } else if (unit == pu) { /* a response or an exception */
                     pu = -1;
@@ -1034,11 +1068,11 @@ stopped:;
         for (int i = 0; i < 8; i++) ok = ok && cols[i] != NULL;
         if (ok)
             result = Py_BuildValue(
-                "(OnnnnnnndnnOOOOOOOOnddndndOOnnO)", slow ? Py_True : Py_False, pos, k, prev, end,
+                "(OnnnnnnndnnOOOOOOOOnddndndOOnnOn)", slow ? Py_True : Py_False, pos, k, prev, end,
                 pu, pf, pl, pdl, pr, row, cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
                 cols[6], cols[7], cur_start, cur_t0, cur_rate, offset, last_end, too_fast,
                 first_too_fast, span_list, bounds, noise_start, noise_rows,
-                unit0 ? Py_True : Py_False);
+                unit0 ? Py_True : Py_False, pe);
         for (int i = 0; i < 8; i++) Py_XDECREF(cols[i]);
     }
 fail_lists:

@@ -38,6 +38,40 @@ WALKED = -3  # the answer's length needs the rule's walker
 NO_ANSWER = -4  # the code has no answer rule
 INF = float("inf")
 
+# What an echoed answer repeats of its request, by code: the specification calls the
+# normal answers to FC 5, 6, 21 and 22 echoes of their requests, and FC 8's answer
+# repeats its sub-function (with the request's data for sub-function 0 only, each
+# counter's value for the others). Their first bytes tell an echo from the master's
+# next request where the wait cannot: a frame with the request's unit and code that
+# comes after the response timeout, but not past it by more than the stamps'
+# resolution, is its echo only if it repeats them (see `echo_key`). A vendor's code
+# with an echoed answer is left to the wait alone (nothing says what its answer repeats).
+ECHO_REPEATS = {5: 6, 6: 6, 21: 6, 22: 6, 8: 4}
+NO_ECHO_KEY = -1
+_KEY_BITS = 48
+
+
+def echo_key(buf: bytes | bytearray, pos: int, fc: int) -> int:
+    """What an echo of the request at `pos` (code `fc`) must repeat of it, as one number
+    (`ECHO_REPEATS`: how many bytes, above the bytes' value); NO_ECHO_KEY where the code
+    says nothing."""
+    n = ECHO_REPEATS.get(fc, 0)
+    if not n or pos + n > len(buf):
+        return NO_ECHO_KEY
+    return n << _KEY_BITS | int.from_bytes(buf[pos : pos + n], "big")
+
+
+def not_its_echo(buf: bytes | bytearray, pos: int, end: int, key: int) -> bool:
+    """Whether the frame at `pos` does not repeat what the echo `key` names (False
+    while its bytes are not all there, below `end`, or `key` names nothing)."""
+    if key < 0:
+        return False
+    n = key >> _KEY_BITS
+    if pos + n > end:
+        return False
+    return int.from_bytes(buf[pos : pos + n], "big") != key & ((1 << _KEY_BITS) - 1)
+
+
 # preference of a length rule's kind when it is not the answer the open request predicts
 PREFERENCE = {int(Kind.REQUEST): 1, int(Kind.RESPONSE): 2, int(Kind.EXCEPTION): 2}
 
@@ -150,9 +184,12 @@ class RtuLengths:
         pending_fc: int,
         pending_len: int,
         deadline: float,
+        band: float = 0.0,
+        key: int = NO_ECHO_KEY,
     ) -> tuple[int, int, bool]:
         """Test every length the registry allows at `pos`, and the answer the open request
-        (`pending_*`, awaited until `deadline` when it is echoed) predicts: (length, kind,
+        (`pending_*`, awaited until `deadline` when it is echoed; from `band` before it
+        only a frame that repeats `key`, see `ECHO_REPEATS`) predicts: (length, kind,
         waiting)."""
         waiting = False
         # (length, preference, kind): the answer the last request predicts is preferred
@@ -160,7 +197,7 @@ class RtuLengths:
         # for (2)
         cands: list[tuple[int, int, int]] = []
         pending = unit == pending_unit and (fc & 0x7F) == pending_fc
-        if pending and (fc & 0x80 or not self._expired(pos, deadline)):
+        if pending and (fc & 0x80 or not self._expired(buf, pos, end, deadline, band, key)):
             if fc & 0x80:
                 cands.append((EXCEPTION_LENGTH, 0, int(Kind.EXCEPTION)))
             else:
@@ -197,9 +234,15 @@ class RtuLengths:
                 return length, ckind, False
         return 0, 0, waiting
 
-    def _expired(self, pos: int, deadline: float) -> bool:
-        """Whether an echoed answer awaited until `deadline` can no longer start at `pos`."""
-        return deadline != INF and self.silences.start_time(pos) > deadline
+    def _expired(
+        self, buf: bytearray, pos: int, end: int, deadline: float, band: float, key: int
+    ) -> bool:
+        """Whether an echoed answer awaited until `deadline` can no longer start at `pos`
+        (from `band` before it, a frame that does not repeat `key`)."""
+        if deadline == INF:
+            return False
+        t0 = self.silences.start_time(pos)
+        return t0 > deadline or (t0 > deadline - band and not_its_echo(buf, pos, end, key))
 
     def silence_framed(
         self, buf: bytearray, pos: int, end: int, fc: int, final: bool

@@ -459,6 +459,7 @@ class Pipeline:
             ch.framer.pair_inline = ch.staging is None
         # (the wait the row times show as overdue: the timeout plus their resolution)
         ch.framer.timeout = self.pairer.timeout + self.store.resolution
+        ch.framer.echo_band = self.store.resolution  # (then an echo is told by its bytes)
         ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
         held, ch.held = ch.held or [], None
         for old in held:

@@ -37,6 +37,8 @@ from sniffer.framing.lengths import (
     WALKED,
     RtuLengths,
     compile_rules,
+    echo_key,
+    not_its_echo,
 )
 from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.vocab import Flag, Kind
@@ -216,6 +218,10 @@ class _Framer:
         self.pending_unit = -1  # the last request, awaiting its answer
         self.pending_fc = -1
         self.timeout = float("inf")  # the response timeout (the pipeline sets it)
+        self.pending_echo = -1  # what its echo repeats of it (lengths.echo_key)
+        # before the timeout's end, how long only a frame that repeats the request is its
+        # echo: the stamps' resolution, by which a wait may be off (the pipeline sets it)
+        self.echo_band = 0.0
         self._setup(functions)
 
     def _setup(self, functions: Mapping[int, FunctionSpec]) -> None:
@@ -274,6 +280,142 @@ class _Framer:
 
     def _scan(self, final: bool) -> None:
         raise NotImplementedError
+
+
+def _compiled_scan(
+    framer: RtuFramer,
+    fast: Any,
+    buf: bytearray,
+    final: bool,
+    end: int,
+    reads: Reads | None,
+    k: int,
+    prev: int,
+    base: int,
+) -> tuple[bool, int, int, int]:
+    """Run the compiled fast paths (`sniffer._core.rtu_scan`): from `framer.pos` to
+    `end`, or over the reads of the batch from read `k` on (`prev`: the end of read
+    k - 1 in the batch), adding each to the timeline. What they found goes into the
+    store, the pairs and the framer's and timeline's state, as the loop in
+    `_scan_bytes` would have left them, the noise span it may leave under way
+    (`framer.noise_start`) among them. Returns whether the slow path must decide at
+    `framer.pos`, the next read, the end of the last read added, and the scan's end."""
+    tl = framer.timeline
+    out = framer.out
+    last_end = tl.last_end
+    first_too_fast = tl.first_too_fast
+    # the read holding the first undecided byte (noise under way, if any), when older
+    # than the newest read: a frame or noise begun there is timed by it (see rtu_scan)
+    first = framer.decided()
+    held = tl._span(first) if tl.spans and first < tl.cur_start else _NO_SPAN
+    if reads is not None:
+        ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
+    else:
+        ends, t_starts, t_ends = _NO_READS
+    (
+        slow,
+        pos,
+        k,
+        prev,
+        end,
+        framer.pending_unit,
+        framer.pending_fc,
+        framer.pending_len,
+        framer.pending_deadline,
+        framer.pending_row,
+        _row,
+        offsets,
+        lengths,
+        times,
+        time_ends,
+        kinds,
+        units,
+        codes,
+        pairs,
+        tl.cur_start,
+        tl.cur_t0,
+        tl.cur_rate,
+        tl.offset,
+        last_end,
+        tl.too_fast,
+        first_too_fast,
+        spans,
+        boundaries,
+        framer.noise_start,
+        noise_rows,
+        unit0,
+        framer.pending_echo,
+    ) = fast.rtu_scan(
+        buf,
+        framer.lengths.table_bytes,
+        framer.pos,
+        end,
+        final,
+        reads is not None,
+        framer.pending_unit,
+        framer.pending_fc,
+        framer.pending_len,
+        framer.pending_deadline,
+        framer.pending_row if framer.pair_inline else -1,
+        len(out.t),
+        framer.timeout,
+        tl.cur_start,
+        tl.cur_t0,
+        tl.cur_rate,
+        tl.offset,
+        math.nan if last_end is None else last_end,
+        tl.slack,
+        tl.char,
+        tl.t35,
+        tl.too_fast,
+        math.nan if first_too_fast is None else first_too_fast,
+        ends,
+        t_starts,
+        t_ends,
+        k,
+        prev,
+        base,
+        not tl.line_errors,  # frames begun in an earlier read, too (see rtu_scan)
+        held.start,
+        held.end,
+        held.t_start,
+        held.t_end,
+        framer.lengths.rule_bytes,
+        True,  # the search where the fast paths cannot decide, and noise, too
+        tl.boundaries,
+        framer.noise_start,
+        framer.pending_echo,
+        framer.echo_band,
+    )
+    framer.pos = pos
+    framer.scan_end = end
+    tl.last_end = None if math.isnan(last_end) else last_end
+    tl.first_too_fast = None if math.isnan(first_too_fast) else first_too_fast
+    if spans:
+        tl.spans.extend([_Span(*span) for span in spans])
+        tl.starts.extend([span[0] for span in spans])
+        tl.boundaries.extend(boundaries)
+    keep0 = True
+    if noise_rows:
+        # its noise rows (unit 0 in the column) leave the units seen as _emit_noise does
+        framer.flush()
+        keep0 = unit0 or 0 in framer.units_seen
+    if offsets:
+        out.offset.frombytes(offsets)
+        out.length.frombytes(lengths)
+        out.t.frombytes(times)
+        out.t_end.frombytes(time_ends)
+        out.kind.frombytes(kinds)
+        out.unit.frombytes(units)
+        out.fc.frombytes(codes)
+    if pairs:
+        framer.pairs.frombytes(pairs)
+    if not keep0:
+        framer.flush()
+        framer.units_seen.discard(0)
+    if reads is not None and len(tl.spans) > 64:
+        tl.forget_before(framer.decided())
+    return slow, k, prev, end
 
 
 class RtuFramer(_Framer):
@@ -407,9 +549,12 @@ class RtuFramer(_Framer):
             # the open request, as locals: written back before every slow-path call
             pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
             pfx = pf | 0x80
-            # an echoed answer (FC 5, 6, 8) is the request's own bytes again: after this
-            # time they are the master's retry, not the answer (inf for every other code)
+            # an echoed answer (FC 5, 6, 8, 21, 22) is the request's own bytes again: after
+            # this time they are the master's retry, not the answer (inf for every other
+            # code); from `band` before it, only bytes that repeat the request (`pe`) are
+            # (a wait this near the timeout is told by what the frame says, not by when)
             pdl = self.pending_deadline
+            pe, band = self.pending_echo, self.echo_band
             while slow and end - pos >= MIN_RTU:
                 unit = buf[pos]
                 fc = buf[pos + 1]
@@ -419,7 +564,7 @@ class RtuFramer(_Framer):
                         if pos >= cur_start
                         else tl.start_time(pos)
                     )
-                    if t0 > pdl:
+                    if t0 > pdl or (t0 > pdl - band and not_its_echo(buf, pos, end, pe)):
                         pu = -1  # the wait is over
                 # fast path 1: the answer the open request predicts, or its exception
                 # (two comparisons, not `in (pf, pfx)`: that builds a tuple, which the GC counts)
@@ -476,6 +621,7 @@ class RtuFramer(_Framer):
                             a_fc(fc)
                             pr = pu = -1
                             pdl = INF
+                            pe = -1
                             if unit:  # a broadcast gets no answer
                                 pr = row
                                 ap = answer_pos[fc]
@@ -491,6 +637,7 @@ class RtuFramer(_Framer):
                                 elif ap == ECHO:
                                     pu, pf, pfx, pl = unit, fc, fc | 0x80, length
                                     pdl = t0 + length * cur_rate + timeout
+                                    pe = echo_key(buf, pos, fc)
                                 elif ap == WALKED:
                                     walked = self.lengths.predict(buf, pos, length, fc)
                                     if walked is not None:
@@ -503,8 +650,9 @@ class RtuFramer(_Framer):
                 self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
                 self.pending_row = pr
                 self.pending_deadline = pdl
+                self.pending_echo = pe
                 found, kind, waiting = self.lengths.candidates(
-                    buf, pos, end, unit, fc, final, pu, pf, pl, pdl
+                    buf, pos, end, unit, fc, final, pu, pf, pl, pdl, band, pe
                 )
                 if not found and waiting:
                     break
@@ -525,6 +673,7 @@ class RtuFramer(_Framer):
                 pu, pf, pl = self.pending_unit, self.pending_fc, self.pending_len
                 pfx = pf | 0x80
                 pdl = self.pending_deadline
+                pe = self.pending_echo
                 pr = self.pending_row
                 row = len(out.t)
                 inline = not exact
@@ -532,6 +681,7 @@ class RtuFramer(_Framer):
             self.pending_unit, self.pending_fc, self.pending_len = pu, pf, pl
             self.pending_row = pr
             self.pending_deadline = pdl
+            self.pending_echo = pe
             if final:
                 if end > pos and self.noise_start < 0:
                     self.noise_start = pos
@@ -545,137 +695,8 @@ class RtuFramer(_Framer):
             if len(tl.spans) > 64:
                 tl.forget_before(self.decided())
 
-    def _fast_scan(
-        self,
-        fast: Any,
-        buf: bytearray,
-        final: bool,
-        end: int,
-        reads: Reads | None,
-        k: int,
-        prev: int,
-        base: int,
-    ) -> tuple[bool, int, int, int]:
-        """Run the compiled fast paths (`sniffer._core.rtu_scan`): from `self.pos` to
-        `end`, or over the reads of the batch from read `k` on (`prev`: the end of read
-        k - 1 in the batch), adding each to the timeline. What they found goes into the
-        store, the pairs and the framer's and timeline's state, as the loop in
-        `_scan_bytes` would have left them, the noise span it may leave under way
-        (`self.noise_start`) among them. Returns whether the slow path must decide at
-        `self.pos`, the next read, the end of the last read added, and the scan's end."""
-        tl = self.timeline
-        out = self.out
-        last_end = tl.last_end
-        first_too_fast = tl.first_too_fast
-        # the read holding the first undecided byte (noise under way, if any), when older
-        # than the newest read: a frame or noise begun there is timed by it (see rtu_scan)
-        first = self.decided()
-        held = tl._span(first) if tl.spans and first < tl.cur_start else _NO_SPAN
-        if reads is not None:
-            ends, t_starts, t_ends = reads.ends, reads.t_starts, reads.t_ends
-        else:
-            ends, t_starts, t_ends = _NO_READS
-        (
-            slow,
-            pos,
-            k,
-            prev,
-            end,
-            self.pending_unit,
-            self.pending_fc,
-            self.pending_len,
-            self.pending_deadline,
-            self.pending_row,
-            _row,
-            offsets,
-            lengths,
-            times,
-            time_ends,
-            kinds,
-            units,
-            codes,
-            pairs,
-            tl.cur_start,
-            tl.cur_t0,
-            tl.cur_rate,
-            tl.offset,
-            last_end,
-            tl.too_fast,
-            first_too_fast,
-            spans,
-            boundaries,
-            self.noise_start,
-            noise_rows,
-            unit0,
-        ) = fast.rtu_scan(
-            buf,
-            self.lengths.table_bytes,
-            self.pos,
-            end,
-            final,
-            reads is not None,
-            self.pending_unit,
-            self.pending_fc,
-            self.pending_len,
-            self.pending_deadline,
-            self.pending_row if self.pair_inline else -1,
-            len(out.t),
-            self.timeout,
-            tl.cur_start,
-            tl.cur_t0,
-            tl.cur_rate,
-            tl.offset,
-            math.nan if last_end is None else last_end,
-            tl.slack,
-            tl.char,
-            tl.t35,
-            tl.too_fast,
-            math.nan if first_too_fast is None else first_too_fast,
-            ends,
-            t_starts,
-            t_ends,
-            k,
-            prev,
-            base,
-            not tl.line_errors,  # frames begun in an earlier read, too (see rtu_scan)
-            held.start,
-            held.end,
-            held.t_start,
-            held.t_end,
-            self.lengths.rule_bytes,
-            True,  # the search where the fast paths cannot decide, and noise, too
-            tl.boundaries,
-            self.noise_start,
-        )
-        self.pos = pos
-        self.scan_end = end
-        tl.last_end = None if math.isnan(last_end) else last_end
-        tl.first_too_fast = None if math.isnan(first_too_fast) else first_too_fast
-        if spans:
-            tl.spans.extend([_Span(*span) for span in spans])
-            tl.starts.extend([span[0] for span in spans])
-            tl.boundaries.extend(boundaries)
-        keep0 = True
-        if noise_rows:
-            # its noise rows (unit 0 in the column) leave the units seen as _emit_noise does
-            self.flush()
-            keep0 = unit0 or 0 in self.units_seen
-        if offsets:
-            out.offset.frombytes(offsets)
-            out.length.frombytes(lengths)
-            out.t.frombytes(times)
-            out.t_end.frombytes(time_ends)
-            out.kind.frombytes(kinds)
-            out.unit.frombytes(units)
-            out.fc.frombytes(codes)
-        if pairs:
-            self.pairs.frombytes(pairs)
-        if not keep0:
-            self.flush()
-            self.units_seen.discard(0)
-        if reads is not None and len(tl.spans) > 64:
-            tl.forget_before(self.decided())
-        return slow, k, prev, end
+    # the compiled fast paths over the bytes or reads (see `_compiled_scan`)
+    _fast_scan = _compiled_scan
 
     def flush(self) -> None:
         """Complete the rows the fast path appended and record the pairs it found."""
@@ -702,12 +723,14 @@ class RtuFramer(_Framer):
         if kind == Kind.REQUEST:
             self.pending_unit = -1
             self.pending_deadline = INF
+            self.pending_echo = -1
             predicted = self.lengths.predict(buf, pos, length, fc) if unit != 0 else None
             if predicted is not None and MIN_RTU <= predicted <= MAX_RTU:
                 self.pending_unit, self.pending_fc, self.pending_len = unit, fc, predicted
                 if self.lengths.answer_pos[fc] == ECHO:  # from its start, as the fast path
                     start = self.timeline.start_time(pos)
                     self.pending_deadline = start + length * self.timeline.char + self.timeout
+                    self.pending_echo = echo_key(buf, pos, fc)
         elif kind in (Kind.RESPONSE, Kind.EXCEPTION) and unit == self.pending_unit:
             self.pending_unit = -1
         self.units_seen.add(unit)
@@ -957,8 +980,14 @@ class AsciiFramer(_Framer):
         timeout."""
         unit, fc = body[0], body[1]
         length = len(body) - 1 + 2  # as if it were an RTU frame with its CRC
-        if self.pending_unit >= 0 and t0 - self.pending_end > self.timeout:
-            self.pending_unit = -1  # the open request timed out
+        if self.pending_unit >= 0:
+            waited = t0 - self.pending_end
+            if waited > self.timeout or (
+                waited > self.timeout - self.echo_band
+                and (unit, fc) == (self.pending_unit, self.pending_fc)
+                and not_its_echo(body, 0, len(body), self.pending_echo)
+            ):
+                self.pending_unit = -1  # the open request timed out (see RtuFramer)
         awaited = unit == self.pending_unit and (fc & 0x7F) == self.pending_fc
         if fc & 0x80:
             kind = int(Kind.EXCEPTION)
@@ -978,6 +1007,7 @@ class AsciiFramer(_Framer):
             self.pending_unit, self.pending_fc = (unit, fc) if unit else (-1, -1)
             self.pending_len = self._answer_length(body, fc)
             self.pending_end = t1
+            self.pending_echo = echo_key(body, 0, fc)
         elif awaited:
             self.pending_unit = -1
         return kind
