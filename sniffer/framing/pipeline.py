@@ -113,11 +113,10 @@ class Pipeline:
             timeout = default_timeout(line)
         if stamps == Stamp.NONE:
             timeout = float("inf")  # no time to measure a wait by: only order counts
-        elif stamps != Stamp.EXACT:
-            # a clock of resolution r puts up to r between stamps of one instant: only a
-            # wait longer than the timeout by r shows a timeout (a 1 s clock, as in evcc
-            # and CAS logs, cannot show a 0.5 s timeout)
-            timeout += resolution
+        # (a clock of resolution r puts up to r between stamps of one instant: only a wait
+        # longer than the timeout by r shows a timeout, `Pairer.judged`, as the framer's
+        # wait for an echo; the timeout itself stays what the master waits, which the
+        # timing line, the doctor and `replay --mqtt` name)
         self.pairer = Pairer(self.store, timeout, self.registry.answered_broadcasts)
         self.mode: str | None = None if line.mode == "auto" else line.mode
         self.channels: dict[int, _Channel] = {}

@@ -111,6 +111,13 @@ def test_evcc_rtu_frames_pair_and_the_silent_read_times_out() -> None:
     ]
     # one-second print times give no latency value: at most a bound in whole seconds
     assert only_second_bounds(session.store)
+    # the response timeout is the master's (0.2 s and 256 characters at 9600 baud), and
+    # the wait judged by the clock that plus the one second the prints may be off, once
+    assert session.pipeline.pairer.timeout == pytest.approx(0.2 + 256 * 10 / 9600)  # 8N1: 10 bits
+    assert session.pipeline.pairer.judged == pytest.approx(session.pipeline.pairer.timeout + 1)
+    assert "only past 1.47 s (the 467 ms response timeout plus the resolution)" in (
+        session.stats.timing_line()
+    )
 
 
 def test_an_early_event_keeps_its_place_while_the_mode_is_being_told(tmp_path: Path) -> None:
