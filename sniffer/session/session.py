@@ -375,7 +375,8 @@ class Session:
                 segment(self)  # every row, or (windowed) the last block's
             return
         if not len(self.store) and self.pipeline.clock.learning:
-            chunks = self.learn_stamps(chunks)
+            with batching(self.batch_reads):  # (a reader tells at its first chunk)
+                chunks = self.learn_stamps(chunks)
         last = time.monotonic()
         done = 0
         writer = None

@@ -23,7 +23,7 @@ from sniffer.session.index import DamagedError
 from sniffer.session.paged import PagedStore
 from sniffer.session.session import Session
 from sniffer.sources.procio import bytes_read
-from sniffer.sources.reads import Reads
+from sniffer.sources.reads import Reads, batching
 
 
 class LiveSource(Protocol):
@@ -247,7 +247,8 @@ def feed_capture(
         if pacing.speed is not None and session.pipeline.clock.learning:
             # the stamps measured from the file before the pace holds them back (a
             # replay at the original speed would else show nothing while the clock learns)
-            chunks = session.learn_stamps(chunks)
+            with batching(session.batch_reads):  # (as ingest reads them)
+                chunks = session.learn_stamps(chunks)
         session.ingest(
             pacing.pace(chunks),
             progress,
