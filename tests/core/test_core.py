@@ -204,30 +204,39 @@ def _cut(
     return reads
 
 
-@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(
-    seed=st.integers(0, 10**6),
-    n=st.integers(1, 120),
-    mix=st.sampled_from([["read"], KINDS, ["read", "echo", "exception", "broadcast", "write"]]),
-    cuts=st.one_of(st.just([0]), st.lists(st.integers(1, 90), min_size=1, max_size=50)),
-    lag=st.sampled_from([0.0, 0.0, 0.004, 0.05]),
-    batched=st.booleans(),
-    shape=st.sampled_from(SHAPES),
+# a recording of random traffic (`_traffic`, cut into reads by `_cut`) in one of the
+# SHAPES, and whether its reads are handed over in batches (`_random_recording`)
+RANDOM_RECORDING = st.fixed_dictionaries(
+    {
+        "seed": st.integers(0, 10**6),
+        "n": st.integers(1, 120),
+        "mix": st.sampled_from(
+            [["read"], KINDS, ["read", "echo", "exception", "broadcast", "write"]]
+        ),
+        "cuts": st.one_of(st.just([0]), st.lists(st.integers(1, 90), min_size=1, max_size=50)),
+        "lag": st.sampled_from([0.0, 0.0, 0.004, 0.05]),
+        "batched": st.booleans(),
+        "shape": st.sampled_from(SHAPES),
+    }
 )
+
+
+def _random_recording(path: Path, case: dict[str, Any]) -> bool:
+    """The recording `case` (drawn from RANDOM_RECORDING) written to `path`; whether
+    its reads are to be batched."""
+    frames = _traffic(case["seed"], case["n"], case["mix"])
+    _recording(path, _cut(frames, case["cuts"], case["lag"]), case["shape"])
+    return bool(case["batched"])
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=RANDOM_RECORDING)
 def test_random_traffic_is_the_same_with_either_core(
-    tmp_path_factory: pytest.TempPathFactory,
-    seed: int,
-    n: int,
-    mix: list[str],
-    cuts: list[int],
-    lag: float,
-    batched: bool,
-    shape: str,
+    tmp_path_factory: pytest.TempPathFactory, case: dict[str, Any]
 ) -> None:
     fast = _compiled()
     path = tmp_path_factory.mktemp("core") / "r.pcapng"
-    _recording(path, _cut(_traffic(seed, n, mix), cuts, lag), shape)
-    _assert_same(path, fast, batched)
+    _assert_same(path, fast, _random_recording(path, case))
 
 
 def test_reads_split_at_every_position_are_the_same_with_either_core(

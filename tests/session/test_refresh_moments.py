@@ -14,20 +14,20 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from sniffer.model import Chunk
 from sniffer.outputs.mqtt.publish import BusPublisher, PublisherOptions, publish_replay
 from sniffer.outputs.mqtt.target import parse_target
 from sniffer.session.session import Session, open_session
 from sniffer.sources.reads import Reads
-from tests.core.test_core import _cut, _traffic
+from tests.core.test_core import RANDOM_RECORDING, _cut, _random_recording, _traffic
 from tests.outputs.test_ha_discovery import KeepingLink
 from tests.support.core import KINDS
-from tests.support.reads import COLUMNS, SHAPES, _recording
+from tests.support.reads import COLUMNS, _recording
 
 MIXES = [["read"], KINDS, ["read", "echo", "exception", "broadcast", "write"]]
 
@@ -66,28 +66,12 @@ def test_the_capture_ci_found_counts_alike_however_often_it_is_refreshed(
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(
-    seed=st.integers(0, 10**6),
-    n=st.integers(1, 120),
-    mix=st.sampled_from(MIXES),
-    cuts=st.one_of(st.just([0]), st.lists(st.integers(1, 90), min_size=1, max_size=50)),
-    lag=st.sampled_from([0.0, 0.004, 0.05]),
-    batched=st.booleans(),
-    shape=st.sampled_from(SHAPES),
-)
+@given(case=RANDOM_RECORDING)
 def test_random_traffic_counts_alike_however_often_it_is_refreshed(
-    tmp_path_factory: pytest.TempPathFactory,
-    seed: int,
-    n: int,
-    mix: list[str],
-    cuts: list[int],
-    lag: float,
-    batched: bool,
-    shape: str,
+    tmp_path_factory: pytest.TempPathFactory, case: dict[str, Any]
 ) -> None:
     path = tmp_path_factory.mktemp("moments") / "r.pcapng"
-    _recording(path, _cut(_traffic(seed, n, mix), cuts, lag), shape)
-    _assert_alike(path, batched)
+    _assert_alike(path, _random_recording(path, case))
 
 
 def _published(path: Path, every: float) -> dict[str, list[bytes | str]]:
