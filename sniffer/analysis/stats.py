@@ -357,6 +357,11 @@ class Stats:
         # the response timeout and what the resolution was measured from (the session's)
         self.timeout: float | None = None
         self.clock: StampClock | None = None
+        # answers counted while the clock still learnt the stamps' resolution (live: the
+        # first reads), each (unit, its wait, its request's length in time): whether the
+        # wait is a latency, a bound or neither is told once the resolution is
+        # (`_judge_waiting`), as a replay, which measures it first, tells every answer's
+        self._unjudged: list[tuple[int, float, float]] = []
 
     def bound(self, spill: Spill | None = None) -> None:
         """Keep each unit's latencies and request times in the bounded form (`Tallies`)
@@ -394,11 +399,14 @@ class Stats:
                 self._open.discard(i)
                 if s.status[i] == TIMEOUT:
                     self.unit(s.unit[i]).timeouts += 1
+        learning = self.clock is not None and self.clock.learning
+        if self._unjudged and not learning:
+            self._judge_waiting()
         start, n = self.next, len(s)
         if start >= n:
             return
         fast = core.FAST
-        if fast is not None and s.stamps is not Stamp.PRINT:
+        if fast is not None and s.stamps is not Stamp.PRINT and not learning:
             # (print times: each latency's bound depends on its request's length too,
             # which the compiled scan does not look at; logs are short)
             self._fast_update(fast, start, n)
@@ -429,7 +437,7 @@ class Stats:
             for u, count in Counter(compress(units, classes.translate(_IS_BAD_FRAME))).items():
                 self.units[u].check_errors += count
         self._requests(start, n, units, classes.translate(_IS_REQUEST))
-        self._answers(start, n, units, classes.translate(_IS_ANSWER))
+        self._answers(start, n, units, classes.translate(_IS_ANSWER), learning)
         self.next = n
 
     def _fast_update(self, fast: Any, start: int, n: int) -> None:
@@ -496,9 +504,11 @@ class Stats:
             rows = compress(range(start, n), mask)
             self._open.update(compress(rows, states.translate(_IS_OPEN)))
 
-    def _answers(self, start: int, n: int, units: bytes, mask: bytes) -> None:
+    def _answers(
+        self, start: int, n: int, units: bytes, mask: bytes, learning: bool = False
+    ) -> None:
         """Count the answers with a good check among rows `start`..`n` (`mask`), their
-        exceptions and latencies."""
+        exceptions and latencies (`learning`: their waits kept to be judged later)."""
         s = self.store
         answering = bytes(compress(units, mask))
         if not answering:
@@ -520,6 +530,26 @@ class Stats:
         # row i answers row j: t[i] - t_end[j], as pairing.latency; then sorted out as
         # pairing.measure does: a value (kept), or not (a bound or unknown)
         raw = list(map(sub, times, map(s.t_end.__getitem__, partners)))
+        lengths = (
+            [s.t_end[j] - s.t[j] for j in partners] if learning or s.stamps is Stamp.PRINT else []
+        )
+        if learning:
+            self._unjudged.extend(zip(answering, raw, lengths, strict=True))
+            return
+        self._judge(answering, raw, lengths)
+
+    def _judge_waiting(self) -> None:
+        """Judge the waits of the answers counted while the clock learnt, in order."""
+        waiting, self._unjudged = self._unjudged, []
+        units = bytes(u for u, _, _ in waiting)
+        self._judge(units, [x for _, x, _ in waiting], [d for _, _, d in waiting])
+
+    def _judge(self, answering: bytes, raw: list[float], lengths: list[float]) -> None:
+        """Each answer's wait (`raw`, unit by unit in `answering`), with the store's
+        resolution: a latency kept, or a bound, or unknown (`lengths`: the requests'
+        lengths in time, for print times)."""
+        s = self.store
+        stats = self.units
         resolution = s.resolution
         if s.stamps in (Stamp.NONE, Stamp.PRINT) or not resolution < INF:
             kept = [False] * len(raw)
@@ -528,8 +558,8 @@ class Stats:
             kept = list(map(not_, map(lt, raw, repeat(threshold))))  # NaN: kept
         if s.stamps is Stamp.PRINT and resolution < INF:
             # a print time's latency is a bound, unless the prints came too close
-            for u, j, x in zip(answering, partners, raw, strict=True):
-                told = judge(x, resolution, Stamp.PRINT, s.t_end[j] - s.t[j])
+            for u, length, x in zip(answering, lengths, raw, strict=True):
+                told = judge(x, resolution, Stamp.PRINT, length)
                 if told is None:
                     stats[u].unmeasured += 1
                 else:
@@ -615,6 +645,11 @@ class Stats:
             text += f"; {unmeasured} latency(ies) the stamps cannot give"
         if below or unmeasured:
             text += ", left out of the latency columns"
+        if self._unjudged:
+            text += (
+                f"; {len(self._unjudged)} answer(s) wait until the stamps' resolution is "
+                "measured, to be shown as latencies or bounds"
+            )
         return text
 
 

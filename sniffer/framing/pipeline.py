@@ -319,6 +319,9 @@ class Pipeline:
                 tl = getattr(ch.framer, "timeline", None)  # (a serial framer's)
                 if tl is not None:  # stamps this coarse are not too close
                     tl.slack = max(tl.slack, resolution)
+                if ch.framer is not None:  # the wait for an answer, as `_start_framer` sets it
+                    ch.framer.timeout = self.pairer.timeout + resolution
+                    ch.framer.echo_band = resolution
 
     def read_stamps_as(self, stamps: Stamp, reading: str) -> None:
         """Per-frame stamps turned out to mark the other end of each frame (before any

@@ -1460,6 +1460,8 @@ class _Filling:
         for ch, label in header["channels"].items():
             capture.info.channels.setdefault(int(ch), str(label))
         state.annotator.update(state.store)  # all rows, or those after the last block
+        # (the stamps were measured when the sidecar was written: nothing waits for them)
+        state.pipeline.clock.learning = False
         _restore_stats(state, header["stats"], tail, n)
 
     def undo(self) -> None:

@@ -161,6 +161,9 @@ class Session:
 
     def finish(self) -> None:
         self.pipeline.finish()
+        # every stamp there will be was seen: the answers counted while the clock learnt
+        # are judged now, with what it measured (`Stats._unjudged`)
+        self.pipeline.clock.learning = False
         self.refresh()
         self._place_contradiction()
         # what the source's labels and stamps turned out to be worth, said once

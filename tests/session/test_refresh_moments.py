@@ -23,7 +23,7 @@ from sniffer.model import Chunk
 from sniffer.outputs.mqtt.publish import BusPublisher, PublisherOptions, publish_replay
 from sniffer.outputs.mqtt.target import parse_target
 from sniffer.session.session import Session, open_session
-from sniffer.sources.reads import Reads
+from sniffer.sources.reads import Reads, batching
 from tests.core.test_core import RANDOM_RECORDING, _cut, _random_recording, _traffic
 from tests.outputs.test_ha_discovery import KeepingLink
 from tests.support.core import KINDS
@@ -143,3 +143,36 @@ def test_a_replay_measuring_its_stamps_still_reads_them_in_batches(tmp_path: Pat
         stores.append(session.store)
     for name in COLUMNS:
         assert getattr(stores[0], name) == getattr(stores[1], name), name
+
+
+@pytest.mark.parametrize(
+    ("seed", "n", "cuts", "learns"),
+    [
+        # the capture CI found: too few reads for the clock, judged at the end
+        (215, 47, [12, 5, 12, 68, 69, 5, 42, 6, 38, 37, 74, 52, 79], False),
+        # enough reads: judged as the clock stops learning, counted as they come after
+        (3, 400, [16], True),
+    ],
+)
+def test_a_live_session_judges_its_first_answers_once_the_clock_has_learnt(
+    tmp_path: Path, seed: int, n: int, cuts: list[int], learns: bool
+) -> None:
+    """Live, the rows come before the stamps' resolution is measured (the first 64
+    reads): the answers counted then wait, said in the timing line, and are judged once
+    it is, so that the table ends as a replay's, which measures the stamps first."""
+    path = tmp_path / "r.pcapng"
+    _recording(path, _cut(_traffic(seed, n, MIXES[2]), cuts, 0.05), "pcapng 147")
+    live, capture = open_session(path, index=False)
+    said: list[str] = []
+    with batching(False):
+        for chunk in capture.chunks():
+            live.feed(chunk)
+            live.refresh()  # as a live capture does after each pump
+            if live.pipeline.clock.learning:
+                said.append(live.stats.timing_line())
+    waiting = "answer(s) wait until the stamps' resolution is measured"
+    assert any(waiting in line for line in said)
+    assert live.pipeline.clock.learning is not learns
+    live.finish()
+    assert waiting not in live.stats.timing_line()
+    assert live.stats.table() == _replayed(path, float("inf"), False).stats.table()
