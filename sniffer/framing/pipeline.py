@@ -147,10 +147,8 @@ class Pipeline:
             return
         if self._held:
             self._frame_held()
-        if self.clock.learning and chunk.data:
-            self.clock.note(chunk.t_end)
-            if self.clock.due:
-                self.measure_stamps()
+        if self.clock.learning:
+            self.note_stamps(chunk)
         if self._frame_starts and chunk.data and chunk.t_start is None:
             # the stamp is when the frame began: it ends when its bytes are through
             end = chunk.t_end + len(chunk.data) * self.line.char_time
@@ -236,14 +234,8 @@ class Pipeline:
             for chunk in reads.split():
                 self.feed(chunk)
             return
-        clock = self.clock
-        if clock.learning:
-            for t in reads.t_ends:
-                clock.note(t)
-                if not clock.learning:
-                    break  # measured enough here, as it would be read by read
-            if clock.due:
-                self.measure_stamps()
+        if self.clock.learning:
+            self.note_stamps(reads)
         ch.fed += len(reads.data)
         ch.last_t = reads.t_end
         # framed with the batches before it: the framer frames a batch read by read,
@@ -266,6 +258,20 @@ class Pipeline:
         ch.framer.feed_reads(held[0] if len(held) == 1 else _joined(held))
         if ch.events:
             self._settle_events(ch)
+
+    def note_stamps(self, chunk: Chunk) -> None:
+        """The clock notes the chunk's stamp (each read's, for a batch: as it would read
+        by read) while it learns, and measures again when that is due."""
+        clock = self.clock
+        if isinstance(chunk, Reads):
+            for t in chunk.t_ends:
+                clock.note(t)
+                if not clock.learning:
+                    break  # measured enough here, as it would be read by read
+        elif chunk.data and clock.learning:
+            clock.note(chunk.t_end)
+        if clock.due:
+            self.measure_stamps()
 
     def feed_all(self, chunks: Iterable[Chunk]) -> None:
         for chunk in chunks:
@@ -314,14 +320,20 @@ class Pipeline:
         """The stamps' resolution, measured again from those seen since (the clock's
         step, the host reads' rhythm and lateness), into the store."""
         if self.clock.update():
-            resolution = self.store.resolution = self.clock.resolution
+            self.store.resolution = self.clock.resolution
             for ch in self.channels.values():
-                tl = getattr(ch.framer, "timeline", None)  # (a serial framer's)
-                if tl is not None:  # stamps this coarse are not too close
-                    tl.slack = max(tl.slack, resolution)
-                if ch.framer is not None:  # the wait for an answer, as `_start_framer` sets it
-                    ch.framer.timeout = self.pairer.timeout + resolution
-                    ch.framer.echo_band = resolution
+                if isinstance(ch.framer, (RtuFramer, AsciiFramer)):  # (a serial framer)
+                    self._time_framer(ch.framer)
+
+    def _time_framer(self, framer: Framer) -> None:
+        """What a serial framer takes from the stamps' resolution (the store's): stamps
+        that coarse are not too close, and the wait for an answer is the timeout plus it
+        (the wait the row times show as overdue), its last stretch told by an echo's
+        bytes."""
+        resolution = self.store.resolution
+        framer.timeline.slack = max(framer.timeline.slack, resolution)
+        framer.timeout = self.pairer.timeout + resolution
+        framer.echo_band = resolution
 
     def read_stamps_as(self, stamps: Stamp, reading: str) -> None:
         """Per-frame stamps turned out to mark the other end of each frame (before any
@@ -459,10 +471,7 @@ class Pipeline:
         )
         if isinstance(ch.framer, RtuFramer):
             ch.framer.pair_inline = ch.staging is None
-        # (the wait the row times show as overdue: the timeout plus their resolution)
-        ch.framer.timeout = self.pairer.timeout + self.store.resolution
-        ch.framer.echo_band = self.store.resolution  # (then an echo is told by its bytes)
-        ch.framer.timeline.slack = max(ch.framer.timeline.slack, self.store.resolution)
+        self._time_framer(ch.framer)
         held, ch.held = ch.held or [], None
         for old in held:
             if old.event and not old.data:

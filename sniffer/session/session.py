@@ -278,17 +278,13 @@ class Session:
         it = iter(chunks)
         pipeline, store = self.pipeline, self.store
         clock = pipeline.clock
+        if not clock.learning:  # (measured already: a sidecar read back, a second call)
+            return it
         first: list[Chunk] = []
         for chunk in it:
             first.append(chunk)
             if clock.learning:
-                if isinstance(chunk, Reads):
-                    for t in chunk.t_ends:  # each read, as Pipeline.feed notes them
-                        clock.note(t)
-                        if not clock.learning:
-                            break
-                elif chunk.data:
-                    clock.note(chunk.t_end)
+                pipeline.note_stamps(chunk)
             if not clock.learning and len(first) >= READING_CHUNKS:
                 break
         clock.learning = False  # (the capture's every stamp noted, if it ended first)
@@ -377,7 +373,7 @@ class Session:
             if segment is not None:
                 segment(self)  # every row, or (windowed) the last block's
             return
-        if not len(self.store) and self.pipeline.clock.learning:
+        if not len(self.store):
             with batching(self.batch_reads):  # (a reader tells at its first chunk)
                 chunks = self.learn_stamps(chunks)
         last = time.monotonic()

@@ -244,7 +244,7 @@ def feed_capture(
             "opened": opened,
         }
     try:
-        if pacing.speed is not None and session.pipeline.clock.learning:
+        if pacing.speed is not None:
             # the stamps measured from the file before the pace holds them back (a
             # replay at the original speed would else show nothing while the clock learns)
             with batching(session.batch_reads):  # (as ingest reads them)

@@ -679,11 +679,10 @@ def publish_replay(
         if segment is not None:
             segment(session)
 
-    if session.pipeline.clock.learning:
-        # the stamps measured before any row is published, so that every latency and
-        # timeout published is judged as the whole capture's are (and at once, not
-        # over the seconds a replay at the original speed would take)
-        chunks = session.learn_stamps(chunks)
+    # the stamps measured before any row is published, so that every latency and
+    # timeout published is judged as the whole capture's are (and at once, not over the
+    # seconds a replay at the original speed would take)
+    chunks = session.learn_stamps(chunks)
     for chunk in chunks:
         if original_speed:
             if first is None:
