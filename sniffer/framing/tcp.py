@@ -55,7 +55,7 @@ from sniffer.framing.lengths import MAX_RTU, MIN_RTU
 from sniffer.framing.pipeline import Pipeline, _Channel
 from sniffer.framing.serial import MAX_NOISE, RtuFramer
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.model import Chunk, Direction, LineSettings, Stamp
+from sniffer.model import Chunk, Direction, LineSettings
 from sniffer.sources.net.carrier import MBAP_CARRIERS, parse_label
 from sniffer.sources.net.decoder import REUSED
 from sniffer.sources.net.tcp import CONNECTION, GAP
@@ -321,7 +321,7 @@ class NetPairer:
 
     def __init__(self, store: FrameStore, timeout: float) -> None:
         self.store = store
-        self.timeout = timeout
+        self.timeout = timeout  # what the client waits
         self.end_time = float("-inf")
         self.next = 0
         # Modbus TCP: (connection, transaction id) -> requests waiting, oldest first
@@ -439,13 +439,20 @@ class NetPairer:
         else:
             status = Status.OK
         s.status[req] = s.status[resp] = status
-        if s.t[resp] - s.t_end[req] > self.timeout:
+        if s.t[resp] - s.t_end[req] > self.judged:
             s.flags[resp] |= Flag.LATE
+
+    @property
+    def judged(self) -> float:
+        """The wait past which the row times show an answer overdue (`Pairer.judged`):
+        the timeout plus the stamps' resolution."""
+        return self.timeout + self.store.resolution
 
     def _expire(self, now: float) -> None:
         s = self.store
         waiting = self.waiting
-        while waiting and now - s.t_end[waiting[0]] > self.timeout:
+        judged = self.judged
+        while waiting and now - s.t_end[waiting[0]] > judged:
             req = waiting.popleft()
             if s.status[req] == Status.OPEN and s.partner[req] == NO_PARTNER:
                 self._time_out(req)
@@ -506,8 +513,8 @@ class NetPipeline(Pipeline):
         super().__init__(line, store, timeout=timeout, **options)
         self.channel_labels = channels
         wait = timeout if timeout is not None else TCP_TIMEOUT
-        if self.stamps != Stamp.EXACT:
-            wait += self.store.resolution  # a coarse clock shows no shorter wait (Pipeline)
+        # (judged one resolution later, `NetPairer.judged`: a coarse clock shows no shorter
+        # wait; the timeout itself stays what the client waits, which the timing line names)
         self.pairer = NetPairer(self.store, wait)  # type: ignore[assignment]
         self.mode = "rtu"  # RTU over TCP/UDP; Modbus TCP channels get their own framer
         self.units: dict[int, set[int]] = {}  # units seen on each RTU connection
@@ -576,7 +583,7 @@ class NetPipeline(Pipeline):
                 self.line, out, channel=ch.number, direction=ch.direction, functions=self.registry
             )
             rtu.pair_inline = False  # NetPairer pairs, per connection
-            rtu.timeout = self.pairer.timeout
+            rtu.timeout = self.pairer.judged  # (its wait for an echo, as a serial framer's)
             # a unit one side names is known to the other (a garbled answer to it is a frame)
             rtu.units_seen = self.units.setdefault(ch.number >> 1, rtu.units_seen)
             ch.framer = rtu

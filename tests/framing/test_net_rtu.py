@@ -12,9 +12,10 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
-from sniffer.framing.pairing import measure
+from sniffer.framing.pairing import measure, timing_note
 from sniffer.framing.store import NO_PARTNER, FrameStore
-from sniffer.framing.tcp import NetPipeline
+from sniffer.framing.tcp import TCP_TIMEOUT, NetPipeline
+from sniffer.model import LineSettings, Stamp
 from sniffer.sources import ReadOptions, open_capture
 from sniffer.vocab import Flag, Kind, Status
 from tests.support.netbuild import Conversation, ethernet, ipv4, pcap, udp
@@ -254,3 +255,16 @@ def test_whole_second_stamps_bound_every_latency(tmp_path: Path) -> None:
     assert len(answers) == 600
     told = [measure(store, i) for i in answers]
     assert all(m is None or m.bound for m in told)
+
+
+def test_a_coarse_clock_moves_the_judged_wait_not_the_timeout_it_names() -> None:
+    """Stamps of 1 s: the client's timeout stays the 3 s it waits; only waits past it by
+    the resolution are judged overdue, and the timing line says so once (as a serial
+    line's: `Pairer.judged`)."""
+    line = LineSettings(baud=9600, mode="rtu")
+    pipeline = NetPipeline(line, channels={}, stamps=Stamp.PRINT, resolution=1.0)
+    assert pipeline.pairer.timeout == TCP_TIMEOUT
+    assert pipeline.pairer.judged == TCP_TIMEOUT + 1.0
+    # what `--stats` says of it (`Stats.timing_line`, given the session's pairer timeout)
+    note = timing_note(pipeline.stamps, pipeline.store.resolution, pipeline.pairer.timeout)
+    assert "only past 4 s (the 3 s response timeout plus the resolution)" in note
