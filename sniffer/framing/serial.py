@@ -539,7 +539,10 @@ class RtuFramer(_Framer):
                 end = self.scan_end = base + read_end
                 k += 1
             pos = self.pos
-            # the newest chunk's timing, for the inline time estimate of frames inside it
+            # the newest chunk's timing, for the inline time estimate of frames inside it;
+            # a frame begun in a read before (a read cut it) is timed as the slow path
+            # times it, by the spans of the reads holding its ends, and paired as it is
+            # framed all the same, unless a line error is pending (`_row` flags those)
             cur_start, cur_t0, cur_rate = tl.cur_start, tl.cur_t0, tl.cur_rate
             row = len(out.t)
             pr = self.pending_row if self.pair_inline else -1
@@ -576,17 +579,22 @@ class RtuFramer(_Framer):
                             break  # wait for the rest of it
                     elif (
                         inline
-                        and pos >= cur_start
+                        # begun in this read, or in one before it (see above)
+                        and (pos >= cur_start or not tl.line_errors)
                         # a counted answer whose byte count is not the one its request
                         # asked for goes the slow way (see RtuLengths.candidates)
                         and (fc != pf or answer_pos[pf] < 0 or buf[pos + 2] == pl - 5)
                         and check(buf[pos:stop]) == 0
                     ):
-                        t0 = cur_t0 + (pos - cur_start) * cur_rate
+                        if pos >= cur_start:
+                            t0 = cur_t0 + (pos - cur_start) * cur_rate
+                            t1 = t0 + length * cur_rate
+                        else:
+                            t0, t1 = tl.start_time(pos), tl.end_time(stop - 1)
                         a_off(pos)
                         a_len(length)
                         a_t(t0)
-                        a_te(t0 + length * cur_rate)
+                        a_te(t1)
                         a_kind(2 if fc == pf else 3)  # Kind.RESPONSE, Kind.EXCEPTION
                         a_unit(unit)
                         a_fc(fc)
@@ -610,12 +618,18 @@ class RtuFramer(_Framer):
                         if stop > end:
                             if not final:
                                 break
-                        elif pos >= cur_start and check(buf[pos:stop]) == 0:
-                            t0 = cur_t0 + (pos - cur_start) * cur_rate
+                        elif (pos >= cur_start or not tl.line_errors) and check(buf[pos:stop]) == 0:
+                            if pos >= cur_start:
+                                rate = cur_rate
+                                t0 = cur_t0 + (pos - cur_start) * rate
+                                t1 = t0 + length * rate
+                            else:  # begun in a read before (see above)
+                                rate = tl.char
+                                t0, t1 = tl.start_time(pos), tl.end_time(stop - 1)
                             a_off(pos)
                             a_len(length)
                             a_t(t0)
-                            a_te(t0 + length * cur_rate)
+                            a_te(t1)
                             a_kind(1)  # Kind.REQUEST
                             a_unit(unit)
                             a_fc(fc)
@@ -636,7 +650,7 @@ class RtuFramer(_Framer):
                                     pu, pf, pfx, pl = unit, fc, fc | 0x80, answer_base[fc]
                                 elif ap == ECHO:
                                     pu, pf, pfx, pl = unit, fc, fc | 0x80, length
-                                    pdl = t0 + length * cur_rate + timeout
+                                    pdl = t0 + length * rate + timeout
                                     pe = echo_key(buf, pos, fc)
                                 elif ap == WALKED:
                                     walked = self.lengths.predict(buf, pos, length, fc)

@@ -2,7 +2,7 @@
 mixes (`benchmarks/mixes.py`): random slaves, function codes 1-6, 15 and 16, fresh
 values, exceptions, timeouts, stray bytes, any line format, and reads that cut frames
 anywhere (16 ms reads of a USB adapter, reads of random sizes); and the compiled core
-frames a frame split across reads itself, where the pure-Python core's slow path does.
+frames a frame split across reads itself, as the pure-Python core's fast paths do.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from benchmarks.mixes import Mix, issue_mix, mix_frames, random_mix, write_reads
 from sniffer.framing.lengths import RtuLengths
+from sniffer.framing.serial import _Timeline
 from sniffer.model import LineSettings
 from tests.core.test_core import _assert_same, _ingest
 from tests.support.core import _compiled
@@ -69,46 +70,49 @@ def _clean(reads: str, read_max: int = 0) -> Mix:
     return Mix("clean", 5, line, (1, 2, 9), weights, 0.0, 0.0, 0.0, reads, read_max)
 
 
+def _counter(monkeypatch: pytest.MonkeyPatch, cls: type, name: str) -> list[int]:
+    """Counts the calls of `cls.name` (one item, the count)."""
+    count = [0]
+    method = getattr(cls, name)
+
+    def counted(self: object, *args: object) -> object:
+        count[0] += 1
+        return method(self, *args)
+
+    monkeypatch.setattr(cls, name, counted)
+    return count
+
+
+def _split_and_searched(monkeypatch: pytest.MonkeyPatch) -> tuple[list[int], list[int]]:
+    """Counters of the frames Python times by the reads' spans (`_Timeline.start_time`:
+    a frame begun in an earlier read, framed by its fast paths or its slow path, and any
+    slow-path row) and of its slow path's searches (`RtuLengths.candidates`)."""
+    return (
+        _counter(monkeypatch, _Timeline, "start_time"),
+        _counter(monkeypatch, RtuLengths, "candidates"),
+    )
+
+
 @pytest.mark.parametrize(("reads", "read_max"), [("usb", 0), ("random", 64)])
 def test_the_compiled_core_frames_frames_split_across_reads(
     tmp_path: Path, compiled: ModuleType, monkeypatch: pytest.MonkeyPatch, reads: str, read_max: int
 ) -> None:
     path = _file(tmp_path, _clean(reads, read_max), 2000)
-    searches = 0
-    search = RtuLengths.candidates
-
-    def counted(self: RtuLengths, *args: object) -> tuple[int, int, bool]:
-        nonlocal searches
-        searches += 1
-        return search(self, *args)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(RtuLengths, "candidates", counted)
+    timed, searched = _split_and_searched(monkeypatch)
     pure = _ingest(path, None)
-    split = searches
-    searches = 0
+    split, pure_searches = timed[0], searched[0]
+    timed[0] = searched[0] = 0
     comp = _ingest(path, compiled)
-    # the pure-Python core's fast paths leave a frame begun in an earlier read to the
-    # slow path's search; the compiled core frames those itself, the same rows, all but
-    # a frame begun in a read that is neither the newest before the call nor the one the
-    # scan stood in (three short reads in a row: a few in 2000 frames)
+    # the pure-Python core's fast paths take a frame begun in an earlier read (timed by
+    # the reads' spans) without a search; the compiled core frames those itself, the
+    # same rows, all but a frame begun in a read that is neither the newest before the
+    # call nor the one the scan stood in (three short reads in a row: a few in 2000)
     assert split > 100
-    assert searches * 50 < split
+    assert pure_searches * 50 < split
+    assert (timed[0] + searched[0]) * 50 < split
     assert comp.store.t == pure.store.t
     assert comp.store.partner == pure.store.partner
     assert comp.store.status == pure.store.status
-
-
-def _searches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """A counter of the slow path's searches (`RtuLengths.candidates` calls) in Python."""
-    count = [0]
-    search = RtuLengths.candidates
-
-    def counted(self: RtuLengths, *args: object) -> tuple[int, int, bool]:
-        count[0] += 1
-        return search(self, *args)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(RtuLengths, "candidates", counted)
-    return count
 
 
 @pytest.mark.parametrize("seed", [843779584, 186255415])
@@ -118,17 +122,17 @@ def test_slow_buses_of_many_slaves_keep_their_split_frames_compiled(
     """32 slaves at 38400 baud in 16 ms reads, timeouts among them (two of the
     benchmark's mixes): a read holds a few frames, so about one frame in three is split
     across reads, and a request that times out is followed by a poll that may be of the
-    same unit and code. The compiled core frames those itself (its search, where the
-    fast paths cannot take a frame begun in an earlier read), the rows the same."""
+    same unit and code. The compiled core frames those itself (its fast paths, timing
+    them by the reads' spans, or its search), the rows the same."""
     path = _file(tmp_path, random_mix(seed), 3000)
-    searches = _searches(monkeypatch)
+    timed, searched = _split_and_searched(monkeypatch)
     _ingest(path, None)
-    split = searches[0]
-    searches[0] = 0
+    split = timed[0]
+    before = timed[0] + searched[0]
     _assert_same(path, compiled)
     # _assert_same ran both cores: what the compiled one left to Python is the rest
-    left = searches[0] - split
-    assert split > 500  # the pure-Python core searched at each split frame
+    left = timed[0] + searched[0] - 2 * before
+    assert split > 500  # the pure-Python core timed each split frame by the spans
     assert left * 100 < split
 
 
