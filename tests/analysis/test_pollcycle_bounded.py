@@ -14,10 +14,11 @@ from itertools import accumulate, pairwise, repeat
 from operator import mul
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from dissectors.checks import with_crc
+from sniffer import core
 from sniffer.analysis import pollcycle
 from sniffer.analysis.pollcycle import (
     GAP_FACTOR,
@@ -32,6 +33,7 @@ from sniffer.analysis.stats import nearest_rank
 from sniffer.framing.store import FrameStore
 from sniffer.session.session import DEMO_CAPTURE, replay_file
 from sniffer.vocab import Kind
+from tests.support.core import _compiled
 
 T0 = 1_764_000_000.0  # epoch stamps: their waits are whole multiples of 2**-22 s
 
@@ -298,28 +300,43 @@ def _densified(
 @settings(max_examples=300, deadline=None)
 @given(
     far=st.dictionaries(
-        st.one_of(st.integers(-50, 5000), st.integers(-(2**40), 2**40)),
-        st.integers(0, 1000),
+        st.one_of(
+            st.integers(-50, 5000),
+            st.integers(-(2**40), 2**40),
+            # about a second's wait, either side of one 30-bit digit; past 61 bits
+            st.integers(2**30 - 5000, 2**30 + 5000),
+            st.integers(2**61 - 2, 2**64),
+            st.integers(-(2**64), -(2**61) + 2),
+        ),
+        st.one_of(st.integers(0, 1000), st.integers(2**32 - 2, 2**62)),
         max_size=300,
     ),
     span=st.sampled_from((1, 2, 8, 64, 1024)),
     exact=st.booleans(),
+    compiled=st.booleans(),
 )
-def test_densify_buckets_as_its_reference_does(far: dict[int, int], span: int, exact: bool) -> None:
+def test_densify_buckets_as_its_reference_does(
+    far: dict[int, int], span: int, exact: bool, compiled: bool
+) -> None:
     """The waits kept apart go to the same buckets, the same far ones, with the same
     width and exactness, as the first, key-by-key writing of `densify` puts them:
     negative and huge keys (a clock set back, long gaps), keys of no count, ties at the
-    99th percentile."""
+    99th percentile; with either core (the compiled one hands keys or counts past 61
+    bits, and a bucket past 32, back to Python)."""
     waits = pollcycle._Waits(span=span, exact=exact)
     waits.far.update(far)  # (keys of a count of 0 too)
     want_dense, want_far, want_quantum, want_exact = _densified(
         dict(waits.far), span, waits.quantum, exact
     )
+    assume(max(want_dense, default=0) < 2**32)  # (no core counts past a uint32 bucket)
     pollcycle.FAR, saved = 1 << 30, pollcycle.FAR  # (no coarsening: densify alone)
+    saved_core = core.FAST
+    core.FAST = _compiled() if compiled else None
     try:
         waits.densify()
     finally:
         pollcycle.FAR = saved
+        core.FAST = saved_core
     assert list(waits.dense) == want_dense
     assert dict(waits.far) == want_far
     assert (waits.quantum, waits.exact) == (want_quantum, want_exact)
