@@ -34,6 +34,52 @@ import importlib.util
 import os
 from types import ModuleType
 
+# Every function of the compiled core the Python calls. An extension built from an older
+# sniffer/_core.c (an editable install not rebuilt after a pull) lacks the newer ones: the
+# pure-Python core then runs, saying why, rather than a call failing midway through a
+# capture (tests/core/test_core_constants.py holds this to the module's functions).
+FUNCTIONS = frozenset(
+    {
+        "bounds",
+        "bulk_epbs",
+        "bulk_pcap",
+        "constants",
+        "crc16",
+        "export_moved",
+        "export_rows",
+        "export_table",
+        "join_reads",
+        "listing_floats",
+        "listing_rows",
+        "listing_table",
+        "mask_rows",
+        "pair_rows",
+        "pair_update",
+        "poll_block",
+        "poll_table",
+        "ranked",
+        "rtu_scan",
+        "shift_partners",
+        "stats_scan",
+        "sunspec_rows",
+        "tally_gaps",
+        "tally_latencies",
+        "waits_count",
+        "waits_densify",
+    }
+)
+
+
+def stale(module: ModuleType) -> str:
+    """Why `module` cannot be the compiled core: the functions it lacks ("" if none)."""
+    missing = sorted(FUNCTIONS.difference(dir(module)))
+    if not missing:
+        return ""
+    return (
+        f"the compiled extension is older than the source (it lacks {', '.join(missing)}); "
+        "rebuild it: pip install -e ."
+    )
+
 
 def _load() -> tuple[ModuleType | None, str]:
     if os.environ.get("MODSCOPE_PURE_PYTHON", "") == "1":
@@ -45,7 +91,8 @@ def _load() -> tuple[ModuleType | None, str]:
     except ImportError as exc:
         return None, f"the compiled extension does not load ({exc})"
     module: ModuleType = _core
-    return module, ""
+    why = stale(module)
+    return (None, why) if why else (module, "")
 
 
 # The compiled module, or None for the pure-Python core. The readers and the framer look

@@ -120,3 +120,19 @@ def test_every_number_said_is_held_to_python_here(said: dict[str, Any]) -> None:
         source = f.read()
     unheld = [name for name in said if name not in VOCABULARY and f'"{name}"' not in source]
     assert unheld == []
+
+
+def test_the_functions_the_python_calls_are_the_compiled_cores() -> None:
+    """`sniffer.core.FUNCTIONS` names every function the compiled module has (a new one
+    must be named there, or an extension built before it would be taken for current),
+    and an extension that lacks one is refused, naming it and the fix."""
+    from types import SimpleNamespace
+
+    from sniffer import core
+
+    module = _compiled()
+    assert {n for n in dir(module) if not n.startswith("_")} == core.FUNCTIONS
+    assert core.stale(module) == ""
+    older = SimpleNamespace(**{n: getattr(module, n) for n in core.FUNCTIONS - {"waits_densify"}})
+    why = core.stale(older)  # type: ignore[arg-type]
+    assert "lacks waits_densify" in why and "pip install -e ." in why
