@@ -332,7 +332,7 @@ class Pipeline:
         bytes."""
         resolution = self.store.resolution
         framer.timeline.slack = max(framer.timeline.slack, resolution)
-        framer.timeout = self.pairer.timeout + resolution
+        framer.timeout = self.pairer.judged
         framer.echo_band = resolution
 
     def read_stamps_as(self, stamps: Stamp, reading: str) -> None:
